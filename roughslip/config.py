@@ -1,0 +1,748 @@
+"""Run configuration: TOML schema as frozen dataclasses, validation, ``--set`` overrides.
+
+A configuration is a TOML file with the sections below (every key optional unless marked).
+:func:`load_config` reads it, deep-merges ``--set key=value`` overrides (values parsed as inline
+TOML; a bare word is taken as a string), rejects unknown sections and keys, checks every value
+and returns a frozen :class:`RunConfig`. Every error is a :class:`~roughslip.errors.ConfigError`
+whose message names the file, the dotted key, the value and the rule, e.g.::
+
+    run.toml: material.nu = 0.7: must satisfy -1 < nu <= 0.5
+
+Units: lengths (pixel size, heights, depths, radii, wavelengths) share one unit of your choice;
+``material.E`` sets the stress unit; forces are stress x length².
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import hashlib
+import itertools
+import math
+import re
+import tomllib
+import typing
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import ConfigError
+
+# --------------------------------------------------------------------------------------------
+# Field helpers
+# --------------------------------------------------------------------------------------------
+
+Check = Callable[[Any], str | None]
+
+
+def _f(default: Any = None, doc: str = "", check: Check | None = None, choices=None, **kw):
+    meta = {"doc": doc, "check": check, "choices": tuple(choices) if choices else None}
+    if isinstance(default, list | dict):
+        return field(default_factory=lambda d=default: type(d)(d), metadata=meta, **kw)
+    return field(default=default, metadata=meta, **kw)
+
+
+def _positive(v):
+    return None if v > 0 else "must be > 0"
+
+
+def _nonnegative(v):
+    return None if v >= 0 else "must be >= 0"
+
+
+def _at_least(n):
+    return lambda v: None if v >= n else f"must be >= {n}"
+
+
+def _nu_rule(v):
+    return None if -1.0 < v <= 0.5 else "must satisfy -1 < nu <= 0.5"
+
+
+def _hurst_rule(v):
+    return None if 0.0 < v < 1.0 else "must be in (0, 1)"
+
+
+def _tol_rule(v):
+    return None if 0.0 < v < 1.0 else "must satisfy 0 < tol < 1"
+
+
+def _pair(v):
+    return None if len(v) == 2 else "must be a list of two numbers"
+
+
+# --------------------------------------------------------------------------------------------
+# Sections
+# --------------------------------------------------------------------------------------------
+
+SURFACE_KINDS = ("self-affine", "sphere", "punch", "sinusoid", "plane", "file")
+
+#: keys allowed (and, in the second set, required) for each surface kind
+SURFACE_KEYS: dict[str, tuple[set[str], set[str]]] = {
+    "self-affine": (
+        {"hurst", "rms_height", "rms_slope", "rolloff_wavelength", "cutoff_wavelength",
+         "oversample"},
+        {"hurst"},
+    ),
+    "sphere": ({"radius", "center"}, {"radius"}),
+    "punch": ({"radius", "center", "step"}, {"radius"}),
+    "sinusoid": ({"amplitude", "wavelength", "direction", "phase"}, {"amplitude", "wavelength"}),
+    "plane": ({"slope"}, set()),
+    "file": ({"path", "key", "scale"}, {"path"}),
+}
+
+FIELD_NAMES = ("fz", "uz", "gap", "contact", "fx", "ux", "stick", "pull_curve")
+
+
+@dataclass(frozen=True)
+class GridConfig:
+    """``[grid]``: the pixel grid (x, the pull direction, is the last array axis)."""
+
+    n: int | None = _f(None, "grid side for a square n x n grid", _at_least(1))
+    shape: list[int] | None = _f(
+        None, "[ny, nx] for a rectangular grid", lambda v: _pair(v) or
+        (None if min(v) >= 1 else "both lengths must be >= 1"))
+    pixel_size: float = _f(1.0, "pixel side a (length)", _positive)
+    boundary: str = _f("open", "open: finite patch on a half-space; periodic: repeating grid",
+                       choices=("open", "periodic"))
+    periodic_kernel: str = _f("pixel", "periodic symbol: exact pixel images or continuous",
+                              choices=("pixel", "continuous"))
+
+    @property
+    def resolved_shape(self) -> tuple[int, int] | None:
+        """``(ny, nx)`` or None when the grid comes from a topography file."""
+        if self.shape is not None:
+            return int(self.shape[0]), int(self.shape[1])
+        if self.n is not None:
+            return int(self.n), int(self.n)
+        return None
+
+
+@dataclass(frozen=True)
+class MaterialConfig:
+    """``[material]``: the elastic half-space."""
+
+    E: float = _f(1.0, "Young's modulus (stress unit)", _positive)
+    nu: float = _f(0.3, "Poisson ratio", _nu_rule)
+
+
+@dataclass(frozen=True)
+class SurfaceConfig:
+    """``[surface]`` / ``[elastic_surface]``: a topography.
+
+    Heights protrude toward the other body: the rigid surface's toward the elastic body, the
+    elastic body's own roughness toward the rigid surface (MODEL §1).
+    """
+
+    kind: str = _f(None, "shape", choices=SURFACE_KINDS)
+    # self-affine
+    hurst: float | None = _f(None, "Hurst exponent H", _hurst_rule)
+    rms_height: float | None = _f(None, "rms height (length)", _positive)
+    rms_slope: float | None = _f(None, "rms slope", _positive)
+    rolloff_wavelength: float | None = _f(None, "long-wavelength roll-off (length)", _positive)
+    cutoff_wavelength: float | None = _f(None, "short-wavelength cut-off (length)", _positive)
+    oversample: int = _f(1, "generate on an oversample-times larger periodic grid and crop",
+                         _at_least(1))
+    # sphere / punch
+    radius: float | None = _f(None, "sphere or punch radius (length)", _positive)
+    center: list[float] | None = _f(None, "[x, y] of the apex (length; default grid centre)",
+                                    _pair)
+    step: float | None = _f(None, "punch: height of the step at its edge (default grid size)",
+                            _positive)
+    # sinusoid
+    amplitude: float | None = _f(None, "sinusoid amplitude (length)", _positive)
+    wavelength: float | None = _f(None, "sinusoid wavelength (length)", _positive)
+    direction: str = _f("x", "sinusoid varies along x or y", choices=("x", "y"))
+    phase: float = _f(0.0, "sinusoid phase (radians); 0 puts a crest at x = 0")
+    # plane
+    slope: list[float] | None = _f(None, "[dh/dx, dh/dy]", _pair)
+    # file
+    path: str | None = _f(None, "topography file (.npy, .npz, .txt/.csv/.dat, .h5/.hdf5)")
+    key: str | None = _f(None, "array name in .npz or dataset path in HDF5")
+    scale: float = _f(1.0, "factor applied to the heights read from the file", _positive)
+
+    @property
+    def is_random(self) -> bool:
+        """True for kinds that differ from sample to sample."""
+        return self.kind == "self-affine"
+
+
+@dataclass(frozen=True)
+class SqueezeConfig:
+    """``[squeeze]``: the vertical squeeze (MODEL §2)."""
+
+    depths: list[float] | None = _f(
+        None, "penetration depths D_z measured from first touch, or a table "
+        "{start, stop, num, spacing = 'linear'|'log'}")
+    forces: list[float] | None = _f(None, "total normal forces F_n (load control)")
+    depth_unit: str = _f("length", "depths in length units, in multiples of the composite rms "
+                         "height ('rms'), or as fractions of its peak-to-valley ('range')",
+                         choices=("length", "rms", "range"))
+    force_unit: str = _f("force", "forces as totals or as mean pressures in units of E*",
+                         choices=("force", "pressure"))
+    method: str = _f("pk", "pk: Polonsky-Keer constrained CG; active-set: the report's loop",
+                     choices=("pk", "active-set"))
+    tol: float = _f(1e-10, "dimensionless residual tolerance", _tol_rule)
+    max_iter: int = _f(20000, "iteration limit", _at_least(1))
+    warm_start: bool = _f(True, "start each depth from the previous depth's forces")
+
+
+@dataclass(frozen=True)
+class PullConfig:
+    """``[pull]``: horizontal pull and slip (MODEL §3)."""
+
+    enabled: bool = _f(False, "run the pull stage")
+    lam: float = _f(0.2, "local friction coefficient lambda", _positive)
+    slip_law: str = _f("break", "break: a slipped bond carries no force; coulomb: lam f_z",
+                       choices=("break", "coulomb"))
+    method: str = _f("auto", "auto, literal, inverse (exact, O(n^2) memory), cg (exact, "
+                     "matrix-free) or batch (approximate)",
+                     choices=("auto", "literal", "inverse", "cg", "batch"))
+    tol: float = _f(1e-10, "relative tolerance of the tangential solves", _tol_rule)
+    batch_size: int = _f(16, "sites broken per solve by method = 'batch'", _at_least(1))
+    coulomb_steps: int = _f(32, "pull displacements on the Coulomb curve", _at_least(2))
+
+
+@dataclass(frozen=True)
+class CouplingConfig:
+    """``[coupling]``: the coupled normal-tangential model (MODEL §4)."""
+
+    enabled: bool = _f(False, "solve squeeze and pull with the full (z, x) block operator")
+
+
+@dataclass(frozen=True)
+class EnsembleConfig:
+    """``[ensemble]``: random samples."""
+
+    samples: int = _f(1, "number of samples", _at_least(1))
+    seed: int = _f(0, "root seed of numpy.random.SeedSequence", _nonnegative)
+    first_sample: int = _f(0, "index of the first sample (to extend an ensemble)", _nonnegative)
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    """``[output]``: what is stored per sample and depth."""
+
+    fields: list[str] = _f(["contact", "fz"], f"per-depth fields to store, from {FIELD_NAMES}",
+                           lambda v: _fields_rule(v))
+    compression: str = _f("gzip", "HDF5 compression of fields", choices=("gzip", "lzf", "none"))
+    compression_level: int = _f(4, "gzip level", lambda v: None if 0 <= v <= 9 else
+                                "must be in 0..9")
+
+
+@dataclass(frozen=True)
+class ExecutionConfig:
+    """``[execution]``: how the work is run (never changes the numbers)."""
+
+    workers: int = _f(1, "worker processes", _at_least(1))
+    fft: str = _f("auto", "FFT backend", choices=("auto", "pyfftw", "scipy"))
+    fft_threads: int = _f(1, "FFT threads per worker", _at_least(1))
+    scheduler: str | None = _f(None, "Dask scheduler address (tcp://host:port)")
+    strict: bool = _f(False, "a solve that misses its tolerance stops the run")
+    memory_limit_gb: float | None = _f(None, "memory budget (default: available memory)",
+                                       _positive)
+
+
+def _fields_rule(v: Sequence[str]) -> str | None:
+    bad = [x for x in v if x not in FIELD_NAMES]
+    if bad:
+        return f"unknown field(s) {bad}; choose from {list(FIELD_NAMES)}"
+    if len(set(v)) != len(v):
+        return "lists a field twice"
+    return None
+
+
+SECTIONS: dict[str, type] = {
+    "grid": GridConfig,
+    "material": MaterialConfig,
+    "surface": SurfaceConfig,
+    "elastic_surface": SurfaceConfig,
+    "squeeze": SqueezeConfig,
+    "pull": PullConfig,
+    "coupling": CouplingConfig,
+    "ensemble": EnsembleConfig,
+    "output": OutputConfig,
+    "execution": ExecutionConfig,
+}
+TOP_LEVEL_KEYS = ("title",)
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """A validated run configuration (all sections resolved, defaults filled)."""
+
+    grid: GridConfig
+    material: MaterialConfig
+    surface: SurfaceConfig
+    squeeze: SqueezeConfig
+    pull: PullConfig = field(default_factory=PullConfig)
+    coupling: CouplingConfig = field(default_factory=CouplingConfig)
+    ensemble: EnsembleConfig = field(default_factory=EnsembleConfig)
+    output: OutputConfig = field(default_factory=OutputConfig)
+    execution: ExecutionConfig = field(default_factory=ExecutionConfig)
+    elastic_surface: SurfaceConfig | None = None
+    title: str | None = None
+    source: str = field(default="<config>", compare=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Nested plain dict of all set values (None values omitted), in section order."""
+        out: dict[str, Any] = {}
+        if self.title is not None:
+            out["title"] = self.title
+        for name in SECTIONS:
+            sec = getattr(self, name)
+            if sec is None:
+                continue
+            out[name] = {
+                f.name: _plain(getattr(sec, f.name))
+                for f in dataclasses.fields(sec)
+                if getattr(sec, f.name) is not None and _relevant(name, sec, f.name)
+            }
+        return out
+
+    def to_toml(self) -> str:
+        """The resolved configuration as TOML text (round-trips through :func:`load_config`)."""
+        return dumps_toml(self.to_dict())
+
+    def digest(self) -> str:
+        """SHA-256 of everything that determines the numbers (execution settings excluded)."""
+        d = self.to_dict()
+        d.pop("execution", None)
+        d.pop("title", None)
+        return hashlib.sha256(dumps_toml(d).encode()).hexdigest()
+
+    @property
+    def shape(self) -> tuple[int, int] | None:
+        """Grid shape ``(ny, nx)``, or None for a file surface that sets it."""
+        return self.grid.resolved_shape
+
+    @property
+    def n_samples(self) -> int:
+        """Samples actually run: one for a scene without randomness."""
+        random = self.surface.is_random or (
+            self.elastic_surface is not None and self.elastic_surface.is_random
+        )
+        return self.ensemble.samples if random else 1
+
+    @property
+    def control(self) -> str:
+        """``"depth"`` (displacement control) or ``"force"`` (load control)."""
+        return "force" if self.squeeze.forces is not None else "depth"
+
+    @property
+    def targets(self) -> tuple[float, ...]:
+        """Depths or forces in increasing order, in the configured unit."""
+        vals = self.squeeze.forces if self.control == "force" else self.squeeze.depths
+        return tuple(float(v) for v in vals)
+
+
+def _relevant(section: str, sec: Any, key: str) -> bool:
+    """Hide surface keys that do not belong to the surface's kind."""
+    if isinstance(sec, SurfaceConfig) and key != "kind":
+        return key in SURFACE_KEYS[sec.kind][0]
+    return True
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, tuple):
+        return list(v)
+    return v
+
+
+# --------------------------------------------------------------------------------------------
+# TOML writing (the standard library only reads TOML)
+# --------------------------------------------------------------------------------------------
+
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def _toml_key(k: str) -> str:
+    return k if _BARE_KEY.match(k) else _toml_str(k)
+
+
+def _toml_str(s: str) -> str:
+    out = s.replace("\\", "\\\\").replace('"', '\\"')
+    out = "".join(c if c.isprintable() else f"\\u{ord(c):04x}" for c in out)
+    return f'"{out}"'
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return _toml_str(v)
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + "}"
+    raise TypeError(f"cannot write {type(v).__name__} as TOML")
+
+
+def dumps_toml(d: Mapping[str, Any]) -> str:
+    """Write a two-level mapping (top-level scalars, then tables) as TOML."""
+    lines = [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in d.items() if not isinstance(v, dict)]
+    for k, v in d.items():
+        if isinstance(v, dict):
+            if lines:
+                lines.append("")
+            lines.append(f"[{_toml_key(k)}]")
+            lines.extend(f"{_toml_key(kk)} = {_toml_value(vv)}" for kk, vv in v.items())
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------------------------
+# Loading
+# --------------------------------------------------------------------------------------------
+
+
+class _Ctx:
+    """Where values came from, for error messages."""
+
+    def __init__(self, source: str, overridden: dict[str, str]):
+        self.source = source
+        self.overridden = overridden
+
+    def fail(self, key: str, value: Any = dataclasses.MISSING, rule: str = "") -> ConfigError:
+        where = self.source
+        hit = self.overridden.get(key) or next(
+            (t for k, t in self.overridden.items() if k.startswith(key + ".")), None)
+        if hit is not None:
+            where = f"{self.source} (--set {hit})"
+        if value is dataclasses.MISSING:
+            return ConfigError(f"{where}: {key}: {rule}")
+        return ConfigError(f"{where}: {key} = {_show(value)}: {rule}")
+
+
+def _show(v: Any) -> str:
+    try:
+        return _toml_value(v)
+    except TypeError:
+        return repr(v)
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """Parse ``key.path=value``; the value is inline TOML, or a bare word taken as a string."""
+    if "=" not in text:
+        raise ConfigError(f"--set {text}: expected KEY=VALUE, e.g. surface.hurst=0.6")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    raw = raw.strip()
+    parts = key.split(".")
+    if not key or any(not p or not _BARE_KEY.match(p) for p in parts):
+        raise ConfigError(f"--set {text}: {key!r} is not a dotted key like surface.hurst")
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError as exc:
+        if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.\-/]*", raw):
+            value = raw
+        else:
+            raise ConfigError(f"--set {text}: value is not valid TOML ({exc})") from None
+    return parts, value
+
+
+def merge_overrides(data: dict[str, Any], overrides: Sequence[str]) -> dict[str, str]:
+    """Deep-merge overrides into ``data`` in place; returns {dotted key: override text}."""
+    origin: dict[str, str] = {}
+    for text in overrides:
+        parts, value = parse_override(text)
+        node = data
+        for i, p in enumerate(parts[:-1]):
+            nxt = node.get(p)
+            if nxt is None:
+                nxt = node[p] = {}
+            elif not isinstance(nxt, dict):
+                raise ConfigError(
+                    f"--set {text}: {'.'.join(parts[: i + 1])} is a value, not a table"
+                )
+            node = nxt
+        if isinstance(value, dict) and isinstance(node.get(parts[-1]), dict) and \
+                parts[-1] not in ("depths",):
+            node[parts[-1]].update(value)
+        else:
+            node[parts[-1]] = value
+        origin[".".join(parts)] = text
+        if isinstance(value, dict):
+            for k in value:
+                origin[".".join([*parts, k])] = text
+    return origin
+
+
+def load_config(path: str | Path | None = None, overrides: Sequence[str] = (),
+                data: Mapping[str, Any] | None = None) -> RunConfig:
+    """Read, merge, validate.
+
+    Parameters
+    ----------
+    path : path-like, optional
+        TOML file. Relative ``surface.path`` values are resolved against its folder.
+    overrides : sequence of str
+        ``"key.path=value"`` strings, applied in order before validation.
+    data : mapping, optional
+        Use this dict instead of reading a file (``path`` then only names the source).
+
+    Raises
+    ------
+    ConfigError
+        With file, dotted key, value and rule in the message.
+    """
+    source = Path(path).name if path is not None else "<config>"
+    if data is None:
+        if path is None:
+            raise ConfigError("no configuration file given")
+        p = Path(path)
+        try:
+            raw = p.read_bytes()
+        except FileNotFoundError:
+            raise ConfigError(f"{path}: no such configuration file") from None
+        except OSError as exc:
+            raise ConfigError(f"{path}: cannot read ({exc.strerror})") from None
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError:
+            raise ConfigError(f"{source}: not UTF-8 text") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{source}: invalid TOML: {exc}") from None
+    data = _deepcopy(data)
+    origin = merge_overrides(data, overrides)
+    ctx = _Ctx(source, origin)
+    base_dir = Path(path).resolve().parent if path is not None else Path.cwd()
+    return _build(data, ctx, base_dir)
+
+
+def _deepcopy(d: Any) -> Any:
+    if isinstance(d, Mapping):
+        return {k: _deepcopy(v) for k, v in d.items()}
+    if isinstance(d, list):
+        return [_deepcopy(v) for v in d]
+    return d
+
+
+def _suggest(key: str, known: Sequence[str]) -> str:
+    lower = {k.lower(): k for k in known}
+    close = difflib.get_close_matches(key.lower(), list(lower), n=1)
+    if close:
+        return f" (did you mean {lower[close[0]]!r}?)"
+    return f" (known: {', '.join(known)})"
+
+
+def _build(data: dict[str, Any], ctx: _Ctx, base_dir: Path) -> RunConfig:
+    known = [*SECTIONS, *TOP_LEVEL_KEYS]
+    for k, v in data.items():
+        if k not in known:
+            raise ctx.fail(k, rule="unknown section or key" + _suggest(k, known))
+        if k in SECTIONS and not isinstance(v, dict):
+            raise ctx.fail(k, v, "must be a table ([" + k + "])")
+    title = data.get("title")
+    if title is not None and not isinstance(title, str):
+        raise ctx.fail("title", title, "must be a string")
+    for required in ("surface",):
+        if required not in data:
+            raise ctx.fail(required, rule="missing section [" + required + "]")
+    sections: dict[str, Any] = {}
+    for name, cls in SECTIONS.items():
+        if name not in data:
+            continue
+        sections[name] = _build_section(name, cls, data[name], ctx)
+    sections.setdefault("grid", GridConfig())
+    sections.setdefault("material", MaterialConfig())
+    for name in ("pull", "coupling", "ensemble", "output", "execution"):
+        sections.setdefault(name, SECTIONS[name]())
+    for name in ("surface", "elastic_surface"):
+        if name in sections:
+            sections[name] = _check_surface(name, sections[name], data[name], ctx, base_dir)
+    sections["squeeze"] = _check_squeeze(data.get("squeeze", {}), sections.get("squeeze"), ctx)
+    cfg = RunConfig(title=title, source=ctx.source, **sections)
+    _check_cross(cfg, data, ctx)
+    return cfg
+
+
+def _type_name(tp: Any) -> str:
+    return {float: "a number", int: "an integer", bool: "true or false", str: "a string"}.get(
+        tp, str(tp))
+
+
+def _coerce(value: Any, tp: Any, key: str, ctx: _Ctx) -> Any:
+    """Check ``value`` against a type hint; return it normalised (ints to floats where needed)."""
+    origin = typing.get_origin(tp)
+    args = typing.get_args(tp)
+    if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+        inner = [a for a in args if a is not type(None)]
+        if len(inner) == 1:
+            return _coerce(value, inner[0], key, ctx)
+        raise TypeError(tp)
+    if origin is list:
+        (el,) = args
+        if not isinstance(value, list):
+            raise ctx.fail(key, value, f"must be a list of {_type_name(el).split(' ', 1)[1]}s")
+        return [_coerce(v, el, key, ctx) for v in value]
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ctx.fail(key, value, "must be true or false")
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ctx.fail(key, value, "must be an integer")
+        return value
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ctx.fail(key, value, "must be a number")
+        if not math.isfinite(value):
+            raise ctx.fail(key, value, "must be finite")
+        return float(value)
+    if tp is str:
+        if not isinstance(value, str):
+            raise ctx.fail(key, value, "must be a string")
+        return value
+    raise TypeError(tp)
+
+
+_SPECIAL = {("squeeze", "depths"), ("squeeze", "forces")}
+
+
+def _build_section(name: str, cls: type, table: dict[str, Any], ctx: _Ctx) -> Any:
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    kwargs: dict[str, Any] = {}
+    for k, v in table.items():
+        key = f"{name}.{k}"
+        if k not in fields:
+            raise ctx.fail(key, rule="unknown key" + _suggest(k, list(fields)))
+        if (name, k) in _SPECIAL:
+            kwargs[k] = v
+            continue
+        val = _coerce(v, hints[k], key, ctx)
+        meta = fields[k].metadata
+        if meta.get("choices") and val not in meta["choices"]:
+            raise ctx.fail(key, v, "must be one of " + ", ".join(map(repr, meta["choices"])))
+        check = meta.get("check")
+        if check is not None:
+            msg = check(val)
+            if msg:
+                raise ctx.fail(key, v, msg)
+        kwargs[k] = val
+    return cls(**kwargs)
+
+
+def _check_surface(name: str, s: SurfaceConfig, table: dict[str, Any], ctx: _Ctx,
+                   base_dir: Path) -> SurfaceConfig:
+    if s.kind is None:
+        raise ctx.fail(f"{name}.kind", rule="missing; choose one of " + ", ".join(SURFACE_KINDS))
+    allowed, required = SURFACE_KEYS[s.kind]
+    for k in table:
+        if k != "kind" and k not in allowed:
+            raise ctx.fail(
+                f"{name}.{k}",
+                table[k],
+                f"not a parameter of kind {s.kind!r} "
+                f"(its parameters: {', '.join(sorted(allowed))})",
+            )
+    for k in sorted(required):
+        if getattr(s, k) is None:
+            raise ctx.fail(f"{name}.{k}", rule=f"missing; required for kind {s.kind!r}")
+    if s.kind == "self-affine":
+        if (s.rms_height is None) == (s.rms_slope is None):
+            raise ctx.fail(f"{name}.rms_height",
+                           rule="give exactly one of rms_height and rms_slope")
+        if (s.rolloff_wavelength is not None and s.cutoff_wavelength is not None
+                and not s.cutoff_wavelength < s.rolloff_wavelength):
+            raise ctx.fail(f"{name}.cutoff_wavelength", s.cutoff_wavelength,
+                           "must be smaller than rolloff_wavelength")
+    if s.kind == "file":
+        p = Path(s.path).expanduser()
+        if not p.is_absolute():
+            p = (base_dir / p).resolve()
+        if not p.is_file():
+            raise ctx.fail(f"{name}.path", s.path, f"no such file ({p})")
+        s = dataclasses.replace(s, path=str(p))
+    return s
+
+
+def _expand_range(table: dict[str, Any], key: str, ctx: _Ctx) -> list[float]:
+    allowed = {"start", "stop", "num", "spacing"}
+    for k in table:
+        if k not in allowed:
+            raise ctx.fail(f"{key}.{k}", rule="unknown key" + _suggest(k, sorted(allowed)))
+    for k in ("start", "stop", "num"):
+        if k not in table:
+            raise ctx.fail(f"{key}.{k}", rule="missing (a range needs start, stop and num)")
+    start = _coerce(table["start"], float, f"{key}.start", ctx)
+    stop = _coerce(table["stop"], float, f"{key}.stop", ctx)
+    num = _coerce(table["num"], int, f"{key}.num", ctx)
+    spacing = table.get("spacing", "linear")
+    if spacing not in ("linear", "log"):
+        raise ctx.fail(f"{key}.spacing", spacing, "must be 'linear' or 'log'")
+    if num < 1:
+        raise ctx.fail(f"{key}.num", num, "must be >= 1")
+    if not stop >= start:
+        raise ctx.fail(f"{key}.stop", stop, "must be >= start")
+    if spacing == "log":
+        if not start > 0:
+            raise ctx.fail(f"{key}.start", start, "must be > 0 for log spacing")
+        if num == 1:
+            return [start]
+        r = math.log(stop / start)
+        vals = [start * math.exp(r * i / (num - 1)) for i in range(num)]
+    elif num == 1:
+        return [start]
+    else:
+        vals = [start + (stop - start) * i / (num - 1) for i in range(num)]
+    vals[-1] = stop
+    return vals
+
+
+def _check_squeeze(table: dict[str, Any], s: SqueezeConfig | None, ctx: _Ctx) -> SqueezeConfig:
+    s = s or SqueezeConfig()
+    has_d = "depths" in table
+    has_f = "forces" in table
+    if has_d == has_f:
+        raise ctx.fail("squeeze.depths", rule="give exactly one of squeeze.depths (displacement "
+                       "control) and squeeze.forces (load control)")
+    key = "squeeze.depths" if has_d else "squeeze.forces"
+    raw = table["depths" if has_d else "forces"]
+    if isinstance(raw, dict):
+        vals = _expand_range(raw, key, ctx)
+    elif isinstance(raw, list):
+        vals = _coerce(raw, list[float], key, ctx)
+    elif isinstance(raw, int | float) and not isinstance(raw, bool):
+        vals = [_coerce(raw, float, key, ctx)]
+    else:
+        raise ctx.fail(key, raw, "must be a list of numbers or a table {start, stop, num}")
+    if not vals:
+        raise ctx.fail(key, raw, "must not be empty")
+    if any(v < 0 for v in vals):
+        raise ctx.fail(key, raw, "must be >= 0")
+    if any(b <= a for a, b in itertools.pairwise(vals)):
+        raise ctx.fail(key, raw, "must be strictly increasing (warm starts go upward)")
+    return dataclasses.replace(s, depths=vals if has_d else None, forces=None if has_d else vals)
+
+
+def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
+    g = cfg.grid
+    if g.n is not None and g.shape is not None:
+        raise ctx.fail("grid.shape", g.shape, "give grid.n or grid.shape, not both")
+    file_surface = cfg.surface.kind == "file" or (
+        cfg.elastic_surface is not None and cfg.elastic_surface.kind == "file")
+    if g.resolved_shape is None and not file_surface:
+        raise ctx.fail("grid.n", rule="missing (give grid.n or grid.shape)")
+    if cfg.squeeze.forces is not None and cfg.squeeze.depth_unit != "length":
+        raise ctx.fail("squeeze.depth_unit", cfg.squeeze.depth_unit,
+                       "applies to depths only; use squeeze.force_unit with forces")
+    if cfg.coupling.enabled and not cfg.pull.enabled:
+        raise ctx.fail("coupling.enabled", True, "needs pull.enabled = true")
+    if cfg.coupling.enabled and cfg.pull.slip_law != "break":
+        raise ctx.fail("pull.slip_law", cfg.pull.slip_law,
+                       "the coupled model implements the break law only")
+    pull_fields = {"fx", "ux", "stick", "pull_curve"} & set(cfg.output.fields)
+    if pull_fields and not cfg.pull.enabled:
+        raise ctx.fail("output.fields", cfg.output.fields,
+                       f"{sorted(pull_fields)} need pull.enabled = true")

@@ -1,0 +1,169 @@
+"""Real 2-D FFTs behind one door: pyfftw (planned once) or scipy.fft.
+
+A :class:`RealFFT2` owns the buffers of one transform shape. ``forward(src, dst)`` computes the
+unnormalised ``rfft2`` and ``backward(src, dst)`` the unnormalised inverse (callers fold the
+``1/(m0 m1)`` into their kernels, which saves a pass over the data). With pyfftw the plans are
+made once per buffer pair with ``FFTW_ESTIMATE`` (bitwise reproducible across processes) and an
+explicit thread count; with scipy every call allocates its result, which is then copied.
+
+The backend is chosen by name: ``"pyfftw"``, ``"scipy"`` or ``"auto"`` (pyfftw when it imports,
+else scipy with one warning).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+import scipy.fft
+
+from .errors import InputError
+
+_PYFFTW: Any = None
+_PYFFTW_ERROR: str | None = None
+_WARNED = False
+
+BACKENDS = ("auto", "pyfftw", "scipy")
+
+
+def _import_pyfftw():
+    global _PYFFTW, _PYFFTW_ERROR
+    if _PYFFTW is None and _PYFFTW_ERROR is None:
+        try:
+            import pyfftw
+
+            _PYFFTW = pyfftw
+        except Exception as exc:  # ImportError, or a broken shared library
+            _PYFFTW_ERROR = f"{type(exc).__name__}: {exc}"
+    return _PYFFTW
+
+
+def resolve_backend(name: str) -> str:
+    """Return the concrete backend (``"pyfftw"`` or ``"scipy"``) for a requested name.
+
+    ``"auto"`` falls back to scipy with a single :class:`RuntimeWarning` per process when pyfftw
+    cannot be imported; an explicit ``"pyfftw"`` that cannot be imported is an error.
+    """
+    global _WARNED
+    if name not in BACKENDS:
+        raise InputError(f"fft = {name!r}: must be one of {', '.join(BACKENDS)}")
+    if name == "scipy":
+        return "scipy"
+    if _import_pyfftw() is not None:
+        return "pyfftw"
+    if name == "pyfftw":
+        raise InputError(f"fft = 'pyfftw' but pyfftw cannot be imported ({_PYFFTW_ERROR})")
+    if not _WARNED:
+        warnings.warn(
+            f"pyfftw unavailable ({_PYFFTW_ERROR}); using scipy.fft, which is slower",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        _WARNED = True
+    return "scipy"
+
+
+def fast_len(n: int) -> int:
+    """Smallest fast real-FFT length >= n (5-smooth), as :func:`scipy.fft.next_fast_len`."""
+    return int(scipy.fft.next_fast_len(int(n), real=True))
+
+
+def library_versions() -> dict[str, str]:
+    """Versions of the FFT libraries, for provenance."""
+    out = {"scipy": scipy.__version__, "numpy": np.__version__}
+    if _import_pyfftw() is not None:
+        out["pyfftw"] = getattr(_PYFFTW, "__version__", "unknown")
+    return out
+
+
+class RealFFT2:
+    """Planned real-to-complex 2-D FFT pair of a fixed real shape ``(m0, m1)``.
+
+    Parameters
+    ----------
+    shape : (m0, m1)
+        Real-space shape; the half spectrum has shape ``(m0, m1 // 2 + 1)``.
+    backend : {"auto", "pyfftw", "scipy"}
+    threads : int
+        FFT threads (default 1; see DESIGN: oversubscription is catastrophic).
+    """
+
+    def __init__(self, shape: tuple[int, int], backend: str = "auto", threads: int = 1) -> None:
+        if len(shape) != 2 or min(shape) < 1:
+            raise InputError(f"FFT shape {shape!r}: must be two positive lengths")
+        if int(threads) < 1:
+            raise InputError(f"fft threads = {threads!r}: must be >= 1")
+        self.shape = (int(shape[0]), int(shape[1]))
+        self.spectrum_shape = (self.shape[0], self.shape[1] // 2 + 1)
+        self.size = self.shape[0] * self.shape[1]
+        self.backend = resolve_backend(backend)
+        self.threads = int(threads)
+        self._plans: dict[tuple[str, int, int], Any] = {}
+        #: Number of forward and backward transforms executed (for profiling).
+        self.count = 0
+
+    # -- buffers ------------------------------------------------------------------------------
+    def real_buffer(self, zero: bool = True) -> np.ndarray:
+        """A new (aligned) real array of the transform shape."""
+        if self.backend == "pyfftw":
+            buf = _PYFFTW.empty_aligned(self.shape, dtype="float64")
+        else:
+            buf = np.empty(self.shape)
+        if zero:
+            buf[...] = 0.0
+        return buf
+
+    def spectrum_buffer(self) -> np.ndarray:
+        """A new (aligned) complex half-spectrum array."""
+        if self.backend == "pyfftw":
+            buf = _PYFFTW.empty_aligned(self.spectrum_shape, dtype="complex128")
+        else:
+            buf = np.empty(self.spectrum_shape, dtype=complex)
+        buf[...] = 0.0
+        return buf
+
+    # -- transforms ---------------------------------------------------------------------------
+    def _plan(self, direction: str, src: np.ndarray, dst: np.ndarray):
+        key = (direction, src.ctypes.data, dst.ctypes.data)
+        plan = self._plans.get(key)
+        if plan is None:
+            flags = ("FFTW_ESTIMATE",)
+            if direction == "b":
+                flags += ("FFTW_DESTROY_INPUT",)
+            plan = _PYFFTW.FFTW(
+                src,
+                dst,
+                axes=(0, 1),
+                direction="FFTW_FORWARD" if direction == "f" else "FFTW_BACKWARD",
+                flags=flags,
+                threads=self.threads,
+            )
+            # keep the arrays alive with the plan so that addresses are not reused
+            self._plans[key] = (plan, src, dst)
+            return plan
+        return plan[0]
+
+    def forward(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+        """Unnormalised ``rfft2`` of ``src`` (real, transform shape) into ``dst``."""
+        self.count += 1
+        if self.backend == "pyfftw":
+            self._plan("f", src, dst).execute()
+        else:
+            np.copyto(dst, scipy.fft.rfftn(src, axes=(0, 1), workers=self.threads))
+        return dst
+
+    def backward(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+        """Unnormalised inverse of :meth:`forward`; ``src`` is destroyed."""
+        self.count += 1
+        if self.backend == "pyfftw":
+            self._plan("b", src, dst).execute()
+        else:
+            np.copyto(
+                dst,
+                scipy.fft.irfftn(
+                    src, s=self.shape, axes=(0, 1), workers=self.threads, norm="forward",
+                    overwrite_x=True,
+                ),
+            )
+        return dst

@@ -1,0 +1,355 @@
+r"""Convolution operators :math:`u_a = \sum_b G_{ab} * f_b` on a pixel grid.
+
+Two boundaries (MODEL §1):
+
+``"open"``
+    A finite ``ny x nx`` patch on an infinite half-space. Linear convolution by zero padding to
+    fast FFT lengths ``>= 2N - 1`` per axis (DC-FFT, GREEN §4.1); exact to round-off.
+``"periodic"``
+    The grid repeats. Circular convolution with the symbol of
+    :func:`roughslip.green.periodic_symbol`, either ``"pixel"`` (exact periodic images of the
+    pixel kernel) or ``"continuous"``.
+    The zero mode is zero: the mean displacement is not produced by the operator (GREEN §4.2).
+
+An operator computes the spectra of the components it is asked for, once, at construction;
+nothing else. Applying it allocates nothing when an ``out`` array is given (pyfftw backend).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse.linalg import LinearOperator
+
+from . import green
+from .errors import InputError
+from .fft import RealFFT2, fast_len
+
+BOUNDARIES = ("open", "periodic")
+PERIODIC_KERNELS = ("pixel", "continuous")
+
+# Which stored spectrum serves a component, and with which sign (G_xz = -G_zx etc.).
+_CANONICAL = {
+    "zz": ("zz", 1.0),
+    "xx": ("xx", 1.0),
+    "yy": ("yy", 1.0),
+    "xy": ("xy", 1.0),
+    "yx": ("xy", 1.0),
+    "zx": ("zx", 1.0),
+    "xz": ("zx", -1.0),
+    "zy": ("zy", 1.0),
+    "yz": ("zy", -1.0),
+}
+
+
+@dataclass(frozen=True)
+class Material:
+    r"""Isotropic elastic half-space.
+
+    Attributes
+    ----------
+    E : float
+        Young's modulus (stress units).
+    nu : float
+        Poisson ratio, :math:`-1 < \nu \le 1/2`.
+    """
+
+    E: float = 1.0
+    nu: float = 0.3
+
+    def __post_init__(self) -> None:
+        green.check_material(self.E, self.nu)
+
+    @property
+    def E_star(self) -> float:
+        r"""Contact modulus :math:`E^* = E/(1-\nu^2)` (rigid indenter on the half-space)."""
+        return self.E / (1.0 - self.nu * self.nu)
+
+    @property
+    def mu(self) -> float:
+        r"""Shear modulus :math:`\mu = E/(2(1+\nu))`."""
+        return self.E / (2.0 * (1.0 + self.nu))
+
+    @property
+    def coupled(self) -> bool:
+        r"""True unless :math:`\nu = 1/2`, where :math:`G_{zx}` vanishes identically."""
+        return self.nu != 0.5
+
+
+def _check_grid(shape: tuple[int, int], a: float) -> tuple[int, int]:
+    if len(shape) != 2:
+        raise InputError(f"grid shape {shape!r}: must be (ny, nx)")
+    ny, nx = (int(s) for s in shape)
+    if ny < 1 or nx < 1 or ny != shape[0] or nx != shape[1]:
+        raise InputError(f"grid shape {shape!r}: both lengths must be integers >= 1")
+    if not (isinstance(a, int | float) and math.isfinite(a) and a > 0):
+        raise InputError(f"pixel size a = {a!r}: must be a finite number > 0")
+    return ny, nx
+
+
+class ElasticOperator:
+    r"""FFT convolution with the pixel Green functions of an elastic half-space.
+
+    Parameters
+    ----------
+    shape : (ny, nx)
+        Grid shape; fields are indexed ``[iy, ix]`` and x is the last axis.
+    a : float
+        Pixel side.
+    material : Material
+        Elastic constants.
+    boundary : {"open", "periodic"}
+    periodic_kernel : {"pixel", "continuous"}
+        Periodic symbol (ignored for open grids).
+    components : iterable of str
+        The components that will be applied, e.g. ``("zz",)`` for a squeeze, ``("xx",)`` for a
+        pull, ``("zz", "zx", "xx")`` for the coupled block. Only these spectra are built.
+    fft : {"auto", "pyfftw", "scipy"}
+    threads : int
+        FFT threads.
+
+    Notes
+    -----
+    ``apply("zz", f)`` returns :math:`u_z(i) = \sum_j G_{zz}(i-j) f_z(j)`, exact linear (open)
+    or circular (periodic) convolution; see GREEN §4.
+    """
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        *,
+        a: float = 1.0,
+        material: Material | None = None,
+        boundary: str = "open",
+        periodic_kernel: str = "pixel",
+        components: Iterable[str] = ("zz",),
+        fft: str = "auto",
+        threads: int = 1,
+    ) -> None:
+        self.shape = _check_grid(tuple(shape), a)
+        self.a = float(a)
+        self.material = material if material is not None else Material()
+        if boundary not in BOUNDARIES:
+            raise InputError(f"boundary = {boundary!r}: must be 'open' or 'periodic'")
+        if periodic_kernel not in PERIODIC_KERNELS:
+            raise InputError(
+                f"periodic_kernel = {periodic_kernel!r}: must be 'pixel' or 'continuous'"
+            )
+        self.boundary = boundary
+        self.periodic_kernel = periodic_kernel
+        ny, nx = self.shape
+        if boundary == "open":
+            self.padded_shape = (fast_len(2 * ny - 1), fast_len(2 * nx - 1))
+        else:
+            self.padded_shape = (ny, nx)
+        self.fft = RealFFT2(self.padded_shape, backend=fft, threads=threads)
+        self._in = self.fft.real_buffer()
+        self._out = self.fft.real_buffer()
+        self._spec = [self.fft.spectrum_buffer() for _ in range(2)]
+        self._work = None
+        self._khat: dict[str, np.ndarray] = {}
+        self.setup_seconds = 0.0
+        requested = list(components)
+        for c in requested:
+            if c not in _CANONICAL:
+                raise InputError(f"unknown component {c!r}; use one of {tuple(_CANONICAL)}")
+        t0 = time.perf_counter()
+        for c in dict.fromkeys(_CANONICAL[c][0] for c in requested):
+            self._khat[c] = self._build_spectrum(c)
+        self.setup_seconds = time.perf_counter() - t0
+        #: seconds spent inside FFT calls by :meth:`apply` / :meth:`apply_block`
+        self.fft_seconds = 0.0
+        #: number of convolutions applied (one forward + one backward FFT each)
+        self.applications = 0
+
+    # -- construction -------------------------------------------------------------------------
+    @property
+    def components(self) -> tuple[str, ...]:
+        """The canonical components whose spectra exist."""
+        return tuple(self._khat)
+
+    def _build_spectrum(self, c: str) -> np.ndarray:
+        ny, nx = self.shape
+        my, mx = self.padded_shape
+        E, nu = self.material.E, self.material.nu
+        odd = green.PARITY[c] in ((-1, 1), (1, -1))
+        scale = 1.0 / (my * mx)  # the backward transform is unnormalised
+        if self.boundary == "open":
+            K = green.open_kernel_padded(c, nx, ny, mx, my, a=self.a, E=E, nu=nu)
+            buf = self.fft.real_buffer(zero=False)
+            buf[...] = K
+            spec = self.fft.spectrum_buffer()
+            self.fft.forward(buf, spec)
+            self.fft.count -= 1
+            # Even (odd) padded kernels have purely real (imaginary) spectra (GREEN §4.1);
+            # drop the round-off in the other part. Stored complex: numpy multiplies
+            # complex by complex ~2.7x faster than complex by real (no casting loop).
+            if c == "xy" or not odd:
+                return (spec.real * scale).astype(complex)
+            return (1j * spec.imag) * scale
+        sym = green.periodic_symbol(
+            c, (ny, nx), a=self.a, E=E, nu=nu, kind=self.periodic_kernel
+        )
+        return (sym * scale).astype(complex)
+
+    def spectrum(self, component: str) -> np.ndarray:
+        """The (scaled) half-spectrum used for a component; raises if it was not built."""
+        canon, sign = _CANONICAL[component]
+        try:
+            k = self._khat[canon]
+        except KeyError:
+            raise InputError(
+                f"component {component!r} was not requested when this operator was built "
+                f"(it has {self.components})"
+            ) from None
+        return k if sign > 0 else -k
+
+    # -- application --------------------------------------------------------------------------
+    def _check_field(self, f: np.ndarray, name: str = "f") -> None:
+        if f.shape != self.shape:
+            raise InputError(f"{name} has shape {f.shape}, operator grid is {self.shape}")
+
+    def _load(self, f: np.ndarray, spec: np.ndarray) -> None:
+        ny, nx = self.shape
+        self._in[:ny, :nx] = f
+        t0 = time.perf_counter()
+        self.fft.forward(self._in, spec)
+        self.fft_seconds += time.perf_counter() - t0
+
+    def _unload(self, spec: np.ndarray, out: np.ndarray | None) -> np.ndarray:
+        ny, nx = self.shape
+        t0 = time.perf_counter()
+        self.fft.backward(spec, self._out)
+        self.fft_seconds += time.perf_counter() - t0
+        if out is None:
+            return self._out[:ny, :nx].copy()
+        np.copyto(out, self._out[:ny, :nx])
+        return out
+
+    def apply(self, component: str, f: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Displacement ``u_a = G_ab * f_b`` for ``component = "ab"``.
+
+        Parameters
+        ----------
+        component : str
+            e.g. ``"zz"``.
+        f : ndarray, shape ``(ny, nx)``
+            Pixel forces (traction times a²).
+        out : ndarray, optional
+            Result array; may be ``f`` itself (the input is copied into the FFT buffer first).
+        """
+        ks = self._khat_signed(component)
+        self._check_field(f)
+        spec = self._spec[0]
+        self._load(f, spec)
+        self._multiply(spec, ks)
+        self.applications += 1
+        return self._unload(spec, out)
+
+    def _khat_signed(self, component: str) -> tuple[np.ndarray, float]:
+        canon, sign = _CANONICAL.get(component, (None, 0.0))
+        if canon is None:
+            raise InputError(f"unknown component {component!r}")
+        if canon not in self._khat:
+            self.spectrum(component)  # raises with a clear message
+        return self._khat[canon], sign
+
+    @staticmethod
+    def _multiply(spec: np.ndarray, ks: tuple[np.ndarray, float]) -> None:
+        k, sign = ks
+        np.multiply(spec, k, out=spec)
+        if sign < 0:
+            np.negative(spec, out=spec)
+
+    def apply_block(
+        self,
+        fz: np.ndarray,
+        fx: np.ndarray,
+        out_z: np.ndarray | None = None,
+        out_x: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        r"""The coupled (z, x) block: :math:`u_z = G_{zz}f_z + G_{zx}f_x`,
+        :math:`u_x = G_{xz}f_z + G_{xx}f_x` (report eq. 3.5 corrected, T14).
+
+        Two forward and two backward FFTs.
+        """
+        self._check_field(fz, "fz")
+        self._check_field(fx, "fx")
+        kzz = self._khat_signed("zz")[0]
+        kzx = self._khat_signed("zx")[0]
+        kxx = self._khat_signed("xx")[0]
+        if self._work is None:
+            self._work = (self.fft.spectrum_buffer(), self.fft.spectrum_buffer())
+        sz, sx = self._spec
+        w, w2 = self._work
+        self._load(fz, sz)
+        self._load(fx, sx)
+        # u_x = -kzx * sz + kxx * sx into w; then u_z = kzz * sz + kzx * sx in place of sz.
+        np.multiply(sx, kxx, out=w)
+        np.multiply(sz, kzx, out=w2)
+        np.subtract(w, w2, out=w)
+        np.multiply(sx, kzx, out=sx)
+        np.multiply(sz, kzz, out=sz)
+        np.add(sz, sx, out=sz)
+        self.applications += 2
+        uz = self._unload(sz, out_z)
+        ux = self._unload(w, out_x)
+        return uz, ux
+
+    # -- adapters -----------------------------------------------------------------------------
+    def as_linear_operator(self, component: str = "zz") -> LinearOperator:
+        """A :class:`scipy.sparse.linalg.LinearOperator` on flattened fields (row-major)."""
+        n = self.shape[0] * self.shape[1]
+        transpose = {"zx": "xz", "xz": "zx", "zy": "yz", "yz": "zy"}.get(component, component)
+        self._khat_signed(component)
+        self._khat_signed(transpose)
+
+        def mv(v: np.ndarray) -> np.ndarray:
+            return self.apply(component, np.asarray(v, float).reshape(self.shape)).ravel()
+
+        def rmv(v: np.ndarray) -> np.ndarray:
+            return self.apply(transpose, np.asarray(v, float).reshape(self.shape)).ravel()
+
+        return LinearOperator((n, n), matvec=mv, rmatvec=rmv, dtype=float)
+
+    def block_linear_operator(self) -> LinearOperator:
+        """The (z, x) block operator on ``concatenate([fz.ravel(), fx.ravel()])``."""
+        n = self.shape[0] * self.shape[1]
+
+        def mv(v: np.ndarray) -> np.ndarray:
+            v = np.asarray(v, float).ravel()
+            uz, ux = self.apply_block(v[:n].reshape(self.shape), v[n:].reshape(self.shape))
+            return np.concatenate([uz.ravel(), ux.ravel()])
+
+        return LinearOperator((2 * n, 2 * n), matvec=mv, rmatvec=mv, dtype=float)
+
+    def dense(self, component: str = "zz") -> np.ndarray:
+        """Dense ``(ny nx) x (ny nx)`` matrix of a component, without FFTs (small grids only).
+
+        Open grids: the closed-form pixel kernel at every offset. Periodic grids: the circulant
+        of the symbol, inverted by an explicit DFT.
+        """
+        ny, nx = self.shape
+        n = ny * nx
+        if n > 4096:
+            raise InputError(f"dense matrix of a {self.shape} grid is too large (n = {n} > 4096)")
+        iy, ix = np.divmod(np.arange(n), nx)
+        l = ix[:, None] - ix[None, :]
+        m = iy[:, None] - iy[None, :]
+        if self.boundary == "open":
+            E, nu = self.material.E, self.material.nu
+            return green.pixel_kernel(component, l, m, a=self.a, E=E, nu=nu)
+        k = self.spectrum(component) * (ny * nx)
+        # Explicit inverse real DFT of the half spectrum (Hermitian completion along x).
+        full = np.zeros((ny, nx), dtype=complex)
+        full[:, : nx // 2 + 1] = k
+        for kx in range(nx // 2 + 1, nx):
+            full[:, kx] = np.conj(k[(-np.arange(ny)) % ny, nx - kx])
+        ey = np.exp(2j * np.pi * np.outer(np.arange(ny), np.arange(ny)) / ny)
+        ex = np.exp(2j * np.pi * np.outer(np.arange(nx), np.arange(nx)) / nx)
+        kern = (ey @ full @ ex.T).real / (ny * nx)  # kern[m, l]
+        return kern[m % ny, l % nx]

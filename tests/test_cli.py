@@ -1,0 +1,58 @@
+"""The command line: thin wrappers with documented exit codes."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from click.testing import CliRunner
+
+from roughslip import __version__
+from roughslip.cli import cli
+from roughslip.config import dumps_toml
+
+BASE = {
+    "grid": {"n": 16},
+    "surface": {"kind": "sphere", "radius": 10.0},
+    "squeeze": {"depths": [0.1]},
+}
+
+
+def test_version():
+    r = CliRunner().invoke(cli, ["--version"])
+    assert r.exit_code == 0 and __version__ in r.output
+
+
+def test_module_entry_point():
+    out = subprocess.run([sys.executable, "-m", "roughslip", "--version"], capture_output=True,
+                         text=True, check=True)
+    assert __version__ in out.stdout
+
+
+def test_show_config_and_exit_code_2(tmp_path):
+    p = tmp_path / "run.toml"
+    p.write_text(dumps_toml(BASE))
+    r = CliRunner().invoke(cli, ["show-config", str(p), "--set", "material.E=3"])
+    assert r.exit_code == 0, r.output
+    assert "E = 3.0" in r.output
+    r = CliRunner().invoke(cli, ["show-config", str(p), "--set", "material.nu=0.7"])
+    assert r.exit_code == 2
+    assert "material.nu = 0.7: must satisfy -1 < nu <= 0.5" in r.output
+    assert "Traceback" not in r.output
+
+
+def test_missing_file_exit_2(tmp_path):
+    r = CliRunner().invoke(cli, ["show-config", str(tmp_path / "nope.toml")])
+    assert r.exit_code == 2 and "no such configuration file" in r.output
+
+
+def test_every_shipped_config_loads_and_rejects_bad_nu():
+    from pathlib import Path
+
+    configs = sorted((Path(__file__).parents[1] / "configs").glob("*.toml"))
+    assert configs
+    for p in configs:
+        r = CliRunner().invoke(cli, ["show-config", str(p)])
+        assert r.exit_code == 0, (p.name, r.output)
+        r = CliRunner().invoke(cli, ["show-config", str(p), "--set", "material.nu=0.7"])
+        assert r.exit_code == 2 and "material.nu = 0.7" in r.output, p.name

@@ -1,0 +1,170 @@
+"""Configuration loading, validation and overrides."""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from roughslip.config import dumps_toml, load_config, parse_override
+from roughslip.errors import ConfigError
+
+BASE = {
+    "grid": {"n": 32, "pixel_size": 0.5},
+    "material": {"E": 2.0, "nu": 0.3},
+    "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1.0},
+    "squeeze": {"depths": [0.1, 0.2, 0.4]},
+}
+
+
+def write(tmp_path, data, name="run.toml"):
+    p = tmp_path / name
+    p.write_text(dumps_toml(data))
+    return p
+
+
+def test_valid_config_is_frozen_and_filled(tmp_path):
+    cfg = load_config(write(tmp_path, BASE))
+    assert cfg.shape == (32, 32)
+    assert cfg.material.nu == 0.3 and cfg.pull.enabled is False
+    assert cfg.targets == (0.1, 0.2, 0.4) and cfg.control == "depth"
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.material.nu = 0.1  # type: ignore[misc]
+
+
+def test_error_names_file_key_value_and_rule(tmp_path):
+    data = {**BASE, "material": {"nu": 0.7}}
+    with pytest.raises(ConfigError) as e:
+        load_config(write(tmp_path, data))
+    assert str(e.value) == "run.toml: material.nu = 0.7: must satisfy -1 < nu <= 0.5"
+
+
+@pytest.mark.parametrize(
+    ("override", "match"),
+    [
+        ("material.nu=0.7", r"material\.nu = 0\.7: must satisfy -1 < nu <= 0\.5"),
+        ("material.nu=-1", r"material\.nu = -1"),
+        ("surface.hurst=1.3", r"surface\.hurst = 1\.3: must be in \(0, 1\)"),
+        ("grid.pixel_size=0", r"grid\.pixel_size = 0: must be > 0"),
+        ("grid.n=2.5", r"grid\.n = 2\.5: must be an integer"),
+        ("material.Nu=0.2", r"material\.Nu: unknown key \(did you mean 'nu'\?\)"),
+        ("materials.nu=0.2", r"materials: unknown section"),
+        ("surface.radius=2", r"surface\.radius = 2: not a parameter of kind 'self-affine'"),
+        ("squeeze.depths=[0.2, 0.1]", r"strictly increasing"),
+        ("squeeze.forces=[1.0]", r"exactly one of squeeze\.depths"),
+        ("squeeze.method=cg", r"squeeze\.method = \"cg\": must be one of"),
+        ("output.fields=['fz', 'heat']", r"unknown field"),
+        ("output.fields=['fx']", r"need pull\.enabled"),
+        ("pull.lam=-0.1", r"pull\.lam = -0\.1: must be > 0"),
+        ("pull.enabled=1", r"pull\.enabled = 1: must be true or false"),
+        ("ensemble.samples=0", r"ensemble\.samples = 0: must be >= 1"),
+        ("surface.rms_slope=0.1", r"exactly one of rms_height and rms_slope"),
+        ("coupling.enabled=true", r"needs pull\.enabled"),
+    ],
+)
+def test_override_errors(tmp_path, override, match):
+    with pytest.raises(ConfigError, match=match) as e:
+        load_config(write(tmp_path, BASE), [override])
+    assert str(e.value).startswith("run.toml")
+
+
+def test_override_merging_and_inline_toml(tmp_path):
+    cfg = load_config(
+        write(tmp_path, BASE),
+        ["surface.hurst=0.6", "pull={enabled = true, lam = 0.3}", "squeeze.method=active-set"],
+    )
+    assert cfg.surface.hurst == 0.6 and cfg.pull.enabled and cfg.pull.lam == 0.3
+    assert cfg.squeeze.method == "active-set"  # bare word taken as a string
+    data = {**BASE, "grid": {"shape": [16, 24]}}
+    cfg = load_config(write(tmp_path, data), ["material.E=1e9"])
+    assert cfg.shape == (16, 24) and cfg.material.E == 1e9
+
+
+def test_depth_range_table(tmp_path):
+    data = {**BASE, "squeeze": {"depths": {"start": 0.1, "stop": 10.0, "num": 3,
+                                           "spacing": "log"}}}
+    cfg = load_config(write(tmp_path, data))
+    assert cfg.targets == pytest.approx((0.1, 1.0, 10.0))
+    assert cfg.targets[-1] == 10.0
+
+
+def test_invalid_toml_and_missing_file(tmp_path):
+    p = tmp_path / "bad.toml"
+    p.write_text("[grid\nn = 3")
+    with pytest.raises(ConfigError, match=r"bad\.toml: invalid TOML"):
+        load_config(p)
+    with pytest.raises(ConfigError, match="no such configuration file"):
+        load_config(tmp_path / "missing.toml")
+
+
+def test_round_trip_through_toml(tmp_path):
+    cfg = load_config(write(tmp_path, BASE), ["pull.enabled=true"])
+    again = load_config(data=tomllib.loads(cfg.to_toml()))
+    assert again == cfg
+    assert again.digest() == cfg.digest()
+    assert load_config(data=tomllib.loads(cfg.to_toml()), overrides=["execution.workers=2"]
+                       ).digest() == cfg.digest()
+
+
+def test_parse_override():
+    assert parse_override("a.b=[1, 2]") == (["a", "b"], [1, 2])
+    assert parse_override("a=sphere") == (["a"], "sphere")
+    assert parse_override("a='x y'") == (["a"], "x y")
+    with pytest.raises(ConfigError, match="KEY=VALUE"):
+        parse_override("novalue")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        parse_override("a=[1,")
+
+
+def test_fixed_shape_runs_one_sample(tmp_path):
+    data = {**BASE, "surface": {"kind": "sphere", "radius": 3.0}, "ensemble": {"samples": 9}}
+    assert load_config(write(tmp_path, data)).n_samples == 1
+
+
+# ---------------------------------------------------------------------------- fuzzing
+
+_scalars = st.one_of(
+    st.integers(-5, 5), st.floats(allow_nan=True, allow_infinity=True), st.booleans(),
+    st.text(max_size=6), st.lists(st.integers(-2, 40), max_size=3),
+    st.lists(st.floats(-2, 5), max_size=4),
+)
+_keys = st.sampled_from([
+    "grid.n", "grid.shape", "grid.pixel_size", "grid.boundary", "material.E", "material.nu",
+    "surface.kind", "surface.hurst", "surface.rms_height", "surface.radius", "surface.path",
+    "squeeze.depths", "squeeze.forces", "squeeze.tol", "pull.enabled", "pull.lam",
+    "output.fields", "ensemble.samples", "execution.workers", "nonsense", "grid.nonsense",
+    "elastic_surface.kind", "coupling.enabled", "squeeze.depths.num",
+])
+
+
+def _as_override(key, value):
+    try:
+        return f"{key}={dumps_toml({'v': value}).split(' = ', 1)[1].strip()}"
+    except TypeError:
+        return f"{key}=1"
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(_keys, _scalars), max_size=5))
+def test_fuzz_overrides_accept_or_config_error(tmp_path_factory, pairs):
+    path = write(tmp_path_factory.mktemp("fz"), BASE)
+    overrides = [_as_override(k, v) for k, v in pairs]
+    try:
+        cfg = load_config(path, overrides)
+    except ConfigError as exc:
+        assert str(exc)
+        return
+    assert load_config(data=tomllib.loads(cfg.to_toml())) == cfg
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.dictionaries(st.sampled_from(["grid", "material", "surface", "squeeze", "pull", "x"]),
+                       st.dictionaries(st.text(max_size=8), _scalars, max_size=4), max_size=5))
+def test_fuzz_random_documents(data):
+    try:
+        load_config(data=data)
+    except ConfigError:
+        pass
