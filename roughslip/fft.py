@@ -87,9 +87,15 @@ class RealFFT2:
     backend : {"auto", "pyfftw", "scipy"}
     threads : int
         FFT threads (default 1; see DESIGN: oversubscription is catastrophic).
+    rows : int, optional
+        Pruning for zero-padded data: inputs are zero beyond row ``rows`` and only the first
+        ``rows`` output rows are wanted. The transforms along axis 1 then run on ``rows`` rows
+        instead of ``m0`` (exactly the same result on those rows; about 25 % fewer operations
+        when ``m0 = 2 rows``). Rows ``>= rows`` of a backward output are left undefined.
     """
 
-    def __init__(self, shape: tuple[int, int], backend: str = "auto", threads: int = 1) -> None:
+    def __init__(self, shape: tuple[int, int], backend: str = "auto", threads: int = 1,
+                 rows: int | None = None) -> None:
         if len(shape) != 2 or min(shape) < 1:
             raise InputError(f"FFT shape {shape!r}: must be two positive lengths")
         if int(threads) < 1:
@@ -99,6 +105,10 @@ class RealFFT2:
         self.size = self.shape[0] * self.shape[1]
         self.backend = resolve_backend(backend)
         self.threads = int(threads)
+        self.rows = self.shape[0] if rows is None else int(rows)
+        if not 1 <= self.rows <= self.shape[0]:
+            raise InputError(f"rows = {rows!r}: must be in 1..{self.shape[0]}")
+        self.pruned = self.rows < self.shape[0]
         self._plans: dict[tuple[str, int, int], Any] = {}
         #: Number of forward and backward transforms executed (for profiling).
         self.count = 0
@@ -124,40 +134,64 @@ class RealFFT2:
         return buf
 
     # -- transforms ---------------------------------------------------------------------------
-    def _plan(self, direction: str, src: np.ndarray, dst: np.ndarray):
-        key = (direction, src.ctypes.data, dst.ctypes.data)
+    def _plan(self, kind: str, src: np.ndarray, dst: np.ndarray):
+        key = (kind, src.ctypes.data, dst.ctypes.data)
         plan = self._plans.get(key)
         if plan is None:
-            flags = ("FFTW_ESTIMATE",)
-            if direction == "b":
-                flags += ("FFTW_DESTROY_INPUT",)
-            plan = _PYFFTW.FFTW(
-                src,
-                dst,
-                axes=(0, 1),
-                direction="FFTW_FORWARD" if direction == "f" else "FFTW_BACKWARD",
-                flags=flags,
-                threads=self.threads,
-            )
-            # keep the arrays alive with the plan so that addresses are not reused
-            self._plans[key] = (plan, src, dst)
-            return plan
+            k = self.rows
+            est = ("FFTW_ESTIMATE",)
+            direction = "FFTW_FORWARD" if kind in ("f", "fr", "fc") else "FFTW_BACKWARD"
+            destroy = ("FFTW_DESTROY_INPUT",) if kind in ("b", "br") else ()
+            if kind in ("f", "b"):  # full 2-D transform
+                a, b, axes = src, dst, (0, 1)
+            elif kind == "fr":  # rows: real -> half spectrum, first k rows only
+                a, b, axes = src[:k], dst[:k], (1,)
+            elif kind in ("fc", "bc"):  # columns, in place on the spectrum
+                a, b, axes = dst, dst, (0,)
+            else:  # "br": half spectrum -> real, first k rows only
+                a, b, axes = src[:k], dst[:k], (1,)
+            fftw = _PYFFTW.FFTW(a, b, axes=axes, direction=direction, flags=est + destroy,
+                                threads=self.threads)
+            # keep the arrays alive with the plan so that their addresses are not reused
+            plan = self._plans[key] = (fftw, src, dst)
         return plan[0]
 
     def forward(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
         """Unnormalised ``rfft2`` of ``src`` (real, transform shape) into ``dst``."""
         self.count += 1
+        k = self.rows
         if self.backend == "pyfftw":
-            self._plan("f", src, dst).execute()
+            if self.pruned:
+                self._plan("fr", src, dst).execute()
+                dst[k:] = 0.0
+                self._plan("fc", dst, dst).execute()
+            else:
+                self._plan("f", src, dst).execute()
+        elif self.pruned:
+            half = scipy.fft.rfft(src[:k], axis=1, workers=self.threads)
+            np.copyto(dst, scipy.fft.fft(half, n=self.shape[0], axis=0, workers=self.threads))
         else:
             np.copyto(dst, scipy.fft.rfftn(src, axes=(0, 1), workers=self.threads))
         return dst
 
     def backward(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-        """Unnormalised inverse of :meth:`forward`; ``src`` is destroyed."""
+        """Unnormalised inverse of :meth:`forward`; ``src`` is destroyed.
+
+        With pruning only the first ``rows`` rows of ``dst`` are written.
+        """
         self.count += 1
+        k = self.rows
         if self.backend == "pyfftw":
-            self._plan("b", src, dst).execute()
+            if self.pruned:
+                self._plan("bc", src, src).execute()
+                self._plan("br", src, dst).execute()
+            else:
+                self._plan("b", src, dst).execute()
+        elif self.pruned:
+            cols = scipy.fft.ifft(src, axis=0, workers=self.threads, norm="forward",
+                                  overwrite_x=True)
+            dst[:k] = scipy.fft.irfft(cols[:k], n=self.shape[1], axis=1, workers=self.threads,
+                                      norm="forward")
         else:
             np.copyto(
                 dst,
