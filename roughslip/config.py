@@ -236,7 +236,7 @@ class ExecutionConfig:
 
     workers: int = _f(1, "worker processes", _at_least(1))
     fft: str = _f("auto", "FFT backend", choices=("auto", "pyfftw", "scipy"))
-    fft_threads: int = _f(1, "FFT threads per worker", _at_least(1))
+    threads: int = _f(1, "FFT and BLAS threads per worker", _at_least(1))
     scheduler: str | None = _f(None, "Dask scheduler address (tcp://host:port)")
     strict: bool = _f(False, "a solve that misses its tolerance stops the run")
     memory_limit_gb: float | None = _f(None, "memory budget (default: available memory)",
