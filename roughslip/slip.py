@@ -1,0 +1,689 @@
+r"""Horizontal pull and slip of a squeezed contact, decoupled model (MODEL §3, report §4.6–4.7).
+
+After the squeeze every contact site (``f_z > 0``) is a bond. The rigid surface is pulled by
+:math:`D_x`: bonded (stick) sites have :math:`u_x = D_x`, other sites carry no tangential force,
+so on the stick set :math:`S`
+
+.. math:: G_{xx}[S,S]\,\varphi = 1_S, \qquad f_x = D_x\,\varphi, \qquad F_x = D_x \sum_S \varphi.
+
+Break law (the report's model, with GREEN §8 corrections T17, T18)
+    The bond with the largest :math:`|f_x|/(\lambda f_z)` breaks next; it breaks at
+    :math:`D_{x,\rm lim} = 1/\max_i |\varphi_i|/(\lambda f_{z,i})` and pull force
+    :math:`F_{x,\rm lim} = D_{x,\rm lim} \sum_S\varphi`; its force drops to zero and the stick set
+    shrinks by one site ("repeat from 3"). The static friction force is
+    :math:`F_{\rm friction} = \max F_{x,\rm lim}`. Ties (within a relative 1e-9) go to the lowest
+    flat index. Because every later :math:`F_{x,\rm lim} \le \lambda \sum_S f_z`, the sequence may
+    stop, exactly, once that bound falls below the best value found (``early_stop``).
+
+Coulomb law
+    A slipping site carries :math:`f_x = \pm\lambda f_z` instead of 0. Between events all forces
+    are affine in :math:`D_x`; the next stick site to reach its bound slips (see
+    :func:`pull`). For a Hertz contact this is Cattaneo–Mindlin (GREEN §5d).
+
+Methods (all exact except ``"batch"``)
+    ``"literal"``: the report's algorithm done literally, one CG solve from zero per break, all
+    bonds. The reference; slow.
+    ``"inverse"``: the inverse of :math:`G_{xx}[S,S]`, updated by delayed blocks of rank-one
+    removals applied as one symmetric rank-k product (BLAS-3); :math:`\varphi` is updated in
+    :math:`O(n)` per break and certified against the FFT operator after every block. Needs
+    ~1.6 :math:`n^2` doubles of memory (checked before starting).
+    ``"cg"``: matrix-free; per break a warm-started CG solve of the correction, with the early
+    stop. Memory :math:`O(N^2)`.
+    ``"batch"``: approximate; breaks the ``batch_size`` sites with the largest ratios per solve.
+    Biased low; its error is estimated by comparing batch sizes (``error_estimate``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.linalg import blas, lapack
+
+from . import green
+from .cg import masked_cg
+from .errors import InputError, MemoryLimitError, NumericalError
+from .memory import available_bytes
+from .normal import NormalResult
+from .operators import ElasticOperator
+from .threads import blas_threads
+
+METHODS = ("auto", "literal", "inverse", "cg", "batch")
+SLIP_LAWS = ("break", "coulomb")
+TIE_TOL = 1e-9
+#: bonds above which ``method="auto"`` prefers the matrix-free exact method even if the
+#: inverse would fit in memory (the inverse costs ~n^3 flops).
+AUTO_INVERSE_MAX = 40_000
+
+
+@dataclass(frozen=True)
+class SlipResult:
+    r"""Outcome of a pull.
+
+    Attributes
+    ----------
+    friction_force : float
+        :math:`F_{\rm friction} = \max F_{x,\rm lim}` (break law) or :math:`\lambda F_n`
+        (Coulomb law: full sliding).
+    peak_index : int
+        Index of the maximum in the pull curve.
+    dx_lim, fx_lim : ndarray
+        The pull curve: the displacement and pull force at which each bond breaks (break law),
+        or at which each site starts to slip (Coulomb law), in order.
+    broken_site : ndarray of int
+        Flat indices (``iy * nx + ix``) of the sites, in the same order.
+    stick_at_peak : ndarray of bool
+        The stick set just before the peak break.
+    fx_at_peak : ndarray
+        Tangential pixel forces at the peak (:math:`D_x = D_{x,\rm lim}` of the peak state).
+    converged : bool
+        All solves met their tolerance (and, for ``"inverse"``, every certification passed).
+    method : str
+        The method actually used (``"auto"`` resolved).
+    error_estimate : float
+        Estimated relative error of ``friction_force``: 0 for the exact methods, the measured
+        batch-size sensitivity for ``"batch"``.
+    """
+
+    friction_force: float
+    peak_index: int
+    dx_lim: np.ndarray
+    fx_lim: np.ndarray
+    broken_site: np.ndarray
+    stick_at_peak: np.ndarray
+    fx_at_peak: np.ndarray
+    converged: bool
+    seconds: float
+    method: str
+    slip_law: str = "break"
+    lam: float = 0.2
+    error_estimate: float = 0.0
+    n_bonds: int = 0
+    steps: int = 0
+    early_stopped: bool = False
+    solves: int = 0
+    residual: float = 0.0
+    message: str = ""
+    normal_force: float = 0.0
+
+    @property
+    def peak_dx(self) -> float:
+        """Pull displacement at the peak."""
+        return float(self.dx_lim[self.peak_index]) if self.dx_lim.size else 0.0
+
+
+# ----------------------------------------------------------------------------------------------
+# Problem setup shared by the methods
+# ----------------------------------------------------------------------------------------------
+
+
+class _Bonds:
+    """The bonded sites of a squeezed contact and the tangential operator on the grid."""
+
+    def __init__(self, normal: NormalResult, lam: float, op: ElasticOperator | None,
+                 fft: str, threads: int):
+        self.normal = normal
+        self.grid = normal.grid
+        self.shape = normal.grid.shape
+        self.lam = lam
+        self.sites = np.flatnonzero(normal.contact.ravel() & (normal.fz.ravel() > 0))
+        self.n = int(self.sites.size)
+        self.fz = normal.fz.ravel()[self.sites].astype(float)
+        self.cap = lam * self.fz  # lambda f_z per bond
+        self._op = op
+        self._fft, self._threads = fft, threads
+
+    @property
+    def op(self) -> ElasticOperator:
+        if self._op is None:
+            self._op = self.grid.operator(self.normal.material, ("xx",), fft=self._fft,
+                                          threads=self._threads)
+        return self._op
+
+    def apply(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
+        return self.op.apply("xx", v, out=out)
+
+    def field(self, values: np.ndarray, positions: np.ndarray | None = None) -> np.ndarray:
+        out = np.zeros(self.shape)
+        sites = self.sites if positions is None else self.sites[positions]
+        out.ravel()[sites] = values
+        return out
+
+    def mask(self, positions: np.ndarray) -> np.ndarray:
+        m = np.zeros(self.shape, dtype=bool)
+        m.ravel()[self.sites[positions]] = True
+        return m
+
+    def table(self) -> np.ndarray:
+        ny, nx = self.shape
+        mat = self.normal.material
+        return green.kernel_table("xx", nx, ny, a=self.grid.a, E=mat.E, nu=mat.nu)
+
+    def dense(self, positions: np.ndarray | None = None, order: str = "F") -> np.ndarray:
+        """:math:`G_{xx}[S,S]` assembled from the closed-form kernel."""
+        n = self.n if positions is None else len(positions)
+        A = np.empty((n, n), order=order)
+        return self.dense_into(A, positions)
+
+    def dense_into(self, A: np.ndarray, positions: np.ndarray | None = None) -> np.ndarray:
+        """Fill ``A`` with :math:`G_{xx}[S,S]` in column panels (bounded index memory)."""
+        ny, nx = self.shape
+        T = self.table().ravel()
+        sites = self.sites if positions is None else self.sites[positions]
+        iy, ix = np.divmod(sites, nx)
+        # T[m + ny - 1, l + nx - 1] flattened: one linear index per pair of sites
+        lin = iy * (2 * nx - 1) + ix
+        off = (ny - 1) * (2 * nx - 1) + (nx - 1)
+        n = sites.size
+        step = max(1, 4_000_000 // max(n, 1))
+        for c0 in range(0, n, step):
+            c1 = min(n, c0 + step)
+            np.take(T, lin[:, None] - (lin[None, c0:c1] - off), out=A[:, c0:c1])
+        return A
+
+
+def _select(phi: np.ndarray, cap: np.ndarray) -> tuple[int, float]:
+    """Position of the next bond to break and the maximum ratio (ties: lowest index)."""
+    ratio = np.abs(phi) / cap
+    m = float(ratio.max())
+    if not math.isfinite(m):
+        raise NumericalError("pull: non-finite tangential force ratio")
+    j = int(np.flatnonzero(ratio >= m * (1.0 - TIE_TOL))[0])
+    return j, m
+
+
+class _Curve:
+    """Accumulates the pull curve and the peak state."""
+
+    def __init__(self, bonds: _Bonds, early_stop: bool):
+        self.b = bonds
+        self.early_stop = early_stop
+        self.dx: list[float] = []
+        self.fx: list[float] = []
+        self.site: list[int] = []
+        self.best = -math.inf
+        self.peak = 0
+        self.peak_state: tuple[np.ndarray, np.ndarray, float] | None = None
+        self.stopped = False
+
+    def record(self, alive_pos: np.ndarray, phi: np.ndarray, j: int, m: float) -> None:
+        F = float(phi.sum())
+        dx = 1.0 / m
+        flim = F * dx
+        self.dx.append(dx)
+        self.fx.append(flim)
+        self.site.append(int(self.b.sites[alive_pos[j]]))
+        if flim > self.best:
+            self.best = flim
+            self.peak = len(self.fx) - 1
+            self.peak_state = (alive_pos.copy(), phi * dx, dx)
+
+    def record_full(self, phi: np.ndarray, cap: np.ndarray, pos: np.ndarray, j: int,
+                    m: float) -> None:
+        """:meth:`record` for full-length arrays where broken bonds have ``phi = 0`` and
+        ``cap = inf``; the stick set is gathered only when the step is a new peak."""
+        F = float(phi.sum())
+        dx = 1.0 / m
+        flim = F * dx
+        self.dx.append(dx)
+        self.fx.append(flim)
+        self.site.append(int(self.b.sites[pos[j]]))
+        if flim > self.best:
+            self.best = flim
+            self.peak = len(self.fx) - 1
+            live = np.isfinite(cap)
+            self.peak_state = (pos[live], phi[live] * dx, dx)
+
+    def should_stop(self, cap_sum_after: float) -> bool:
+        """Exact early stop: every later F_x,lim <= lambda * sum of f_z over the stick set."""
+        if self.early_stop and cap_sum_after <= self.best:
+            self.stopped = True
+        return self.stopped
+
+    def result(self, t0: float, method: str, **kw) -> SlipResult:
+        b = self.b
+        if self.peak_state is None:
+            stick, fx = np.zeros(b.shape, bool), np.zeros(b.shape)
+        else:
+            pos, f, _ = self.peak_state
+            stick, fx = b.mask(pos), b.field(f, pos)
+        return SlipResult(
+            friction_force=max(self.best, 0.0), peak_index=self.peak,
+            dx_lim=np.array(self.dx), fx_lim=np.array(self.fx),
+            broken_site=np.array(self.site, dtype=np.int64), stick_at_peak=stick,
+            fx_at_peak=fx, seconds=time.perf_counter() - t0, method=method, lam=b.lam,
+            n_bonds=b.n, steps=len(self.fx), early_stopped=self.stopped,
+            normal_force=b.normal.normal_force, **kw,
+        )
+
+
+# ----------------------------------------------------------------------------------------------
+# Break law: the methods
+# ----------------------------------------------------------------------------------------------
+
+
+def _solve_phi(b: _Bonds, alive_pos: np.ndarray, tol: float, x0: np.ndarray | None,
+               max_iter: int):
+    mask = b.mask(alive_pos)
+    rhs = mask.astype(float)
+    x0f = None if x0 is None else b.field(x0, alive_pos)
+    r = masked_cg(b.apply, rhs, mask, x0=x0f, tol=tol, max_iter=max_iter)
+    return r.x.ravel()[b.sites[alive_pos]], r
+
+
+def _break_literal(b: _Bonds, tol: float, early_stop: bool, warm: bool, max_iter: int,
+                   t0: float, method: str) -> SlipResult:
+    """One CG solve per break (cold from zero for ``literal``, warm for ``cg``)."""
+    curve = _Curve(b, early_stop)
+    alive = np.arange(b.n)
+    phi = None
+    ok, solves, iters, worst = True, 0, 0, 0.0
+    cap_sum = float(b.cap.sum())
+    while alive.size:
+        phi, r = _solve_phi(b, alive, tol, phi if warm else None, max_iter)
+        solves += 1
+        iters += r.iterations
+        worst = max(worst, r.residual)
+        ok &= r.converged
+        j, m = _select(phi, b.cap[alive])
+        curve.record(alive, phi, j, m)
+        cap_sum -= float(b.cap[alive[j]])
+        if curve.should_stop(cap_sum):
+            break
+        alive = np.delete(alive, j)
+        phi = np.delete(phi, j)
+    return curve.result(t0, method, converged=bool(ok), solves=solves, residual=worst,
+                        message=f"{solves} CG solves, {iters} iterations")
+
+
+def inverse_memory_bytes(n: int, block: int = 128) -> int:
+    """Peak memory of the ``"inverse"`` method for ``n`` bonds (bytes): one n x n matrix,
+    compacted in place, plus O(n block) work arrays."""
+    return int(8 * n * n + 8 * n * (3 * block + 64))
+
+
+def _compact(buf: np.ndarray, n_old: int, keep: np.ndarray) -> np.ndarray:
+    """Gather rows/columns ``keep`` of the Fortran ``n_old x n_old`` matrix held in ``buf``
+    into a Fortran ``k x k`` matrix at the start of the same buffer (lower triangle).
+
+    New column ``c`` starts at ``c k <= keep[c] n_old``, the start of its source column, and
+    ends before the next source column, so a forward sweep never overwrites unread data.
+    """
+    k = keep.size
+    for c in range(k):
+        src = int(keep[c])
+        col = buf[src * n_old + keep[c:]]  # lower part of the source column (a copy)
+        buf[c * k + c : c * k + k] = col
+    return buf[: k * k].reshape((k, k), order="F")
+
+
+class _InverseSweep:
+    r"""The inverse of :math:`G_{xx}` on a shrinking set of bonds, with blocked updates.
+
+    Removing site :math:`j` changes the inverse :math:`C = G_{SS}^{-1}` by the rank-one term
+    :math:`-c\,c^T/c_j` (Sherman–Morrison), :math:`c` the column of :math:`j`; a solution
+    :math:`v = C r` for a fixed right-hand side becomes :math:`v - c\,v_j/c_j`. The scaled
+    columns :math:`c/\sqrt{c_j}` of the last ``block`` removals are kept in :math:`U`, so the
+    column of the current inverse is the stored one minus :math:`U U_j^T` (:math:`O(nk)`).
+    :meth:`flush` applies :math:`B \leftarrow B - UU^T` as one symmetric rank-k product
+    (lower triangle, in place) and compacts dead rows away in place: the memory stays at one
+    ``n x n`` matrix. Vectors registered in :attr:`v` are compacted along.
+    """
+
+    def __init__(self, b: _Bonds, block: int):
+        n = b.n
+        need = inverse_memory_bytes(n, block)
+        if need > available_bytes():
+            raise MemoryLimitError(
+                f"the inverse of G_xx on {n} bonds needs ~{need / 2**30:.1f} GiB but "
+                f"{available_bytes() / 2**30:.1f} GiB are available; use pull method 'cg' "
+                "(exact, matrix-free) or 'batch' (approximate)")
+        self.b = b
+        self.block = block
+        self.buf = np.empty(n * n)
+        B = self.buf.reshape((n, n), order="F")
+        b.dense_into(B)
+        B, info = lapack.dpotrf(B, lower=1, overwrite_a=1, clean=0)
+        if info != 0:
+            raise NumericalError(f"G_xx on the stick set is not positive definite (info {info})")
+        B, info = lapack.dpotri(B, lower=1, overwrite_c=1)
+        if info != 0:
+            raise NumericalError(f"inverting G_xx on the stick set failed (info {info})")
+        if not np.shares_memory(B, self.buf):
+            raise NumericalError("LAPACK did not work in place")
+        self.B = B
+        self.U = np.empty((n, block), order="F")
+        self.k = 0
+        self.n_alive = n
+        #: per-row vectors, compacted with the matrix; "pos" is the bond position of each row
+        #: and "cap" is lambda f_z, set to inf when a bond leaves the set
+        self.v: dict[str, np.ndarray] = {"pos": np.arange(n), "cap": b.cap.copy()}
+
+    @property
+    def nb(self) -> int:
+        return self.B.shape[0]
+
+    def alive(self) -> np.ndarray:
+        return np.isfinite(self.v["cap"])
+
+    def apply(self, x: np.ndarray) -> np.ndarray:
+        """Current inverse times ``x`` (dead rows of ``x`` must be zero)."""
+        y = blas.dsymv(1.0, self.B, x, lower=1)
+        if self.k:
+            U = self.U[: self.nb, : self.k]
+            y -= U @ (U.T @ x)
+        return y
+
+    def remove(self, j: int) -> np.ndarray:
+        """Remove row ``j``; returns the column :math:`c` of the inverse before the removal."""
+        B, nb, k = self.B, self.nb, self.k
+        c = np.empty(nb)
+        c[:j] = B[j, :j]
+        c[j:] = B[j:, j]
+        if k:
+            c -= self.U[:nb, :k] @ self.U[j, :k]
+        cj = c[j]
+        if not cj > 0:
+            raise NumericalError("lost positive definiteness in the inverse update")
+        self.U[:nb, k] = c * (1.0 / math.sqrt(cj))
+        self.k += 1
+        self.v["cap"][j] = math.inf
+        self.n_alive -= 1
+        return c
+
+    def full(self) -> bool:
+        return self.k == self.block
+
+    def flush(self) -> None:
+        """Apply the pending removals to the stored inverse; compact when worthwhile."""
+        if self.k:
+            out = blas.dsyrk(-1.0, self.U[: self.nb, : self.k], beta=1.0, c=self.B, lower=1,
+                             overwrite_c=1)
+            if not np.shares_memory(out, self.B):
+                self.B[...] = out
+            self.k = 0
+        if self.n_alive < 0.75 * self.nb:
+            keep = np.flatnonzero(self.alive())
+            self.B = _compact(self.buf, self.nb, keep)
+            self.v = {name: vec[keep] for name, vec in self.v.items()}
+
+
+def _break_inverse(b: _Bonds, tol: float, early_stop: bool, block: int, t0: float
+                   ) -> SlipResult:
+    """Exact break law with :class:`_InverseSweep`: :math:`O(n)` per break plus blocked
+    BLAS-3 updates; :math:`\varphi` is certified against the FFT operator after each block."""
+    curve = _Curve(b, early_stop)
+    sw = _InverseSweep(b, block)
+    sw.v["phi"] = sw.apply(np.ones(b.n))
+    cap_sum = float(b.cap.sum())
+    worst, refinements, ok = 0.0, 0, True
+    while sw.n_alive:
+        phi, cap, pos = sw.v["phi"], sw.v["cap"], sw.v["pos"]
+        j, m = _select(phi, cap)
+        curve.record_full(phi, cap, pos, j, m)
+        cap_sum -= float(cap[j])
+        if curve.should_stop(cap_sum) or sw.n_alive == 1:
+            break
+        c = sw.remove(j)
+        phi -= c * (phi[j] / c[j])
+        phi[j] = 0.0
+        if sw.full():
+            sw.flush()
+            res, nref = _certify(b, sw, "phi", None, tol)
+            worst, refinements = max(worst, res), refinements + nref
+            ok &= res <= tol
+    return curve.result(t0, "inverse", converged=bool(ok), residual=worst,
+                        solves=refinements,
+                        message=f"{b.n} bonds, block {block}, {refinements} refinements")
+
+
+def _certify(b: _Bonds, sw: _InverseSweep, name: str, load: np.ndarray | None, tol: float
+             ) -> tuple[float, int]:
+    r"""Check a tracked solution against the FFT operator, refining it if needed.
+
+    ``v = sw.v[name]`` must satisfy :math:`(G_{xx} v)_i = 1` on the live sites
+    (:math:`\varphi`, ``load`` None) or :math:`(G_{xx} v)_i = (G_{xx} f_L)_i` for the grid field
+    ``load`` :math:`= f_L` of fixed slip forces (:math:`\psi`). Returns the relative residual
+    and the number of refinements.
+    """
+    nref = 0
+    while True:
+        v, pos = sw.v[name], sw.v["pos"]
+        live = sw.alive()
+        sites = b.sites[pos[live]]
+        f = b.field(v[live], pos[live])
+        u = b.apply(f, np.empty(b.shape)).ravel()
+        if load is None:
+            rhs = np.ones(sites.size)
+        else:
+            rhs = b.apply(load, np.empty(b.shape)).ravel()[sites]
+        r = rhs - u[sites]
+        scale = max(float(np.linalg.norm(rhs)), 1e-300)
+        res = float(np.linalg.norm(r)) / scale
+        if res <= tol or nref >= 3:
+            return res, nref
+        full = np.zeros(sw.nb)
+        full[live] = r
+        v[live] += sw.apply(full)[live]
+        nref += 1
+
+
+def _break_batch(b: _Bonds, tol: float, early_stop: bool, size: int, max_iter: int,
+                 t0: float) -> SlipResult:
+    """Approximate: break the ``size`` largest-ratio bonds per solve (biased low)."""
+    curve = _Curve(b, early_stop)
+    alive = np.arange(b.n)
+    phi = None
+    ok, solves, worst = True, 0, 0.0
+    cap_sum = float(b.cap.sum())
+    while alive.size:
+        phi, r = _solve_phi(b, alive, tol, phi, max_iter)
+        solves += 1
+        worst = max(worst, r.residual)
+        ok &= r.converged
+        j, m = _select(phi, b.cap[alive])
+        curve.record(alive, phi, j, m)
+        ratio = np.abs(phi) / b.cap[alive]
+        order = np.argsort(-ratio, kind="stable")[:size]
+        cap_sum -= float(b.cap[alive[order]].sum())
+        if curve.should_stop(cap_sum):
+            break
+        keep = np.ones(alive.size, bool)
+        keep[order] = False
+        alive, phi = alive[keep], phi[keep]
+    return curve.result(t0, "batch", converged=bool(ok), solves=solves, residual=worst,
+                        message=f"{solves} CG solves, {size} bonds per solve")
+
+
+# ----------------------------------------------------------------------------------------------
+# Coulomb law
+# ----------------------------------------------------------------------------------------------
+
+
+def _coulomb(b: _Bonds, tol: float, block: int, t0: float) -> SlipResult:
+    r"""Event-driven Coulomb slip: the exact piecewise-linear :math:`F_x(D_x)` to full sliding.
+
+    With stick set :math:`S` and slip set :math:`L` carrying :math:`f_x = s\,\lambda f_z`
+    (:math:`s = \pm 1`, monotonic loading, no re-sticking), the stick forces are
+    :math:`f_S = D\,\varphi - \psi` with :math:`\varphi = G_{SS}^{-1}1` and
+    :math:`\psi = G_{SS}^{-1}G_{SL}f_L`. The next stick site to reach :math:`\pm\lambda f_z`
+    slips; if that happens below the current :math:`D` it slips at once (an avalanche). When
+    site :math:`k` moves to :math:`L`, :math:`\varphi \leftarrow \varphi - c\varphi_k/c_k`
+    and :math:`\psi \leftarrow \psi - c(\psi_k + s_k\lambda f_{z,k})/c_k`
+    (:class:`_InverseSweep`). Both are certified against the FFT operator after each block.
+    """
+    n = b.n
+    sw = _InverseSweep(b, block)
+    sw.v["phi"] = sw.apply(np.ones(n))
+    sw.v["psi"] = np.zeros(n)
+    sign = np.zeros(n)  # slip direction per bond position
+    dx, fx, sites = [], [], []
+    D, slip_sum = 0.0, 0.0
+    worst, refinements, ok = 0.0, 0, True
+    while sw.n_alive:
+        phi, psi, cap, pos = sw.v["phi"], sw.v["psi"], sw.v["cap"], sw.v["pos"]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d_pos = np.where(phi > 0, (cap + psi) / phi, np.inf)
+            d_neg = np.where(phi < 0, (psi - cap) / phi, np.inf)
+        d_pos[~np.isfinite(cap)] = np.inf
+        d_neg[~np.isfinite(cap)] = np.inf
+        dk = np.minimum(d_pos, d_neg)
+        k = int(np.argmin(dk))
+        if not math.isfinite(float(dk[k])):
+            raise NumericalError("Coulomb pull: no stick site can reach its bound")
+        D = max(D, float(dk[k]))
+        s_k = 1.0 if d_pos[k] <= d_neg[k] else -1.0
+        F = D * float(phi.sum()) - float(psi.sum()) + slip_sum
+        dx.append(D)
+        fx.append(F)
+        sites.append(int(b.sites[pos[k]]))
+        capk = float(cap[k])
+        sign[pos[k]] = s_k
+        slip_sum += s_k * capk
+        if sw.n_alive == 1:
+            break
+        c = sw.remove(k)
+        phi -= c * (phi[k] / c[k])
+        psi -= c * ((psi[k] + s_k * capk) / c[k])
+        phi[k] = psi[k] = 0.0
+        if sw.full():
+            sw.flush()
+            r1, n1 = _certify(b, sw, "phi", None, tol)
+            r2, n2 = _certify(b, sw, "psi", b.field(sign * b.cap), tol)
+            worst, refinements = max(worst, r1, r2), refinements + n1 + n2
+            ok &= max(r1, r2) <= tol
+    total = float((sign * b.cap).sum())
+    return SlipResult(
+        friction_force=total, peak_index=len(fx) - 1, dx_lim=np.array(dx),
+        fx_lim=np.array(fx), broken_site=np.array(sites, dtype=np.int64),
+        stick_at_peak=np.zeros(b.shape, bool), fx_at_peak=b.field(sign * b.cap),
+        converged=bool(ok), seconds=time.perf_counter() - t0, method="inverse",
+        slip_law="coulomb", lam=b.lam, n_bonds=n, steps=len(fx), residual=worst,
+        solves=refinements, normal_force=b.normal.normal_force,
+        message="exact event sequence to full sliding",
+    )
+
+
+def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
+    """Pull force :math:`Q(D_x)` on the exact piecewise-linear Coulomb curve.
+
+    Before the first slip event :math:`Q = K D_x` with the full-stick stiffness.
+    """
+    if result.slip_law != "coulomb":
+        raise InputError("coulomb_force_at needs a Coulomb-law result")
+    xs = np.concatenate([[0.0], result.dx_lim])
+    ys = np.concatenate([[0.0], result.fx_lim])
+    return np.interp(dx, xs, ys, right=result.friction_force)
+
+
+# ----------------------------------------------------------------------------------------------
+# Public entry point
+# ----------------------------------------------------------------------------------------------
+
+
+def choose_method(n: int, memory: int | None = None) -> str:
+    """The exact method ``"auto"`` picks for ``n`` bonds given ``memory`` bytes."""
+    memory = available_bytes() if memory is None else memory
+    if n <= 12:
+        return "literal"
+    if n <= AUTO_INVERSE_MAX and inverse_memory_bytes(n) <= memory:
+        return "inverse"
+    return "cg"
+
+
+def pull(
+    normal: NormalResult,
+    *,
+    lam: float = 0.2,
+    slip_law: str = "break",
+    method: str = "auto",
+    tol: float = 1e-10,
+    early_stop: bool = True,
+    batch_size: int = 16,
+    block: int = 128,
+    max_iter: int = 10_000,
+    fft: str = "auto",
+    threads: int = 1,
+    operator: ElasticOperator | None = None,
+) -> SlipResult:
+    r"""Pull a squeezed contact sideways until it slides (MODEL §3).
+
+    Parameters
+    ----------
+    normal : NormalResult
+        The squeeze result; its contact sites (``f_z > 0``) are the initial bonds, and its grid
+        and material define :math:`G_{xx}`.
+    lam : float
+        Local friction coefficient :math:`\lambda > 0`: a bond breaks (or slips) when
+        :math:`|f_x| > \lambda f_z`.
+    slip_law : {"break", "coulomb"}
+        ``"break"``: a broken bond carries no force (the report). ``"coulomb"``: a slipping
+        site carries :math:`\lambda f_z`.
+    method : {"auto", "literal", "inverse", "cg", "batch"}
+        See the module docstring. ``"auto"`` picks an exact method by bond count and memory.
+    tol : float
+        Relative residual of the tangential solves (and of the certification of ``inverse``).
+    early_stop : bool
+        Stop once :math:`\lambda\sum_S f_z` falls below the best :math:`F_{x,\rm lim}` (exact).
+        ``method="literal"`` always runs to the last bond, as the report does.
+    batch_size : int
+        Bonds broken per solve by ``method="batch"``.
+
+    Returns
+    -------
+    SlipResult
+    """
+    t0 = time.perf_counter()
+    if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
+        raise InputError(f"lam = {lam!r}: must be a finite number > 0")
+    if slip_law not in SLIP_LAWS:
+        raise InputError(f"slip_law = {slip_law!r}: must be 'break' or 'coulomb'")
+    if method not in METHODS:
+        raise InputError(f"method = {method!r}: must be one of {', '.join(METHODS)}")
+    if not 0 < tol < 1:
+        raise InputError(f"tol = {tol!r}: must satisfy 0 < tol < 1")
+    if int(batch_size) < 1 or int(block) < 1:
+        raise InputError("batch_size and block must be >= 1")
+    if int(threads) < 1:
+        raise InputError(f"threads = {threads!r}: must be >= 1")
+    with blas_threads(threads):
+        return _pull(normal, float(lam), slip_law, method, tol, early_stop, int(batch_size),
+                     int(block), max_iter, fft, threads, operator, t0)
+
+
+def _pull(normal, lam, slip_law, method, tol, early_stop, batch_size, block, max_iter, fft,
+          threads, operator, t0) -> SlipResult:
+    b = _Bonds(normal, lam, operator, fft, threads)
+    if b.n == 0:
+        return _Curve(b, early_stop).result(t0, method, converged=True,
+                                            message="no contact: nothing to pull",
+                                            slip_law=slip_law)
+    chosen = choose_method(b.n) if method == "auto" else method
+    if slip_law == "coulomb":
+        if chosen not in ("inverse", "literal", "auto"):
+            raise InputError(f"slip_law = 'coulomb' supports methods auto and inverse, not "
+                             f"{chosen!r}")
+        return _coulomb(b, tol, int(block), t0)
+    if chosen == "literal":
+        res = _break_literal(b, tol, False, False, max_iter, t0, "literal")
+    elif chosen == "cg":
+        res = _break_literal(b, tol, early_stop, True, max_iter, t0, "cg")
+    elif chosen == "inverse":
+        res = _break_inverse(b, tol, early_stop, int(block), t0)
+    else:
+        res = _break_batch(b, tol, early_stop, int(batch_size), max_iter, t0)
+        half = _break_batch(b, tol, early_stop, max(1, int(batch_size) // 2), max_iter, t0)
+        est = abs(res.friction_force - half.friction_force) / max(half.friction_force, 1e-300)
+        res = _replace(res, error_estimate=est, seconds=time.perf_counter() - t0,
+                       message=res.message + f"; error estimate from batch size "
+                       f"{max(1, int(batch_size) // 2)}: {est:.2e}")
+    if method == "auto":
+        res = _replace(res, message=f"auto chose {chosen} for {b.n} bonds; " + res.message)
+    return res
+
+
+def _replace(res: SlipResult, **kw) -> SlipResult:
+    return replace(res, **kw)
+

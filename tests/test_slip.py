@@ -1,0 +1,206 @@
+"""The pull stage: exact methods against the literal algorithm, closed forms, invariances."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from roughslip import memory
+from roughslip.errors import InputError, MemoryLimitError
+from roughslip.normal import squeeze
+from roughslip.slip import choose_method, coulomb_force_at, pull
+from roughslip.surfaces import punch, sample_rng, self_affine, sphere
+
+
+@pytest.fixture(scope="module")
+def rough_contact():
+    h = self_affine((40, 36), hurst=0.8, rms_height=1.0, rng=sample_rng(11, 0), oversample=2)
+    return squeeze(h, depth=1.6, tol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def hertz_contact():
+    h = sphere((24, 24), radius=30.0)
+    return squeeze(h, depth=2.0, nu=0.25, tol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def literal(rough_contact, hertz_contact):
+    return {
+        "rough": pull(rough_contact, lam=0.2, method="literal", tol=1e-12),
+        "hertz": pull(hertz_contact, lam=0.2, method="literal", tol=1e-12),
+    }
+
+
+@pytest.mark.parametrize("scene", ["rough", "hertz"])
+@pytest.mark.parametrize("method", ["inverse", "cg"])
+def test_fast_exact_methods_equal_literal(rough_contact, hertz_contact, literal, scene, method):
+    normal = rough_contact if scene == "rough" else hertz_contact
+    ref = literal[scene]
+    assert ref.n_bonds > 40 and ref.steps == ref.n_bonds and not ref.early_stopped
+    res = pull(normal, lam=0.2, method=method, tol=1e-12, block=16)
+    assert res.converged and res.error_estimate == 0.0
+    assert res.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
+    assert res.peak_index == ref.peak_index
+    k = res.steps
+    assert np.array_equal(res.broken_site, ref.broken_site[:k])
+    assert np.allclose(res.fx_lim, ref.fx_lim[:k], rtol=1e-8)
+    assert np.array_equal(res.stick_at_peak, ref.stick_at_peak)
+
+
+def test_early_stop_is_exact(rough_contact):
+    full = pull(rough_contact, method="inverse", early_stop=False, block=8)
+    fast = pull(rough_contact, method="inverse", early_stop=True, block=8)
+    assert full.steps == full.n_bonds and fast.early_stopped and fast.steps < full.steps
+    assert fast.friction_force == full.friction_force
+
+
+def test_pull_curve_maximum_and_peak_state(rough_contact):
+    res = pull(rough_contact, lam=0.3)
+    assert res.friction_force == res.fx_lim.max() == res.fx_lim[res.peak_index]
+    # the forces at the peak sum to the friction force; only stick sites carry them
+    assert res.fx_at_peak.sum() == pytest.approx(res.friction_force, rel=1e-10)
+    assert np.all(res.fx_at_peak[~res.stick_at_peak] == 0)
+    # the peak bond sits at its limit, every other one below it
+    ratio = np.abs(res.fx_at_peak[res.stick_at_peak]) / (0.3 * rough_contact.fz[
+        res.stick_at_peak])
+    assert ratio.max() == pytest.approx(1.0, rel=1e-10)
+    assert res.stick_at_peak.sum() == res.n_bonds - res.peak_index
+
+
+def test_hertz_stick_forces_are_positive(hertz_contact):
+    res = pull(hertz_contact, lam=0.2)
+    f = res.fx_at_peak[res.stick_at_peak]
+    assert f.size > 0 and np.all(f > 0)
+
+
+def test_lambda_scaling(rough_contact):
+    a = pull(rough_contact, lam=0.2)
+    for s in (1e-6, 3.0, 1e4):
+        b = pull(rough_contact, lam=0.2 * s)
+        assert b.friction_force == pytest.approx(s * a.friction_force, rel=1e-10)
+        assert np.array_equal(b.broken_site, a.broken_site)
+        assert np.allclose(b.dx_lim, s * a.dx_lim, rtol=1e-10)
+
+
+def test_deterministic_tie_breaking_lowest_flat_index():
+    """A centred sphere on an even grid is symmetric under 8 reflections: ties everywhere."""
+    h = sphere((8, 8), radius=4.0)
+    normal = squeeze(h, depth=1.0, tol=1e-13)
+    assert normal.n_contact >= 12
+    for method in ("literal", "inverse", "cg"):
+        res = pull(normal, method=method, tol=1e-13)
+        fx = res.fx_at_peak
+        first = res.broken_site[0]
+        # the first bond to break is the lowest flat index among the equal maxima
+        iy, ix = divmod(int(first), 8)
+        twins = {(iy, 7 - ix), (7 - iy, ix), (7 - iy, 7 - ix)}
+        assert all(first <= y * 8 + x for y, x in twins)
+        assert np.isfinite(fx).all()
+    seqs = {tuple(pull(normal, method=m, tol=1e-13).broken_site[:6])
+            for m in ("literal", "inverse", "cg")}
+    assert len(seqs) == 1
+
+
+def test_only_sites_with_positive_normal_force_are_bonds(rough_contact):
+    res = pull(rough_contact)
+    assert res.n_bonds == int(np.count_nonzero(rough_contact.fz > 0))
+    assert np.all(rough_contact.fz.ravel()[res.broken_site] > 0)
+
+
+def test_single_bond_and_full_contact():
+    h = self_affine((10, 10), hurst=0.7, rms_height=1.0, rng=sample_rng(2, 0))
+    one = squeeze(h, depth=1e-9)
+    res = pull(one, lam=0.25)
+    assert res.n_bonds == 1 and res.steps == 1
+    assert res.friction_force == pytest.approx(0.25 * one.normal_force, rel=1e-12)
+    full = squeeze(h, depth=30 * (h.max() - h.min()))
+    assert full.contact.all()
+    for method in ("inverse", "cg", "literal"):
+        r = pull(full, lam=0.25, method=method, tol=1e-11)
+        assert r.n_bonds == 100 and r.converged and 0 < r.friction_force <= 0.25 * full.normal_force
+    assert pull(full, method="inverse").friction_force == pytest.approx(
+        pull(full, method="literal", tol=1e-12).friction_force, rel=1e-8)
+
+
+def test_no_contact_gives_zero():
+    normal = squeeze(np.zeros((5, 5)), depth=0.0)
+    res = pull(normal)
+    assert res.friction_force == 0.0 and res.steps == 0 and res.converged
+
+
+def test_bonded_punch_follows_mindlin_before_the_first_break():
+    """Q = 8 G a delta / (2 - nu) (GREEN §5e), with the punch's -0.12 h/a staircase error."""
+    nu, ah = 0.3, 16
+    h = 1.0 / ah
+    normal = squeeze(punch((2 * ah + 2, 2 * ah + 2), radius=1.0, a=h), depth=1e-3, a=h, nu=nu)
+    res = pull(normal, lam=0.3)
+    a_eq = math.sqrt(normal.n_contact * h * h / math.pi)
+    k_exact = 8 * (1 / (2 * (1 + nu))) * a_eq / (2 - nu)
+    err = (res.fx_lim[0] / res.dx_lim[0] - k_exact) / k_exact
+    assert -0.2 * h < err < 0, f"bonded punch stiffness off by {err:.3e}"
+
+
+@pytest.mark.parametrize("a_over_h", [8, 16])
+def test_coulomb_matches_cattaneo_mindlin(a_over_h):
+    """GREEN §5d at nu = 0.3, lambda = 0.3, delta/delta_s = 0.3 and 0.7."""
+    nu, lam, R, d = 0.3, 0.3, 1.0, 1 / 16
+    G = 1 / (2 * (1 + nu))
+    ac = math.sqrt(R * d)
+    h = ac / a_over_h
+    n = math.ceil(2.4 * ac / h)
+    n += n % 2
+    heights = sphere((n, n), radius=R, a=h)
+    normal = squeeze(heights, depth=d + heights.max(), a=h, nu=nu, tol=1e-12)
+    res = pull(normal, lam=lam, slip_law="coulomb", block=64)
+    P = normal.normal_force
+    assert res.converged and res.friction_force == pytest.approx(lam * P, rel=1e-12)
+    assert np.all(np.diff(res.fx_lim) >= -1e-12 * lam * P)  # Q(delta) never decreases
+    delta_s = 3 * lam * P * (2 - nu) / (16 * G * ac)
+    for frac in (0.3, 0.7):
+        q = float(coulomb_force_at(res, frac * delta_s))
+        q_exact = lam * P * (1 - (1 - frac) ** 1.5)
+        assert abs(q - q_exact) / (lam * P) < 3e-3, "Cattaneo-Mindlin tangential force"
+        stick = int(np.count_nonzero(res.dx_lim > frac * delta_s))
+        c_eq = math.sqrt(stick * h * h / math.pi)
+        c = ac * (1 - q_exact / (lam * P)) ** (1 / 3)
+        assert abs(c_eq - c) < 1.5 * h, "Cattaneo-Mindlin stick radius"
+
+
+def test_batch_is_approximate_and_says_so(rough_contact):
+    exact = pull(rough_contact, method="inverse")
+    approx = pull(rough_contact, method="batch", batch_size=8)
+    assert approx.method == "batch" and approx.error_estimate > 0
+    assert approx.friction_force <= exact.friction_force * (1 + 1e-12)
+    assert "error estimate" in approx.message
+
+
+def test_auto_records_its_choice(rough_contact):
+    res = pull(rough_contact)
+    assert res.method == choose_method(res.n_bonds) == "inverse"
+    assert "auto chose inverse" in res.message
+    assert choose_method(10) == "literal"
+    assert choose_method(10**6, memory=2**30) == "cg"
+
+
+def test_memory_guard_refuses_the_inverse(rough_contact):
+    memory.set_limit(1e-6)
+    try:
+        with pytest.raises(MemoryLimitError, match="GiB"):
+            pull(rough_contact, method="inverse")
+        assert pull(rough_contact).method == "cg"  # auto falls back to matrix-free
+    finally:
+        memory.set_limit(None)
+
+
+def test_bad_arguments(rough_contact):
+    with pytest.raises(InputError, match="lam"):
+        pull(rough_contact, lam=0.0)
+    with pytest.raises(InputError, match="lam"):
+        pull(rough_contact, lam=-1.0)
+    with pytest.raises(InputError, match="slip_law"):
+        pull(rough_contact, slip_law="stick")
+    with pytest.raises(InputError, match="method"):
+        pull(rough_contact, method="fast")
