@@ -26,11 +26,19 @@ test: $(STAMP)
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests"; exit 0; fi; \
 	exit $$rc
 
+# The main job on a shipped config, then its summary.
+demo: $(STAMP)
+	$(VENV)/bin/roughslip run configs/demo.toml -o results/demo.h5 --overwrite
+	$(VENV)/bin/roughslip inspect results/demo.h5
+
 lint: $(STAMP)
 	$(VENV)/bin/ruff check roughslip tests scripts
 
 bench: $(STAMP)
 	$(PY) scripts/bench_operator.py
+	$(PY) scripts/bench_squeeze.py
+	$(PY) scripts/bench_pull.py
+	$(PY) scripts/bench_run.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache build *.egg-info

@@ -16,19 +16,27 @@ from .errors import (
     OutputError,
     RoughslipError,
 )
-from .operators import ElasticOperator, Material
+from .normal import NormalResult, NormalSolver, squeeze
+from .operators import ElasticOperator, Grid, Material
+from .slip import SlipResult, pull
 
 __all__ = [
     "ConfigError",
     "ConvergenceError",
     "ElasticOperator",
+    "Grid",
     "InputError",
     "Material",
     "MemoryLimitError",
+    "NormalResult",
+    "NormalSolver",
     "NumericalError",
     "OutputError",
     "RoughslipError",
     "RunConfig",
+    "SlipResult",
     "__version__",
     "load_config",
+    "pull",
+    "squeeze",
 ]

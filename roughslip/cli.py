@@ -7,8 +7,11 @@ its tolerance in strict mode, 130 interrupted.
 from __future__ import annotations
 
 import functools
+import shlex
 import sys
+import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import click
@@ -32,7 +35,8 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
         except RoughslipError as exc:
             _fail(str(exc), exc.exit_code)
         except KeyboardInterrupt:
-            click.echo("roughslip: interrupted", err=True)
+            click.echo("roughslip: interrupted; completed samples are kept (continue with "
+                       "--resume)", err=True)
             sys.exit(130)
 
     return wrapper
@@ -62,6 +66,94 @@ def show_config(config: str, overrides: tuple[str, ...]) -> None:
     from .config import load_config
 
     click.echo(load_config(config, overrides).to_toml(), nl=False)
+
+
+class _Progress:
+    """Turns run events into a tqdm bar (terminal) or periodic log lines (otherwise)."""
+
+    def __init__(self, quiet: bool, every: float = 10.0):
+        self.quiet = quiet
+        self.tty = sys.stderr.isatty()
+        self.every = every
+        self.bar = None
+        self.done = 0
+        self.total = 0
+        self.t0 = time.monotonic()
+        self.last = 0.0
+
+    def __call__(self, e: dict[str, Any]) -> None:
+        kind = e["kind"]
+        if kind == "start":
+            self.total = e["total"]
+            if e.get("notes") and not self.quiet:
+                for note in e["notes"]:
+                    click.echo(f"roughslip: note: {note}", err=True)
+            if e["skipped"] and not self.quiet:
+                click.echo(f"roughslip: resuming: {e['skipped']} sample(s) already complete",
+                           err=True)
+            if self.tty and not self.quiet:
+                from tqdm import tqdm
+
+                self.bar = tqdm(total=self.total, unit="solve", file=sys.stderr,
+                                desc=f"{e['samples']} samples x {e['depths']} depths")
+        elif kind == "depth":
+            self.done += 1
+            if self.bar is not None:
+                self.bar.update(1)
+            elif not self.quiet and time.monotonic() - self.last >= self.every:
+                self.last = time.monotonic()
+                el = self.last - self.t0
+                eta = el / self.done * (self.total - self.done)
+                click.echo(f"roughslip: {self.done}/{self.total} solves (sample {e['sample']}, "
+                           f"depth {e['depth_index']}), {el:.0f} s elapsed, ETA {eta:.0f} s",
+                           err=True)
+        elif kind == "done" and self.bar is not None:
+            self.bar.close()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+@cli.command("run")
+@click.argument("config", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", type=click.Path(dir_okay=False),
+              help="HDF5 output (default: results/<config name>.h5).")
+@set_option
+@click.option("--workers", type=click.IntRange(min=1), help="Worker processes.")
+@click.option("--resume", is_flag=True, help="Continue an existing output file.")
+@click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
+@click.option("--scheduler", metavar="ADDRESS", help="Dask scheduler (tcp://host:port).")
+@click.option("--strict", is_flag=True, help="A solve that misses its tolerance stops the run.")
+@click.option("--quiet", is_flag=True, help="No progress output.")
+@handle_errors
+def run_cmd(config, out, overrides, workers, resume, overwrite, scheduler, strict, quiet):
+    """Squeeze (and pull) every sample at every depth of CONFIG; write an HDF5 file."""
+    from .config import load_config
+    from .ensemble import run
+
+    extra = ["execution.strict=true"] if strict else []
+    cfg = load_config(config, [*overrides, *extra])
+    out = out or str(Path("results") / (Path(config).stem + ".h5"))
+    progress = _Progress(quiet)
+    try:
+        summary = run(cfg, out, workers=workers, resume=resume, overwrite=overwrite,
+                      scheduler=scheduler, progress=progress, command_line=shlex.join(sys.argv))
+    finally:
+        progress.close()
+    if not quiet:
+        click.echo(f"roughslip: wrote {summary.path} ({summary.computed} sample(s) computed, "
+                   f"{summary.skipped} kept, {summary.seconds:.1f} s)", err=True)
+
+
+@cli.command("inspect")
+@click.argument("path", type=click.Path(dir_okay=False))
+@handle_errors
+def inspect_cmd(path: str) -> None:
+    """Summarise a run file: config, samples done, per-depth means, convergence."""
+    from .summary import summarize
+
+    click.echo(summarize(path))
 
 
 def main() -> None:

@@ -177,7 +177,6 @@ class NormalSolver:
         if operator is None:
             operator = grid.operator(material, ("zz",), fft=fft, threads=threads)
         self.op = operator
-        self.threads = int(threads)
         self.hmax = float(self.heights.max())
         self.hmean = float(self.heights.mean())
         # geometric overlap at D = 0 (first touch): ubar(D) = D + self._base
@@ -222,7 +221,9 @@ class NormalSolver:
                 raise InputError("x0: contains non-finite values")
         t0 = time.perf_counter()
         conv0, fft0 = self.op.applications, self.op.fft_seconds
-        with blas_threads(self.threads):
+        # FFT-bound loop: BLAS stays single-threaded (an FFTW and an OpenBLAS thread pool
+        # competing for the same cores made CG iterations 60x slower)
+        with blas_threads(1):
             if (depth is not None and depth <= 0) or (force is not None and force == 0):
                 out = self._no_contact(0.0 if depth is None else depth)
             elif self.method == "pk":

@@ -1,0 +1,404 @@
+"""Samples x depths: the main job, on one process, a process pool or a Dask cluster.
+
+:func:`run_sample` is a pure function of ``(config, sample)``: its numbers do not depend on
+where or alongside what it runs (FFT and BLAS use ``execution.threads`` threads; all randomness
+comes from the sample's seed). :func:`run` sends pending samples to an executor and writes each
+finished one through the single writer of :mod:`roughslip.store`.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing as mp
+import queue as queue_mod
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import memory
+from ._version import __version__
+from .config import RunConfig
+from .errors import ConvergenceError, InputError, MemoryLimitError, NumericalError
+from .fft import library_versions, resolve_backend
+from .normal import NormalResult, NormalSolver
+from .operators import ElasticOperator
+from .scene import Scene
+from .slip import SlipResult, pull
+from .store import RunWriter, SampleResult
+
+Progress = Callable[[dict[str, Any]], None]
+
+_SCENES: dict[str, Scene] = {}
+_OPERATORS: dict[tuple, ElasticOperator] = {}
+
+
+def _scene(config: RunConfig) -> Scene:
+    key = config.digest() + config.source
+    sc = _SCENES.get(key)
+    if sc is None:
+        _SCENES.clear()
+        _OPERATORS.clear()
+        sc = _SCENES[key] = Scene.from_config(config)
+    return sc
+
+
+def _operator(scene: Scene, components: tuple[str, ...]) -> ElasticOperator:
+    ex = scene.config.execution
+    key = (id(scene), components, ex.fft, ex.threads)
+    op = _OPERATORS.get(key)
+    if op is None:
+        op = _OPERATORS[key] = scene.grid.operator(scene.material, components, fft=ex.fft,
+                                                   threads=ex.threads)
+    return op
+
+
+def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], None] | None = None
+               ) -> SampleResult:
+    """Squeeze (and pull) one sample at every depth of the configuration, in increasing order.
+
+    Parameters
+    ----------
+    config : RunConfig
+    sample : int
+        Global sample number (its surfaces come from ``SeedSequence(seed, spawn_key=(sample,))``).
+    progress : callable ``(sample, depth_index)``, optional
+        Called after each depth.
+
+    Raises
+    ------
+    ConvergenceError
+        In strict mode, when a solve misses its tolerance.
+    NumericalError
+        When a non-finite value appears (naming the sample and depth).
+    """
+    scene = _scene(config)
+    cfg = config
+    surf = scene.surfaces(sample)
+    targets = scene.targets(surf.composite)
+    sq, _pl = cfg.squeeze, cfg.pull
+    strict = cfg.execution.strict
+    solver = NormalSolver(surf.composite, scene.grid, scene.material, method=sq.method,
+                          tol=sq.tol, max_iter=sq.max_iter, threads=cfg.execution.threads,
+                          operator=_operator(scene, ("zz",)))
+    pull_op = _operator(scene, ("xx",)) if scene.pull else None
+    nd = len(targets)
+    sc: dict[str, np.ndarray] = {
+        "depth_length": np.zeros(nd), "normal_force": np.zeros(nd),
+        "contact_area": np.zeros(nd), "iterations": np.zeros(nd, np.int64),
+        "residual": np.zeros(nd), "converged": np.zeros(nd, np.uint8), "seconds": np.zeros(nd),
+    }
+    if scene.pull:
+        sc.update({"friction_force": np.zeros(nd), "friction_normal_force": np.zeros(nd),
+                   "pull_seconds": np.zeros(nd), "pull_converged": np.zeros(nd, np.uint8),
+                   "pull_steps": np.zeros(nd, np.int64),
+                   "pull_error_estimate": np.zeros(nd)})
+    fields: list[dict[str, np.ndarray]] = []
+    notes = list(scene.notes)
+    x0 = None
+    want = set(cfg.output.fields)
+    for k, t in enumerate(targets):
+        where = f"sample {sample}, depth index {k}"
+        try:
+            r = (solver.solve(force=float(t), x0=x0) if cfg.control == "force"
+                 else solver.solve(depth=float(t), x0=x0))
+        except NumericalError as exc:
+            raise NumericalError(f"{where}: {exc}") from None
+        if strict and not r.converged:
+            raise ConvergenceError(f"{where}: squeeze did not converge: {r.message}")
+        if not r.converged:
+            notes.append(f"depth index {k}: squeeze not converged ({r.message})")
+        if sq.warm_start:
+            x0 = r.fz
+        sc["depth_length"][k] = r.depth
+        sc["normal_force"][k] = r.normal_force
+        sc["contact_area"][k] = r.contact_area
+        sc["iterations"][k] = r.iterations
+        sc["residual"][k] = r.residual
+        sc["converged"][k] = r.converged
+        sc["seconds"][k] = r.seconds
+        out: dict[str, np.ndarray] = {}
+        for name in ("fz", "uz", "gap", "contact"):
+            if name in want:
+                out[name] = getattr(r, name)
+        if scene.pull:
+            s = _pull(cfg, r, pull_op, where)
+            if strict and not s.converged:
+                raise ConvergenceError(f"{where}: pull did not converge: {s.message}")
+            sc["friction_force"][k] = s.friction_force
+            sc["friction_normal_force"][k] = s.normal_force
+            sc["pull_seconds"][k] = s.seconds
+            sc["pull_converged"][k] = s.converged
+            sc["pull_steps"][k] = s.steps
+            sc["pull_error_estimate"][k] = s.error_estimate
+            if "fx" in want:
+                out["fx"] = s.fx_at_peak
+            if "stick" in want:
+                out["stick"] = s.stick_at_peak
+            if "ux" in want:
+                out["ux"] = pull_op.apply("xx", s.fx_at_peak)
+            if "pull_curve" in want:
+                out.update(dx_lim=s.dx_lim, fx_lim=s.fx_lim, broken_site=s.broken_site)
+        for name, a in out.items():
+            if np.issubdtype(np.asarray(a).dtype, np.floating) and not np.all(np.isfinite(a)):
+                raise NumericalError(f"{where}: non-finite values in field {name!r}")
+        fields.append(out)
+        if progress is not None:
+            progress(sample, k)
+    for name, a in sc.items():
+        if np.issubdtype(a.dtype, np.floating) and not np.all(np.isfinite(a)):
+            raise NumericalError(f"sample {sample}: non-finite {name}")
+    surfaces = {"rigid_surface": surf.rigid}
+    if surf.elastic is not None:
+        surfaces["elastic_surface"] = surf.elastic
+    return SampleResult(sample, sc, fields, surfaces, notes)
+
+
+def _pull(cfg: RunConfig, r: NormalResult, op: ElasticOperator, where: str) -> SlipResult:
+    pl = cfg.pull
+    try:
+        return pull(r, lam=pl.lam, slip_law=pl.slip_law, method=pl.method, tol=pl.tol,
+                    batch_size=pl.batch_size, fft=cfg.execution.fft,
+                    threads=cfg.execution.threads, operator=op)
+    except NumericalError as exc:
+        raise NumericalError(f"{where}: pull: {exc}") from None
+
+
+# ------------------------------------------------------------------------------------------------
+# The run
+# ------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class RunSummary:
+    """What :func:`run` did."""
+
+    path: Path
+    samples: int
+    computed: int
+    skipped: int
+    seconds: float
+    notes: list[str] = field(default_factory=list)
+
+
+def provenance(config: RunConfig, command_line: str) -> dict[str, Any]:
+    """Root attributes describing how a run file was made."""
+    import h5py
+    import scipy
+
+    libs = library_versions()
+    libs.update({"h5py": h5py.__version__, "scipy": scipy.__version__,
+                 "python": sys.version.split()[0]})
+    return {
+        "version": __version__,
+        "command_line": command_line,
+        "libraries": libs,
+        "fft_backend": resolve_backend(config.execution.fft),
+        "threads": config.execution.threads,
+        "seed": config.ensemble.seed,
+        "units": {
+            "length": "the unit of grid.pixel_size (heights, depths, displacements)",
+            "stress": "the unit of material.E",
+            "force": "stress x length^2 (pixel forces, total forces)",
+            "contact_area": "fraction of the nominal area",
+        },
+    }
+
+
+def estimate_memory(scene: Scene) -> int:
+    """Bytes one worker needs for operators, solver work arrays and one sample's fields.
+
+    The pull's own memory is checked when it starts (it depends on the bond count); each
+    worker gets ``budget / workers`` so parallel pulls cannot overcommit together.
+    """
+    ny, nx = scene.grid.shape
+    n = ny * nx
+    if scene.grid.boundary == "open":
+        m = (2 * ny) * (2 * nx)
+    else:
+        m = n
+    per_op = 8 * m * 2 + 16 * (m // 2 + 1) * 3 + 8 * 4 * n  # buffers, spectra, direct-sum table
+    ops = per_op * len(scene.components) + 16 * (m // 2 + 1) * len(scene.components)
+    work = 8 * n * 16
+    nfields = max(1, len(scene.config.output.fields))
+    stored = 8 * n * nfields * len(scene.config.targets) + 8 * n * 3
+    return int(ops + work + stored)
+
+
+def check_memory(scene: Scene, workers: int) -> None:
+    """Refuse a run whose estimated peak memory exceeds the budget."""
+    per = estimate_memory(scene)
+    need = per * workers
+    have = memory.available_bytes()
+    if need > have:
+        fewer = max(1, have // max(per, 1))
+        hint = (f"use --workers {fewer}" if fewer < workers
+                else "use a smaller grid or an output.fields list with fewer fields")
+        raise MemoryLimitError(
+            f"the run needs ~{need / 2**30:.2f} GiB ({workers} worker(s) x "
+            f"{per / 2**30:.2f} GiB) but {have / 2**30:.2f} GiB are available; {hint}")
+
+
+def run(
+    config: RunConfig,
+    out: str | Path,
+    *,
+    workers: int | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
+    scheduler: str | None = None,
+    progress: Progress | None = None,
+    command_line: str = "",
+) -> RunSummary:
+    """Run every pending sample of a configuration and write ``out``.
+
+    Parameters
+    ----------
+    config : RunConfig
+    out : path
+        The HDF5 run file (see :mod:`roughslip.store`).
+    workers : int, optional
+        Worker processes (default ``execution.workers``); 1 runs in this process.
+    resume : bool
+        Continue an existing file made with the same configuration.
+    overwrite : bool
+        Replace an existing file (otherwise it is an error).
+    scheduler : str, optional
+        Address of a Dask scheduler (default ``execution.scheduler``).
+    progress : callable, optional
+        Receives events ``{"kind": "start"|"depth"|"sample"|"done", ...}``.
+    """
+    t0 = time.perf_counter()
+    scene = Scene.from_config(config)  # validates files before any output is touched
+    workers = int(workers or config.execution.workers)
+    if workers < 1:
+        raise InputError(f"--workers {workers}: must be >= 1")
+    if config.execution.memory_limit_gb is not None:
+        memory.set_limit(config.execution.memory_limit_gb)
+    scheduler = scheduler or config.execution.scheduler
+    if not scheduler:
+        check_memory(scene, workers)
+    indices = scene.sample_indices
+    attrs = provenance(config, command_line)
+    attrs["notes"] = list(scene.notes)
+    nd = len(config.targets)
+    out = Path(out)
+    if resume and overwrite:
+        raise InputError("--resume and --overwrite exclude each other")
+    if resume:
+        writer = RunWriter.resume(out, config, indices, nd, attrs)
+    else:
+        writer = RunWriter.create(out, config, indices, nd, attrs, overwrite=overwrite)
+    done = set(writer.completed())
+    pending = [s for s in indices if s not in done]
+    emit = progress or (lambda e: None)
+    emit({"kind": "start", "total": len(pending) * nd, "samples": len(pending),
+          "depths": nd, "skipped": len(done), "notes": list(scene.notes)})
+    try:
+        if scheduler:
+            _run_dask(config, pending, writer, emit, scheduler)
+        elif workers == 1 or len(pending) <= 1:
+            for s in pending:
+                res = run_sample(config, s, lambda si, k: emit(
+                    {"kind": "depth", "sample": si, "depth_index": k}))
+                writer.write_sample(res)
+                emit({"kind": "sample", "sample": s})
+        else:
+            _run_pool(config, pending, writer, emit, workers)
+    except BaseException:
+        writer.close()
+        raise
+    writer.finish()
+    emit({"kind": "done"})
+    return RunSummary(out, len(indices), len(pending), len(done), time.perf_counter() - t0,
+                      list(scene.notes))
+
+
+def _worker_init(budget: int, q) -> None:
+    memory.set_limit(budget / 2**30)
+    global _QUEUE
+    _QUEUE = q
+
+
+_QUEUE = None
+
+
+def _pool_task(config: RunConfig, sample: int) -> SampleResult:
+    q = _QUEUE
+
+    def report(si: int, k: int) -> None:
+        if q is not None:
+            q.put((si, k))
+
+    return run_sample(config, sample, report)
+
+
+def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Progress,
+              workers: int) -> None:
+    ctx = mp.get_context("spawn")  # no fork: OpenBLAS and FFTW threads do not survive it
+    budget = memory.available_bytes() // workers
+    q = ctx.Manager().Queue()
+    with cf.ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
+                                initializer=_worker_init, initargs=(budget, q)) as pool:
+        futures = {pool.submit(_pool_task, config, s): s for s in pending}
+        try:
+            while futures:
+                finished, _ = cf.wait(futures, timeout=0.25, return_when=cf.FIRST_COMPLETED)
+                _drain(q, emit)
+                for fut in finished:
+                    s = futures.pop(fut)
+                    try:
+                        res = fut.result()
+                    except cf.process.BrokenProcessPool:
+                        raise NumericalError(
+                            f"a worker process died while computing sample {s} (out of memory "
+                            "or killed); completed samples are kept: run again with "
+                            "--resume") from None
+                    writer.write_sample(res)
+                    emit({"kind": "sample", "sample": s})
+        except BaseException:
+            for fut in futures:
+                fut.cancel()
+            raise
+    _drain(q, emit)
+
+
+def _drain(q, emit: Progress) -> None:
+    while True:
+        try:
+            si, k = q.get_nowait()
+        except (queue_mod.Empty, EOFError, OSError):
+            return
+        emit({"kind": "depth", "sample": si, "depth_index": k})
+
+
+def _run_dask(config: RunConfig, pending: list[int], writer: RunWriter, emit: Progress,
+              address: str) -> None:
+    try:
+        from distributed import Client, as_completed
+    except ImportError:
+        raise InputError("--scheduler needs the dask extra: pip install 'roughslip[dask]'"
+                         ) from None
+    try:
+        client = Client(address, timeout="20s")
+    except OSError as exc:
+        raise InputError(f"--scheduler {address}: cannot connect ({exc})") from None
+    with client:
+        futures = [client.submit(run_sample, config, s, pure=False, key=f"roughslip-{s}")
+                   for s in pending]
+        nd = len(config.targets)
+        try:
+            for fut in as_completed(futures):
+                res = fut.result()
+                writer.write_sample(res)
+                for k in range(nd):
+                    emit({"kind": "depth", "sample": res.sample, "depth_index": k})
+                emit({"kind": "sample", "sample": res.sample})
+        except BaseException:
+            client.cancel(futures)
+            raise
+

@@ -1,0 +1,70 @@
+"""Text summary of a run file (``roughslip inspect``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .store import read_run
+
+
+def mean_sem(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard error of the mean over samples (axis 0); SEM is 0 for one sample."""
+    rows = np.asarray(rows, dtype=float)
+    n = rows.shape[0]
+    mean = rows.mean(axis=0) if n else np.full(rows.shape[1:], np.nan)
+    sem = rows.std(axis=0, ddof=1) / np.sqrt(n) if n > 1 else np.zeros(rows.shape[1:])
+    return mean, sem
+
+
+def summarize(path: str | Path) -> str:
+    """Config, progress, per-depth means +- standard errors, and convergence problems."""
+    run = read_run(path)
+    a = run.attrs
+    lines = [
+        f"{run.path}",
+        f"  roughslip {a.get('version', '?')}, made by: {a.get('command_line', '?')}",
+        f"  samples complete: {run.n_complete} of {run.complete.size}",
+    ]
+    cfg = run.config_dict()
+    title = cfg.get("title")
+    if title:
+        lines.append(f"  title: {title}")
+    s = cfg.get("surface", {})
+    g = cfg.get("grid", {})
+    shape = g.get("shape") or [g.get("n"), g.get("n")]
+    lines.append(f"  surface: {s.get('kind')}" + (f", H = {s['hurst']}" if "hurst" in s else "")
+                 + f"; grid {shape[0]} x {shape[1]}, a = {g.get('pixel_size')}, "
+                 f"{g.get('boundary')}; E = {cfg['material']['E']}, nu = {cfg['material']['nu']}")
+    if run.n_complete == 0:
+        lines.append("  no complete samples yet")
+        return "\n".join(lines)
+    sel = run.complete
+    names = ["normal_force", "contact_area"] + (["friction_force"]
+                                                 if "friction_force" in run.scalars else [])
+    run.attrs.get("control", "depth")
+    head = f"  {run.axis_name:>12} " + " ".join(f"{n + ' (mean +- sem)':>30}" for n in names)
+    lines.append(head)
+    stats = {n: mean_sem(run.scalars[n][sel]) for n in names}
+    for k, x in enumerate(run.axis):
+        row = f"  {x:>12.5g} "
+        for n in names:
+            m, e = stats[n][0][k], stats[n][1][k]
+            row += f"{m:>17.6g} +- {e:<10.3g}"
+        lines.append(row)
+    conv = run.scalars["converged"][sel]
+    bad = int((conv == 0).sum())
+    problems = [f"  squeeze solves not converged: {bad} of {conv.size}"]
+    if "pull_converged" in run.scalars:
+        pc = run.scalars["pull_converged"][sel]
+        problems.append(f"  pulls not converged: {int((pc == 0).sum())} of {pc.size}")
+        est = run.scalars["pull_error_estimate"][sel]
+        if np.any(est > 0):
+            problems.append(f"  approximate pulls: max estimated error {est.max():.2e}")
+    res = run.scalars["residual"][sel]
+    problems.append(f"  worst squeeze residual: {res.max():.2e}; mean iterations "
+                    f"{run.scalars['iterations'][sel].mean():.1f}; mean solve seconds "
+                    f"{run.scalars['seconds'][sel].mean():.3g}")
+    lines.extend(problems)
+    return "\n".join(lines)

@@ -1,0 +1,237 @@
+"""`roughslip run`: HDF5 output, resume, parallel bitwise equality, faults."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from roughslip.cli import cli
+from roughslip.config import dumps_toml, load_config
+from roughslip.ensemble import run, run_sample
+from roughslip.errors import InputError
+from roughslip.store import journal_dir, read_run
+
+CFG = {
+    "grid": {"n": 24},
+    "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1.0, "oversample": 2},
+    "squeeze": {"depths": {"start": 0.3, "stop": 1.5, "num": 3, "spacing": "log"},
+                "depth_unit": "rms"},
+    "pull": {"enabled": True, "lam": 0.2},
+    "ensemble": {"samples": 4, "seed": 5},
+    "output": {"fields": ["contact", "fz", "fx", "stick", "pull_curve"]},
+}
+
+
+def write_cfg(tmp_path: Path, data=CFG, name="run.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(dumps_toml(data))
+    return p
+
+
+def datasets(path: Path) -> dict[str, np.ndarray]:
+    out = {}
+    with h5py.File(path, "r") as f:
+        f.visititems(lambda n, o: out.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset)
+                     else None)
+    return out
+
+
+def assert_same_numbers(a: Path, b: Path) -> None:
+    da, db = datasets(a), datasets(b)
+    timing = ("seconds", "pull_seconds")
+    assert set(da) == set(db)
+    for k in da:
+        if k in timing:
+            continue
+        assert np.array_equal(da[k], db[k], equal_nan=True), k
+
+
+@pytest.fixture(scope="module")
+def serial_run(tmp_path_factory):
+    d = tmp_path_factory.mktemp("serial")
+    cfg = load_config(write_cfg(d))
+    out = d / "serial.h5"
+    summary = run(cfg, out, workers=1)
+    return cfg, out, summary
+
+
+def test_layout_and_contents(serial_run):
+    cfg, out, summary = serial_run
+    assert summary.computed == 4 and not journal_dir(out).exists()
+    r = read_run(out)
+    assert r.complete.all() and r.axis_name == "depth"
+    assert np.allclose(r.axis, cfg.targets)
+    for name in ("normal_force", "contact_area", "friction_force", "depth_length", "residual"):
+        assert r.scalars[name].shape == (4, 3) and np.all(np.isfinite(r.scalars[name]))
+    assert np.all(np.diff(r.scalars["normal_force"], axis=1) > 0)
+    assert np.all(r.scalars["converged"] == 1) and np.all(r.scalars["pull_converged"] == 1)
+    with h5py.File(out, "r") as f:
+        assert f.attrs["format"] == "roughslip-run"
+        for key in ("version", "command_line", "config", "config_digest", "libraries",
+                    "fft_backend", "threads", "seed", "units"):
+            assert key in f.attrs, key
+        g = f["samples/s000002"]
+        assert g.attrs["complete"] and "rigid_surface" in g and "elastic_surface" not in g
+        d = g["d001"]
+        assert set(d) == {"contact", "fz", "fx", "stick", "dx_lim", "fx_lim", "broken_site"}
+        assert d["fz"].compression == "gzip" and d["fz"].chunks is not None
+        assert "uz" not in d and "gap" not in d  # not listed: not stored
+        # the stored pull curve's maximum is the stored friction force
+        assert d["fx_lim"][()].max() == f["friction_force"][2, 1]
+    # the sample is the pure function of (config, sample)
+    again = run_sample(cfg, 2)
+    assert np.array_equal(again.fields[1]["fz"], r.field(2, 1, "fz"))
+
+
+def test_workers_two_equals_one_bitwise(serial_run, tmp_path):
+    cfg, out, _ = serial_run
+    par = tmp_path / "par.h5"
+    run(cfg, par, workers=2)
+    assert_same_numbers(out, par)
+
+
+def test_existing_file_is_not_overwritten(serial_run, tmp_path):
+    cfg, _out, _ = serial_run
+    target = tmp_path / "x.h5"
+    target.write_bytes(b"precious")
+    with pytest.raises(InputError, match="--overwrite"):
+        run(cfg, target)
+    assert target.read_bytes() == b"precious"
+    run(cfg, target, overwrite=True)
+    assert read_run(target).complete.all()
+
+
+def test_resume_refuses_a_different_config(serial_run, tmp_path):
+    _cfg, out, _ = serial_run
+    other = load_config(data={**CFG, "material": {"nu": 0.25}})
+    with pytest.raises(InputError, match="different configuration"):
+        run(other, out, resume=True)
+    r = CliRunner().invoke(cli, ["run", str(write_cfg(tmp_path)), "-o", str(out), "--resume",
+                                 "--set", "material.nu=0.25", "--quiet"])
+    assert r.exit_code == 2 and "different configuration" in r.output
+
+
+def test_resume_of_a_complete_file_does_nothing(serial_run):
+    cfg, out, _ = serial_run
+    s = run(cfg, out, resume=True)
+    assert s.computed == 0 and s.skipped == 4
+
+
+def _start(tmp_path: Path, cfg_path: Path, out: Path, *extra: str) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen(
+        [sys.executable, "-m", "roughslip", "run", str(cfg_path), "-o", str(out), "--quiet",
+         *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+
+
+def _wait_for_journal(out: Path, proc: subprocess.Popen, n: int, timeout=120.0) -> None:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        j = journal_dir(out)
+        if j.is_dir() and len(list(j.glob("s*.h5"))) >= n:
+            return
+        if proc.poll() is not None:
+            pytest.fail(f"run ended early: {proc.stderr.read().decode()}")
+        time.sleep(0.02)
+    pytest.fail("no progress")
+
+
+def _long_cfg(tmp_path: Path) -> Path:
+    data = {**CFG, "grid": {"n": 32}, "ensemble": {"samples": 12, "seed": 9}}
+    return write_cfg(tmp_path, data, "long.toml")
+
+
+def test_kill_and_resume_gives_the_same_numbers(tmp_path):
+    cfg_path = _long_cfg(tmp_path)
+    cfg = load_config(cfg_path)
+    ref = tmp_path / "ref.h5"
+    run(cfg, ref)
+    out = tmp_path / "killed.h5"
+    proc = _start(tmp_path, cfg_path, out)
+    _wait_for_journal(out, proc, 3)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    partial = len(list(journal_dir(out).glob("s*.h5")))
+    assert 3 <= partial < 12
+    s = run(cfg, out, resume=True)
+    assert s.skipped >= 3 and s.skipped + s.computed == 12
+    assert_same_numbers(ref, out)
+    assert not journal_dir(out).exists()
+
+
+def test_unreadable_file_is_rebuilt_from_the_journal(tmp_path):
+    cfg_path = _long_cfg(tmp_path)
+    cfg = load_config(cfg_path)
+    ref = tmp_path / "ref.h5"
+    run(cfg, ref)
+    out = tmp_path / "broken.h5"
+    proc = _start(tmp_path, cfg_path, out)
+    _wait_for_journal(out, proc, 2)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    out.write_bytes(b"\x89HDF\r\n garbage: a write cut in the middle")
+    s = run(cfg, out, resume=True)
+    assert s.skipped >= 2
+    assert_same_numbers(ref, out)
+
+
+def test_ctrl_c_leaves_a_resumable_file(tmp_path):
+    cfg_path = _long_cfg(tmp_path)
+    out = tmp_path / "int.h5"
+    proc = _start(tmp_path, cfg_path, out)
+    _wait_for_journal(out, proc, 2)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err.decode()
+    assert b"--resume" in err and b"Traceback" not in err
+    r = read_run(out)  # valid file
+    assert 2 <= r.n_complete < 12
+    r2 = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(out), "--resume", "--quiet"])
+    assert r2.exit_code == 0, r2.output
+    assert read_run(out).complete.all()
+
+
+def test_cli_run_and_inspect(tmp_path):
+    cfg_path = write_cfg(tmp_path)
+    out = tmp_path / "cli.h5"
+    r = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(out), "--set",
+                                 "ensemble.samples=2"])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(cli, ["inspect", str(out)])
+    assert r.exit_code == 0 and "samples complete: 2 of 2" in r.output
+    assert "friction_force" in r.output and "not converged: 0" in r.output
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "nope.h5")])
+    assert r.exit_code == 2 and "no such file" in r.output
+    (tmp_path / "junk.h5").write_bytes(b"junk")
+    r = CliRunner().invoke(cli, ["inspect", str(tmp_path / "junk.h5")])
+    assert r.exit_code == 2 and "not a readable HDF5 file" in r.output
+    assert "Traceback" not in r.output
+
+
+def test_fixed_shape_runs_one_sample_with_a_note(tmp_path):
+    data = {"grid": {"n": 16}, "surface": {"kind": "sphere", "radius": 20.0},
+            "squeeze": {"depths": [0.5, 1.0]}, "ensemble": {"samples": 5}}
+    r = CliRunner().invoke(cli, ["run", str(write_cfg(tmp_path, data)), "-o",
+                                 str(tmp_path / "s.h5")])
+    assert r.exit_code == 0, r.output
+    assert "running 1 sample" in r.output
+    assert read_run(tmp_path / "s.h5").complete.shape == (1,)
+
+
+def test_dask_local_cluster_equals_serial(serial_run, tmp_path):
+    distributed = pytest.importorskip("distributed", reason="the dask extra is not installed")
+    cfg, out, _ = serial_run
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        dsk = tmp_path / "dask.h5"
+        run(cfg, dsk, scheduler=cluster.scheduler_address)
+    assert_same_numbers(out, dsk)
