@@ -364,6 +364,29 @@ class ElasticOperator:
         cache[component] = T
         return T
 
+    def pair_table(self, component: str) -> tuple[np.ndarray, int, int]:
+        """Flat lookup table for the kernel between any two sites of the grid.
+
+        Returns ``(T, w, off)`` such that for flat site indices ``i = iy nx + ix`` and ``j``,
+        ``G(i - j) = T[(iy_i - iy_j) w + (ix_i - ix_j) + off]``. Open grids use the closed-form
+        pixel kernel (no FFT round-off); periodic grids the periodic kernel.
+        """
+        cache = self.__dict__.setdefault("_pairs", {})
+        if component in cache:
+            return cache[component]
+        ny, nx = self.shape
+        if self.boundary == "open":
+            canon, sign = _CANONICAL[component]
+            mat = self.material
+            T = sign * green.kernel_table(canon, nx, ny, a=self.a, E=mat.E, nu=mat.nu)
+            w, oy, ox = 2 * nx - 1, ny - 1, nx - 1
+        else:
+            T = self.real_space_table(component)
+            w, oy, ox = 2 * nx, ny, nx
+        out = (np.ascontiguousarray(T).ravel(), w, oy * w + ox)
+        cache[component] = out
+        return out
+
     def add_sources(self, component: str, out: np.ndarray, sites: np.ndarray,
                     values: np.ndarray) -> np.ndarray:
         """``out += G * f`` for forces ``values`` at flat indices ``sites``, by direct sums.
