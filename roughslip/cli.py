@@ -156,6 +156,71 @@ def inspect_cmd(path: str) -> None:
     click.echo(summarize(path))
 
 
+@cli.command("fit")
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--x", "xname", default="normal_force", show_default=True,
+              help="Abscissa: depth, depth_length, normal_force, contact_area, ...")
+@click.option("--y", "yname", default="friction_force", show_default=True, help="Ordinate.")
+@click.option("--range", "xrange", nargs=2, type=float, metavar="XMIN XMAX",
+              help="Fit only depths whose mean x lies in [XMIN, XMAX].")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Also write a log-log plot (needs the plot extra).")
+@handle_errors
+def fit_cmd(files, xname, yname, xrange, as_json, plot_path):
+    """Fit y = c x^alpha over the ensemble means of each run file (one row per file)."""
+    import json
+
+    from .fit import fit_files, format_table
+
+    lo, hi = xrange or (None, None)
+    fits = fit_files(list(files), xname, yname, xmin=lo, xmax=hi)
+    if as_json:
+        click.echo(json.dumps([{"file": f.path, "x": xname, "y": yname, **f.varied,
+                                **f.fit.as_dict()} for f in fits], indent=1))
+    else:
+        click.echo(format_table(fits, xname, yname))
+    if plot_path:
+        from .plotting import plot_fits
+
+        plot_fits(list(files), fits, xname, yname, plot_path)
+
+
+@cli.command("verify")
+@click.option("--quick", is_flag=True, help="Small sizes and two tolerances (under a minute).")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Write error against run time, log-log (needs the plot extra).")
+@click.option("--quiet", is_flag=True, help="No progress lines.")
+@handle_errors
+def verify_cmd(quick, as_json, plot_path, quiet):
+    """Errors against exact solutions and run times, per scene, resolution and method."""
+    from . import verify
+
+    def say(msg: str) -> None:
+        if not quiet:
+            click.echo(f"roughslip: verify: {msg}", err=True)
+
+    rows = verify.study(quick=quick, progress=say)
+    click.echo(verify.to_json(rows) if as_json else verify.format_table(rows))
+    if plot_path:
+        verify.plot(rows, plot_path)
+
+
+@cli.command("plot")
+@click.argument("path", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", "out", help="Output prefix (default: the run file's name).")
+@click.option("--sample", type=int, help="Sample for the maps and the pull curve.")
+@click.option("--depth-index", type=int, help="Depth index for the maps and the pull curve.")
+@handle_errors
+def plot_cmd(path, out, sample, depth_index):
+    """Friction law, F_n(D_z), contact/stick maps and a pull curve as PNG files."""
+    from .plotting import plot_run
+
+    for p in plot_run(path, out, sample, depth_index):
+        click.echo(str(p))
+
+
 def main() -> None:
     """Console-script entry point."""
     cli(prog_name="roughslip")

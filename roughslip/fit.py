@@ -1,0 +1,223 @@
+r"""Power-law fits :math:`y = c\,x^\alpha` over ensemble means (MODEL §6).
+
+The means over samples at each depth are fitted in log-log by least squares. Two
+uncertainties are reported: the regression standard error of :math:`\alpha` (scatter of the
+means about the line) and the standard deviation of :math:`\alpha` over bootstrap resamples of
+the samples (sampling error of the ensemble), with a 95 % percentile interval. The bootstrap is
+seeded, so a fit is reproducible.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError
+from .store import RunData, read_run
+
+QUANTITIES = ("depth", "depth_length", "normal_force", "contact_area", "friction_force",
+              "friction_normal_force")
+
+
+@dataclass(frozen=True)
+class PowerLawFit:
+    """Result of :func:`fit_power_law`."""
+
+    alpha: float
+    prefactor: float
+    alpha_stderr: float  # regression standard error (nan with 2 points)
+    alpha_bootstrap_std: float  # over resamples of the samples (nan with 1 sample)
+    alpha_ci95: tuple[float, float]
+    r2: float
+    n_points: int
+    n_samples: int
+    x_range: tuple[float, float]
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                for k, v in d.items()}
+
+
+def _ols(lx: np.ndarray, ly: np.ndarray) -> tuple[float, float, float, float]:
+    """Slope, intercept, slope standard error and R² of y on x."""
+    n = lx.size
+    xm, ym = lx.mean(), ly.mean()
+    sxx = float(((lx - xm) ** 2).sum())
+    if sxx == 0:
+        raise InputError("all x values are equal: no power law can be fitted")
+    slope = float(((lx - xm) * (ly - ym)).sum() / sxx)
+    icpt = float(ym - slope * xm)
+    resid = ly - (icpt + slope * lx)
+    ss_res = float((resid**2).sum())
+    ss_tot = float(((ly - ym) ** 2).sum())
+    r2 = 1.0 - ss_res / ss_tot if ss_tot > 0 else 1.0
+    se = math.sqrt(ss_res / (n - 2) / sxx) if n > 2 else math.nan
+    return slope, icpt, se, r2
+
+
+def fit_power_law(x: np.ndarray, y: np.ndarray, *, xmin: float | None = None,
+                  xmax: float | None = None, n_boot: int = 2000, seed: int = 0,
+                  names: tuple[str, str] = ("x", "y")) -> PowerLawFit:
+    """Fit :math:`\\bar y = c\\,\\bar x^\\alpha` to ensemble means.
+
+    Parameters
+    ----------
+    x, y : array_like, shape (n_samples, n_points)
+        Per-sample values at each depth (or 1-D: one sample).
+    xmin, xmax : float, optional
+        Use only depths whose mean ``x`` lies in this range.
+    n_boot : int
+        Bootstrap resamples of the samples.
+    names : (str, str)
+        Names used in error messages.
+
+    Raises
+    ------
+    InputError
+        For non-finite input, mismatched shapes, or fewer than two usable points (means must be
+        positive to take logarithms).
+    """
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    y = np.atleast_2d(np.asarray(y, dtype=float))
+    if x.shape != y.shape:
+        raise InputError(f"{names[0]} and {names[1]} have different shapes {x.shape}, {y.shape}")
+    for arr, nm in ((x, names[0]), (y, names[1])):
+        if not np.all(np.isfinite(arr)):
+            raise InputError(f"{nm} contains NaN or inf (incomplete samples must be excluded)")
+    ns, nd = x.shape
+    if ns == 0 or nd == 0:
+        raise InputError("no data to fit")
+    xm, ym = x.mean(axis=0), y.mean(axis=0)
+    use = (xm > 0) & (ym > 0)
+    if xmin is not None:
+        use &= xm >= xmin
+    if xmax is not None:
+        use &= xm <= xmax
+    if use.sum() < 2:
+        why = []
+        if nd < 2:
+            why.append(f"only {nd} depth(s)")
+        if np.any((xm <= 0) | (ym <= 0)):
+            why.append(f"{int(((xm <= 0) | (ym <= 0)).sum())} point(s) with zero or negative "
+                       f"mean {names[0]} or {names[1]}")
+        if xmin is not None or xmax is not None:
+            why.append(f"range [{xmin}, {xmax}]")
+        raise InputError(f"fewer than 2 usable points for a power law of {names[1]} on "
+                         f"{names[0]} ({'; '.join(why) or 'no positive means'})")
+    lx, ly = np.log(xm[use]), np.log(ym[use])
+    alpha, icpt, se, r2 = _ols(lx, ly)
+    boot = []
+    if ns > 1 and n_boot > 0:
+        rng = np.random.default_rng(seed)
+        for _ in range(n_boot):
+            idx = rng.integers(0, ns, ns)
+            bx, by = x[idx].mean(axis=0)[use], y[idx].mean(axis=0)[use]
+            if np.all(bx > 0) and np.all(by > 0) and np.ptp(np.log(bx)) > 0:
+                boot.append(_ols(np.log(bx), np.log(by))[0])
+    if boot:
+        b = np.array(boot)
+        bstd = float(b.std(ddof=1)) if b.size > 1 else math.nan
+        ci = (float(np.percentile(b, 2.5)), float(np.percentile(b, 97.5)))
+    else:
+        bstd, ci = math.nan, (math.nan, math.nan)
+    return PowerLawFit(alpha=alpha, prefactor=math.exp(icpt), alpha_stderr=se,
+                       alpha_bootstrap_std=bstd, alpha_ci95=ci, r2=r2,
+                       n_points=int(use.sum()), n_samples=ns,
+                       x_range=(float(xm[use].min()), float(xm[use].max())))
+
+
+def quantity(run: RunData, name: str) -> np.ndarray:
+    """Per-sample values (complete samples) of a named quantity of a run file."""
+    if name not in QUANTITIES:
+        raise InputError(f"unknown quantity {name!r}; choose from {', '.join(QUANTITIES)}")
+    sel = run.complete
+    if name == "depth":
+        if run.axis_name != "depth":
+            return run.scalars["depth_length"][sel]
+        return np.broadcast_to(run.axis, (int(sel.sum()), run.axis.size)).copy()
+    if name not in run.scalars:
+        raise InputError(f"{run.path}: has no {name!r} (was the pull enabled?)")
+    return run.scalars[name][sel]
+
+
+def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out = {}
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(_flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+@dataclass(frozen=True)
+class FileFit:
+    """One run file's fit with the configuration keys that distinguish it from the others."""
+
+    path: str
+    fit: PowerLawFit
+    varied: dict[str, Any]
+
+
+_IGNORED = ("execution.", "title", "output.")
+
+
+def fit_files(paths: list[str | Path], x: str = "normal_force", y: str = "friction_force", *,
+              xmin: float | None = None, xmax: float | None = None, n_boot: int = 2000
+              ) -> list[FileFit]:
+    """Fit each run file; report the keys of the stored configurations that differ.
+
+    The surface's Hurst exponent is always reported when present.
+    """
+    if not paths:
+        raise InputError("no run files given")
+    runs = [read_run(p) for p in paths]
+    flats = [_flatten(tomllib.loads(r.config_toml)) for r in runs]
+    keys = sorted(set().union(*flats))
+    varied_keys = [k for k in keys if not k.startswith(_IGNORED)
+                   and len({repr(f.get(k)) for f in flats}) > 1]
+    out = []
+    for r, flat in zip(runs, flats, strict=True):
+        if r.n_complete == 0:
+            raise InputError(f"{r.path}: has no complete samples")
+        try:
+            res = fit_power_law(quantity(r, x), quantity(r, y), xmin=xmin, xmax=xmax,
+                                n_boot=n_boot, names=(x, y))
+        except InputError as exc:
+            raise InputError(f"{r.path}: {exc}") from None
+        varied = {k: flat.get(k) for k in varied_keys}
+        if "surface.hurst" in flat:
+            varied = {"surface.hurst": flat["surface.hurst"], **varied}
+        out.append(FileFit(str(r.path), res, varied))
+    return out
+
+
+def format_table(fits: list[FileFit], x: str, y: str) -> str:
+    """Text table, one row per file."""
+    keys: list[str] = []
+    for f in fits:
+        keys += [k for k in f.varied if k not in keys]
+    head = ["file", *keys, "alpha", "+-boot", "+-reg", "95% CI", "R2", "points", "samples"]
+    rows = []
+    for f in fits:
+        p = f.fit
+
+        def num(v: float) -> str:
+            return f"{v:.4f}" if math.isfinite(v) else "n/a"
+
+        ci = (f"[{p.alpha_ci95[0]:.3f}, {p.alpha_ci95[1]:.3f}]"
+              if math.isfinite(p.alpha_ci95[0]) else "n/a")
+        rows.append([Path(f.path).name, *(str(f.varied.get(k, "")) for k in keys),
+                     num(p.alpha), num(p.alpha_bootstrap_std), num(p.alpha_stderr), ci,
+                     f"{p.r2:.4f}", str(p.n_points), str(p.n_samples)])
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
+    line = "  ".join(h.rjust(w) for h, w in zip(head, widths, strict=True))
+    body = ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+    return f"# {y} = c {x}^alpha\n" + "\n".join([line, *body])

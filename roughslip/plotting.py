@@ -1,0 +1,162 @@
+"""Figures of a run file (``roughslip plot``); matplotlib is imported only here, lazily."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .fit import fit_power_law, quantity
+from .store import read_run
+
+
+def pyplot():
+    """matplotlib.pyplot with the non-interactive Agg backend, or a clear error."""
+    try:
+        import matplotlib
+    except ImportError:
+        raise InputError("plots need the plot extra: pip install 'roughslip[plot]'") from None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _loglog_with_fit(ax, x, y, xlabel, ylabel, title):
+    xm, ym = x.mean(axis=0), y.mean(axis=0)
+    if x.shape[0] > 1:
+        ye = y.std(axis=0, ddof=1) / np.sqrt(x.shape[0])
+    else:
+        ye = np.zeros_like(ym)
+    ok = (xm > 0) & (ym > 0)
+    for row_x, row_y in zip(x, y, strict=True):
+        sel = (row_x > 0) & (row_y > 0)
+        ax.loglog(row_x[sel], row_y[sel], ".", color="0.75", ms=3)
+    ax.errorbar(xm[ok], ym[ok], yerr=ye[ok], fmt="o", color="C0", ms=4, capsize=2,
+                label="ensemble mean")
+    try:
+        f = fit_power_law(x, y)
+        xx = np.geomspace(xm[ok].min(), xm[ok].max(), 50)
+        err = f.alpha_bootstrap_std if np.isfinite(f.alpha_bootstrap_std) else f.alpha_stderr
+        ax.loglog(xx, f.prefactor * xx**f.alpha, "-", color="C3",
+                  label=f"fit: exponent {f.alpha:.3f} ± {err:.3f}")
+    except InputError:
+        pass
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+
+
+def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None = None,
+             depth_index: int | None = None) -> list[Path]:
+    """Write the friction law, F_n(D_z), contact/stick maps and a pull curve as PNGs.
+
+    Files are named ``<out>_friction.png``, ``_normal.png``, ``_maps.png``, ``_pull.png``
+    (``out`` defaults to the run file without its suffix). Returns the paths written.
+    """
+    plt = pyplot()
+    run = read_run(path)
+    if run.n_complete == 0:
+        raise InputError(f"{run.path}: has no complete samples to plot")
+    stem = Path(out) if out else Path(path).with_suffix("")
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    written = []
+    fn = quantity(run, "normal_force")
+    depth = quantity(run, "depth_length")
+    fig, ax = plt.subplots(figsize=(5, 4))
+    _loglog_with_fit(ax, depth, fn, "penetration depth $D_z$", "normal force $F_n$",
+                     "$F_n \\propto D_z^{\\beta}$")
+    fig.tight_layout()
+    p = stem.parent / f"{stem.name}_normal.png"
+    fig.savefig(p, dpi=120)
+    plt.close(fig)
+    written.append(p)
+    has_pull = "friction_force" in run.scalars
+    if has_pull:
+        ff = quantity(run, "friction_force")
+        fig, ax = plt.subplots(figsize=(5, 4))
+        _loglog_with_fit(ax, fn, ff, "normal force $F_n$", "static friction $F_{friction}$",
+                         "$F_{friction} \\propto F_n^{\\alpha}$")
+        fig.tight_layout()
+        p = stem.parent / f"{stem.name}_friction.png"
+        fig.savefig(p, dpi=120)
+        plt.close(fig)
+        written.append(p)
+    s = int(run.sample_index[run.complete][0]) if sample is None else int(sample)
+    if s not in set(run.sample_index[run.complete].tolist()):
+        raise InputError(f"{run.path}: sample {s} is not complete")
+    k = len(run.axis) // 2 if depth_index is None else int(depth_index)
+    if not 0 <= k < len(run.axis):
+        raise InputError(f"depth index {k}: must be in 0..{len(run.axis) - 1}")
+    panels = []
+    for name, title in (("contact", "contact"), ("stick", "stick at the friction peak"),
+                        ("fz", "normal force $f_z$"), ("fx", "tangential force $f_x$ at peak")):
+        try:
+            panels.append((title, run.field(s, k, name)))
+        except InputError:
+            continue
+    if panels:
+        fig, axes = plt.subplots(1, len(panels), figsize=(3.6 * len(panels), 3.6),
+                                 squeeze=False)
+        for ax, (title, a) in zip(axes[0], panels, strict=True):
+            im = ax.imshow(a, origin="lower", interpolation="nearest",
+                           cmap="gray_r" if a.dtype == bool else "viridis")
+            if a.dtype != bool:
+                fig.colorbar(im, ax=ax, fraction=0.046)
+            ax.set_title(title, fontsize=9)
+            ax.set_xlabel("x (pull direction)")
+            ax.set_ylabel("y")
+        fig.suptitle(f"sample {s}, depth index {k}", fontsize=10)
+        fig.tight_layout()
+        p = stem.parent / f"{stem.name}_maps.png"
+        fig.savefig(p, dpi=120)
+        plt.close(fig)
+        written.append(p)
+    if has_pull:
+        try:
+            dx, fx = run.field(s, k, "dx_lim"), run.field(s, k, "fx_lim")
+        except InputError:
+            dx = fx = None
+        if dx is not None and dx.size:
+            fig, ax = plt.subplots(figsize=(5, 4))
+            ax.plot(dx, fx, ".-", ms=2, lw=0.6)
+            i = int(np.argmax(fx))
+            ax.plot(dx[i], fx[i], "o", color="C3", label=f"$F_{{friction}}$ = {fx[i]:.4g}")
+            ax.set_xlabel("$D_{x,lim}$ (pull displacement at each break)")
+            ax.set_ylabel("$F_{x,lim}$")
+            ax.set_title(f"pull curve: sample {s}, depth index {k}")
+            ax.legend(fontsize=8)
+            ax.grid(True, alpha=0.3)
+            fig.tight_layout()
+            p = stem.parent / f"{stem.name}_pull.png"
+            fig.savefig(p, dpi=120)
+            plt.close(fig)
+            written.append(p)
+    return written
+
+
+def plot_fits(paths: list[str], fits, x: str, y: str, out: str | Path) -> Path:
+    """One log-log panel with the ensemble means and fit of every file."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    for i, (p, f) in enumerate(zip(paths, fits, strict=True)):
+        run = read_run(p)
+        xv, yv = quantity(run, x), quantity(run, y)
+        xm, ym = xv.mean(axis=0), yv.mean(axis=0)
+        ok = (xm > 0) & (ym > 0)
+        label = ", ".join(f"{k.split('.')[-1]}={v}" for k, v in f.varied.items()) or Path(p).name
+        ax.loglog(xm[ok], ym[ok], "o", color=f"C{i}", ms=4)
+        xx = np.geomspace(*f.fit.x_range, 50)
+        ax.loglog(xx, f.fit.prefactor * xx**f.fit.alpha, "-", color=f"C{i}",
+                  label=f"{label}: {f.fit.alpha:.3f}")
+    ax.set_xlabel(x)
+    ax.set_ylabel(y)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return Path(out)
