@@ -739,6 +739,9 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
                        "applies to depths only; use squeeze.force_unit with forces")
     if cfg.coupling.enabled and not cfg.pull.enabled:
         raise ctx.fail("coupling.enabled", True, "needs pull.enabled = true")
+    if cfg.coupling.enabled and cfg.control == "force":
+        raise ctx.fail("coupling.enabled", True, "the coupled model holds the depth during the "
+                       "pull: use squeeze.depths, not squeeze.forces")
     if cfg.coupling.enabled and cfg.pull.slip_law != "break":
         raise ctx.fail("pull.slip_law", cfg.pull.slip_law,
                        "the coupled model implements the break law only")

@@ -23,7 +23,14 @@ import numpy as np
 from . import memory
 from ._version import __version__
 from .config import RunConfig
-from .errors import ConvergenceError, InputError, MemoryLimitError, NumericalError
+from .coupled import squeeze_pull_coupled
+from .errors import (
+    ConvergenceError,
+    InputError,
+    MemoryLimitError,
+    NumericalError,
+    WorkerError,
+)
 from .fft import library_versions, resolve_backend
 from .normal import NormalResult, NormalSolver
 from .operators import ElasticOperator
@@ -101,6 +108,8 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     notes = list(scene.notes)
     x0 = None
     want = set(cfg.output.fields)
+    if scene.coupled:
+        return _coupled_sample(cfg, scene, sample, surf, targets, sc, progress)
     for k, t in enumerate(targets):
         where = f"sample {sample}, depth index {k}"
         try:
@@ -152,6 +161,68 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     for name, a in sc.items():
         if np.issubdtype(a.dtype, np.floating) and not np.all(np.isfinite(a)):
             raise NumericalError(f"sample {sample}: non-finite {name}")
+    surfaces = {"rigid_surface": surf.rigid}
+    if surf.elastic is not None:
+        surfaces["elastic_surface"] = surf.elastic
+    return SampleResult(sample, sc, fields, surfaces, notes)
+
+
+def _coupled_sample(cfg: RunConfig, scene: Scene, sample: int, surf, targets, sc, progress
+                    ) -> SampleResult:
+    """A sample of the coupled model: squeeze with bonded contacts, then the exact event pull."""
+    op = _operator(scene, ("zz", "zx", "xx"))
+    g = scene.grid
+    want = set(cfg.output.fields)
+    fields, notes = [], list(scene.notes)
+    for k, t in enumerate(targets):
+        where = f"sample {sample}, depth index {k}"
+        try:
+            r = squeeze_pull_coupled(
+                surf.composite, depth=float(t), lam=cfg.pull.lam, a=g.a, E=scene.material.E,
+                nu=scene.material.nu, boundary=g.boundary, periodic_kernel=g.periodic_kernel,
+                tol=min(cfg.pull.tol, 1e-10), fft=cfg.execution.fft,
+                threads=cfg.execution.threads, operator=op)
+        except NumericalError as exc:
+            raise NumericalError(f"{where}: coupled model: {exc}") from None
+        if cfg.execution.strict and not r.converged:
+            raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
+        sc["depth_length"][k] = float(t)
+        sc["normal_force"][k] = r.normal_force
+        sc["contact_area"][k] = r.contact_area
+        sc["iterations"][k] = r.solves
+        sc["residual"][k] = 0.0
+        sc["converged"][k] = r.converged
+        sc["seconds"][k] = r.seconds
+        sc["friction_force"][k] = r.friction_force
+        sc["friction_normal_force"][k] = r.normal_force_at_peak
+        sc["pull_seconds"][k] = r.seconds
+        sc["pull_converged"][k] = r.converged
+        sc["pull_steps"][k] = len(r.events)
+        sc["pull_error_estimate"][k] = 0.0
+        notes.append(f"depth index {k}: {r.released} bond(s) released at D_x = 0")
+        out: dict[str, np.ndarray] = {}
+        if "fz" in want:
+            out["fz"] = r.fz0
+        if "contact" in want:
+            out["contact"] = r.contact0
+        if "uz" in want or "gap" in want:
+            uz = op.apply_block(r.fz0, r.fx0)[0]
+            if "uz" in want:
+                out["uz"] = uz
+            if "gap" in want:
+                out["gap"] = uz - (float(t) - (surf.composite.max() - surf.composite))
+        if "fx" in want:
+            out["fx"] = r.fx_peak
+        if "stick" in want:
+            out["stick"] = r.stick_peak
+        if "ux" in want:
+            out["ux"] = op.apply_block(r.fz_peak, r.fx_peak)[1]
+        if "pull_curve" in want:
+            out.update(dx_lim=r.dx, fx_lim=r.fx, fz_lim=r.fz,
+                       broken_site=np.array([e.site for e in r.events], dtype=np.int64))
+        fields.append(out)
+        if progress is not None:
+            progress(sample, k)
     surfaces = {"rigid_surface": surf.rigid}
     if surf.elastic is not None:
         surfaces["elastic_surface"] = surf.elastic
@@ -349,17 +420,21 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
             while futures:
                 finished, _ = cf.wait(futures, timeout=0.25, return_when=cf.FIRST_COMPLETED)
                 _drain(q, emit)
-                for fut in finished:
+                broken = []
+                for fut in sorted(finished, key=futures.get):
                     s = futures.pop(fut)
                     try:
                         res = fut.result()
                     except cf.process.BrokenProcessPool:
-                        raise NumericalError(
-                            f"a worker process died while computing sample {s} (out of memory "
-                            "or killed); completed samples are kept: run again with "
-                            "--resume") from None
-                    writer.write_sample(res)
+                        broken.append(s)
+                        continue
+                    writer.write_sample(res)  # keep every sample that did finish
                     emit({"kind": "sample", "sample": s})
+                if broken:
+                    raise WorkerError(
+                        f"a worker process died (out of memory or killed) while sample(s) "
+                        f"{broken} were running; completed samples are kept: run again with "
+                        "--resume")
         except BaseException:
             for fut in futures:
                 fut.cancel()

@@ -12,6 +12,7 @@ OutputError            1     an output file cannot be written or read back
 ConvergenceError       3     a solver missed its tolerance and strict mode is on
 NumericalError         1     a NaN or inf appeared inside a computation
 MemoryLimitError       2     the estimated peak memory exceeds what is available
+WorkerError            1     a worker process died (killed, out of memory)
 =====================  ====  ==========================================================
 """
 
@@ -58,6 +59,12 @@ class MemoryLimitError(RoughslipError):
     """The estimated peak memory of a computation exceeds the memory available."""
 
     exit_code = 2
+
+
+class WorkerError(RoughslipError):
+    """A worker process died; completed samples are kept."""
+
+    exit_code = 1
 
 
 EXIT_CODES = {

@@ -1,0 +1,95 @@
+"""The coupled normal-tangential model: exact events, dense reference, nu = 1/2 limit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roughslip.coupled import squeeze_pull_coupled
+from roughslip.errors import InputError
+from roughslip.normal import squeeze
+from roughslip.slip import pull
+from roughslip.surfaces import sample_rng, self_affine, sphere
+
+
+def rough(n=14, seed=3):
+    return self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(seed, 0),
+                       oversample=2)
+
+
+@pytest.mark.parametrize("heights", ["rough", "sphere"])
+def test_half_poisson_ratio_reproduces_the_decoupled_model(heights):
+    h = rough(16) if heights == "rough" else sphere((14, 14), radius=12.0)
+    depth = 1.2 if heights == "rough" else 0.8
+    c = squeeze_pull_coupled(h, depth=depth, lam=0.2, nu=0.5)
+    normal = squeeze(h, depth=depth, nu=0.5, tol=1e-13)
+    d = pull(normal, lam=0.2, method="inverse", early_stop=False, block=8)
+    assert c.released == 0 and np.array_equal(c.contact0, normal.contact)
+    assert np.allclose(c.fz0, normal.fz, rtol=0, atol=1e-11 * normal.fz.max())
+    assert np.allclose(c.fx0, 0.0, atol=1e-13)
+    ev = c.events[1:]
+    assert all(e.kind == "slip+" for e in ev) and len(ev) == d.steps
+    assert [e.site for e in ev] == d.broken_site.tolist()
+    assert np.allclose([e.dx for e in ev], d.dx_lim, rtol=1e-9)
+    assert np.allclose([e.fx for e in ev], d.fx_lim, rtol=1e-9)
+    assert c.friction_force == pytest.approx(d.friction_force, rel=1e-9)
+    assert c.normal_force_at_peak == pytest.approx(normal.normal_force, rel=1e-12)
+
+
+@pytest.mark.parametrize("nu", [0.0, 0.3])
+def test_dense_reference_agrees_with_the_fft_solver(nu):
+    h = rough(14, seed=5)
+    ref = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu, method="dense", reference=True)
+    fft = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu, method="cg", tol=1e-13)
+    assert fft.converged and ref.converged
+    assert len(ref.events) == len(fft.events)
+    assert len(ref.events) + ref.released > 20  # releases at D_x = 0 are decisions too
+    assert [(e.kind, e.site) for e in ref.events] == [(e.kind, e.site) for e in fft.events]
+    assert np.allclose(ref.dx, fft.dx, rtol=1e-8, atol=1e-12)
+    assert np.allclose(ref.fx, fft.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
+    assert np.allclose(ref.fz, fft.fz, rtol=1e-8)
+    assert ref.friction_force == pytest.approx(fft.friction_force, rel=1e-8)
+    assert ref.released == fft.released
+
+
+@pytest.mark.parametrize("nu", [0.0, 0.25, 0.45])
+def test_every_recorded_state_is_admissible(nu):
+    h = rough(14, seed=7) + sphere((14, 14), radius=25.0)
+    res = squeeze_pull_coupled(h, depth=1.4, lam=0.3, nu=nu, record_states=True)
+    assert res.states and len(res.states) == len(res.events)
+    fscale = max(float(np.abs(s[1]).max()) for s in res.states)
+    for _D, fz, fx, g, C, S in res.states:
+        tol = 1e-8 * fscale
+        assert np.all(fz[C] >= -tol), "f_z >= 0 in contact"
+        assert np.all(fz[~C] == 0) and np.all(fx[~S] == 0), "no force off contact / slip"
+        assert np.all(g[~C] >= -1e-8 * 1.4), "no penetration"
+        assert np.all(np.abs(g[C]) <= 1e-8 * 1.4), "gap closed in contact"
+        assert np.all(np.abs(fx[S]) <= 0.3 * fz[S] + tol), "|f_x| <= lambda f_z on stick sites"
+        assert np.all(S <= C)
+    # the recorded totals are the sums of the recorded fields
+    for e, (_, fz, fx, *_rest) in zip(res.events, res.states, strict=True):
+        assert e.fx == pytest.approx(fx.sum(), abs=1e-12 * fscale)
+        assert e.fz == pytest.approx(fz.sum(), rel=1e-12)
+    # the friction force is the largest F_x on the path, with F_z at the same D_x
+    i = int(np.argmax(res.fx))
+    assert res.friction_force == res.fx[i] and res.normal_force_at_peak == res.fz[i]
+
+
+def test_coupling_is_felt_at_zero_pull():
+    """GREEN §6: under coupling the bonded squeeze already needs tangential forces; bonds are
+    released at D_x = 0 and F_x(0) != 0 for a non-symmetric surface."""
+    h = rough(14, seed=9)
+    res = squeeze_pull_coupled(h, depth=1.3, lam=0.2, nu=0.0)
+    assert res.released > 0
+    assert abs(res.events[0].fx) > 1e-6 * res.normal_force
+    kinds = {e.kind for e in res.events}
+    assert "slip+" in kinds
+
+
+def test_no_contact_and_bad_input():
+    res = squeeze_pull_coupled(np.zeros((4, 4)), depth=0.0)
+    assert res.friction_force == 0 and not res.contact0.any()
+    with pytest.raises(InputError, match="lam"):
+        squeeze_pull_coupled(np.zeros((4, 4)), depth=1.0, lam=0)
+    with pytest.raises(InputError, match="method"):
+        squeeze_pull_coupled(np.zeros((4, 4)), depth=1.0, method="lu")

@@ -1,0 +1,325 @@
+"""Stiff and extreme cases, bad input and faults: correct answers or clear errors."""
+
+from __future__ import annotations
+
+import math
+import os
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from roughslip import memory
+from roughslip.cli import cli
+from roughslip.config import dumps_toml, load_config
+from roughslip.ensemble import estimate_memory, run
+from roughslip.errors import (
+    InputError,
+    MemoryLimitError,
+    NumericalError,
+    OutputError,
+    WorkerError,
+)
+from roughslip.normal import squeeze
+from roughslip.operators import ElasticOperator
+from roughslip.scene import Scene
+from roughslip.slip import pull
+from roughslip.store import read_run
+from roughslip.surfaces import punch, sample_rng, self_affine, sphere
+
+
+@pytest.fixture(scope="module")
+def rough():
+    return self_affine((32, 28), hurst=0.8, rms_height=1.0, rng=sample_rng(21, 0), oversample=2)
+
+
+# ------------------------------------------------------------------------------ Poisson ratio
+
+
+@pytest.mark.parametrize("nu", [0.5, 0.4999, 0.0, -0.5, -0.99])
+def test_normal_force_scales_with_the_contact_modulus(rough, nu):
+    """G_zz is proportional to 1 - nu^2: F(nu) = F(0) / (1 - nu^2), same contact."""
+    base = squeeze(rough, depth=1.0, nu=0.0, tol=1e-11)
+    r = squeeze(rough, depth=1.0, nu=nu, tol=1e-11)
+    assert r.converged and np.array_equal(r.contact, base.contact)
+    assert r.normal_force == pytest.approx(base.normal_force / (1 - nu * nu), rel=1e-9)
+
+
+@pytest.mark.parametrize("nu", [0.5, 0.4999, 0.0, -0.5, -0.99])
+def test_tangential_punch_stiffness_at_extreme_nu(nu):
+    """Bonded punch: K = 8 G a / (2 - nu) (GREEN §5e) within the staircase error."""
+    ah = 12
+    h = 1.0 / ah
+    normal = squeeze(punch((2 * ah + 2, 2 * ah + 2), radius=1.0, a=h), depth=1e-3, a=h, nu=nu)
+    res = pull(normal, lam=0.3)
+    assert res.converged and np.isfinite(res.fx_lim).all()
+    a_eq = math.sqrt(normal.n_contact * h * h / math.pi)
+    k = 8 * (1 / (2 * (1 + nu))) * a_eq / (2 - nu)
+    err = (res.fx_lim[0] / res.dx_lim[0] - k) / k
+    assert -0.2 * h < err < 0
+
+
+@pytest.mark.parametrize("nu", [-1.0, -1.5, 0.5000001, 0.7, float("nan")])
+def test_poisson_ratio_out_of_range_is_rejected(rough, nu):
+    with pytest.raises(InputError, match="nu"):
+        squeeze(rough, depth=1.0, nu=nu)
+
+
+# ------------------------------------------------------------------------------ grids
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (2, 2), (1, 40), (40, 1), (97, 97), (13, 31)])
+def test_odd_tiny_and_strip_grids(shape):
+    h = sphere(shape, radius=10.0 * max(shape))
+    r = squeeze(h, depth=0.05 * max(shape) / 10 + 1e-3, tol=1e-11)
+    assert r.converged and r.n_contact >= 1 and np.isfinite(r.fz).all()
+    p = pull(r)
+    assert p.converged and 0 < p.friction_force <= 0.2 * r.normal_force * (1 + 1e-12)
+    # symmetric shapes give symmetric forces
+    assert np.allclose(r.fz, r.fz[::-1, ::-1], rtol=1e-9, atol=1e-12 * r.fz.max())
+
+
+def test_prime_size_uses_fast_fft_lengths():
+    op = ElasticOperator((97, 97))
+    assert op.padded_shape == (200, 200)
+
+
+def test_memory_guard_refuses_and_suggests(tmp_path):
+    cfg = load_config(data={"grid": {"n": 256}, "squeeze": {"depths": [0.1]},
+                            "surface": {"kind": "sphere", "radius": 100.0},
+                            "execution": {"memory_limit_gb": 0.01}})
+    with pytest.raises(MemoryLimitError, match=r"GiB.*available"):
+        run(cfg, tmp_path / "m.h5")
+    assert not (tmp_path / "m.h5").exists()
+    memory.set_limit(None)
+    data = {"grid": {"n": 64}, "squeeze": {"depths": [0.5]},
+            "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1},
+            "ensemble": {"samples": 4}}
+    per = estimate_memory(Scene.from_config(load_config(data=data)))
+    data["execution"] = {"memory_limit_gb": 2.5 * per / 2**30}  # room for two workers
+    with pytest.raises(MemoryLimitError, match="use --workers 2"):
+        run(load_config(data=data), tmp_path / "w.h5", workers=4)
+    memory.set_limit(None)
+    run(load_config(data=data), tmp_path / "w.h5", workers=2)  # fits
+    memory.set_limit(None)
+
+
+# ------------------------------------------------------------------------------ contact extremes
+
+
+def test_no_single_full_and_near_full_contact(rough):
+    none = squeeze(rough, depth=-0.5)
+    assert none.normal_force == 0 and not none.contact.any() and pull(none).friction_force == 0
+    one = squeeze(rough, depth=1e-12)
+    assert one.n_contact == 1 and pull(one).friction_force == pytest.approx(
+        0.2 * one.normal_force)
+    rng_ = rough.max() - rough.min()
+    near = squeeze(rough, depth=4.0 * rng_, tol=1e-10)
+    assert near.converged and 0.9 < near.contact_area < 1.0
+    full = squeeze(rough, depth=40.0 * rng_, tol=1e-10)
+    assert full.converged and full.contact.all()
+
+
+def test_ill_conditioned_large_punch_converges_or_reports():
+    """A large contact patch on a large grid: cond ~ N; the solver meets tol or says so."""
+    n = 192
+    h = punch((n, n), radius=0.45 * n)
+    r = squeeze(h, depth=1.0, tol=1e-10, max_iter=5000)
+    assert r.converged and r.residual <= 1e-10
+    r2 = squeeze(h, depth=1.0, tol=1e-10, max_iter=5)
+    assert not r2.converged and "max_iter" in r2.message and np.isfinite(r2.fz).all()
+
+
+# ------------------------------------------------------------------------------ scales
+
+
+@pytest.mark.parametrize("hurst", [0.01, 0.05, 0.95, 0.99])
+def test_extreme_hurst_exponents(hurst):
+    h = self_affine((48, 48), hurst=hurst, rms_height=1.0, rng=sample_rng(3, 0))
+    assert np.isfinite(h).all() and h.std() == pytest.approx(1.0)
+    r = squeeze(h, depth=1.0)
+    assert r.converged and pull(r).converged
+
+
+@pytest.mark.parametrize("scale", [1e-9, 1e-4, 1e3])
+def test_height_scale_gives_exactly_scaled_forces(rough, scale):
+    base = squeeze(rough, depth=0.8)
+    r = squeeze(rough * scale, depth=0.8 * scale)
+    assert r.normal_force == pytest.approx(scale * base.normal_force, rel=1e-8)
+    assert pull(r).friction_force == pytest.approx(scale * pull(base).friction_force, rel=1e-8)
+
+
+@pytest.mark.parametrize("E", [1e-6, 1e12])
+def test_modulus_scale(rough, E):
+    base = squeeze(rough, depth=0.8)
+    r = squeeze(rough, depth=0.8, E=E)
+    assert r.normal_force == pytest.approx(E * base.normal_force, rel=1e-9)
+    assert pull(r).friction_force == pytest.approx(E * pull(base).friction_force, rel=1e-9)
+
+
+@pytest.mark.parametrize("lam", [1e-8, 1e8])
+def test_extreme_friction_coefficients(rough, lam):
+    normal = squeeze(rough, depth=0.8)
+    assert pull(normal, lam=lam).friction_force == pytest.approx(
+        lam / 0.2 * pull(normal, lam=0.2).friction_force, rel=1e-9)
+
+
+# ------------------------------------------------------------------------------ NaN guard
+
+
+def test_a_nan_inside_a_solve_stops_the_sample_with_a_clear_error(tmp_path, monkeypatch):
+    cfg = load_config(data={"grid": {"n": 16}, "squeeze": {"depths": [0.5, 1.0]},
+                            "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1},
+                            "ensemble": {"samples": 2}})
+    real = ElasticOperator.apply
+    calls = {"n": 0}
+
+    def poisoned(self, component, f, out=None):
+        calls["n"] += 1
+        res = real(self, component, f, out)
+        if calls["n"] == 40:
+            res[3, 3] = np.nan
+        return res
+
+    monkeypatch.setattr(ElasticOperator, "apply", poisoned)
+    with pytest.raises(NumericalError, match=r"sample \d+, depth index \d+"):
+        run(cfg, tmp_path / "nan.h5")
+
+
+# ------------------------------------------------------------------------------ bad input, CLI
+
+
+def _cfg_file(tmp_path, data, name="c.toml"):
+    p = tmp_path / name
+    p.write_text(dumps_toml(data))
+    return p
+
+
+GOOD = {"grid": {"n": 12}, "squeeze": {"depths": [0.3, 0.6]},
+        "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1.0},
+        "ensemble": {"samples": 3}}
+
+
+@pytest.mark.parametrize(
+    ("args", "code", "match"),
+    [
+        (["--set", "surface.hurst=1.3"], 2, "surface.hurst = 1.3"),
+        (["--set", "grid.pixel_size=-1"], 2, "grid.pixel_size = -1"),
+        (["--set", "grid.n='x'"], 2, "grid.n"),
+        (["--set", "nonsense=1"], 2, "nonsense: unknown"),
+        (["--set", "squeeze.depths=[1, 0.5]"], 2, "strictly increasing"),
+        (["--workers", "0"], 2, "workers"),
+    ],
+)
+def test_cli_bad_input_exit_codes(tmp_path, args, code, match):
+    out = tmp_path / "o.h5"
+    r = CliRunner().invoke(cli, ["run", str(_cfg_file(tmp_path, GOOD)), "-o", str(out),
+                                 "--quiet", *args])
+    assert r.exit_code == code, r.output
+    assert match in r.output and "Traceback" not in r.output
+    assert not out.exists()
+
+
+def test_malformed_toml_and_missing_topography(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[grid]\nn = = 3\n")
+    r = CliRunner().invoke(cli, ["run", str(bad)])
+    assert r.exit_code == 2 and "invalid TOML" in r.output
+    data = {"surface": {"kind": "file", "path": "nothere.npy"}, "squeeze": {"depths": [0.1]}}
+    r = CliRunner().invoke(cli, ["run", str(_cfg_file(tmp_path, data))])
+    assert r.exit_code == 2 and "surface.path" in r.output and "no such file" in r.output
+
+
+def test_topography_with_nan_exits_2_naming_the_file(tmp_path):
+    h = np.zeros((8, 8))
+    h[2, 5] = np.nan
+    np.save(tmp_path / "topo.npy", h)
+    data = {"surface": {"kind": "file", "path": "topo.npy"}, "squeeze": {"depths": [0.1]}}
+    r = CliRunner().invoke(cli, ["run", str(_cfg_file(tmp_path, data)), "-o",
+                                 str(tmp_path / "o.h5")])
+    assert r.exit_code == 2 and "topo.npy" in r.output and "[2, 5]" in r.output
+
+
+def test_bad_input_never_damages_an_existing_output(tmp_path):
+    cfg_path = _cfg_file(tmp_path, GOOD)
+    out = tmp_path / "keep.h5"
+    run(load_config(cfg_path), out)
+    before = out.read_bytes()
+    for args in (["--set", "material.nu=2"], ["--resume", "--set", "material.nu=0.2"],
+                 []):  # the last: exists without --overwrite
+        r = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(out), "--quiet", *args])
+        assert r.exit_code == 2, r.output
+        assert out.read_bytes() == before
+
+
+def test_corrupt_files_for_resume_fit_inspect(tmp_path):
+    junk = tmp_path / "junk.h5"
+    junk.write_bytes(b"\x00" * 100)
+    cfg_path = _cfg_file(tmp_path, GOOD)
+    for cmd in (["run", str(cfg_path), "-o", str(junk), "--resume"], ["fit", str(junk)],
+                ["inspect", str(junk)], ["plot", str(junk)]):
+        r = CliRunner().invoke(cli, cmd)
+        assert r.exit_code == 2, (cmd, r.output)
+        assert "junk.h5" in r.output and "Traceback" not in r.output
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as f:
+        f["x"] = 1
+    r = CliRunner().invoke(cli, ["inspect", str(other)])
+    assert r.exit_code == 2 and "not a roughslip run file" in r.output
+
+
+# ------------------------------------------------------------------------------ faults
+
+
+def test_full_disk_keeps_completed_samples_and_resume_finishes(tmp_path, monkeypatch):
+    from roughslip import store
+
+    cfg = load_config(_cfg_file(tmp_path, GOOD))
+    out = tmp_path / "disk.h5"
+    real = store.RunWriter._write_main
+    count = {"n": 0}
+
+    def failing(self, res):
+        count["n"] += 1
+        if count["n"] == 2:
+            raise OSError(28, "No space left on device")
+        return real(self, res)
+
+    monkeypatch.setattr(store.RunWriter, "_write_main", failing)
+    with pytest.raises(OutputError, match=r"No space left on device.*--resume"):
+        run(cfg, out)
+    monkeypatch.setattr(store.RunWriter, "_write_main", real)
+    r = read_run(out)
+    assert r.n_complete == 1  # the first sample is kept
+    s = run(cfg, out, resume=True)
+    assert read_run(out).complete.all() and s.skipped >= 1
+
+
+def test_worker_crash_keeps_completed_samples(tmp_path, monkeypatch):
+    """A worker process that dies (here: os._exit while computing sample 2, injected into the
+    spawned workers through sitecustomize) ends the run with a clear error; the samples
+    completed so far are kept and --resume finishes the job."""
+    hook = tmp_path / "hook"
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(
+        "import os\n"
+        "if os.environ.get('ROUGHSLIP_CRASH_SAMPLE'):\n"
+        "    import roughslip.ensemble as e\n"
+        "    real = e._pool_task\n"
+        "    def task(config, sample):\n"
+        "        if sample == int(os.environ['ROUGHSLIP_CRASH_SAMPLE']):\n"
+        "            os._exit(9)\n"
+        "        return real(config, sample)\n"
+        "    e._pool_task = task\n")
+    cfg = load_config(_cfg_file(tmp_path, {**GOOD, "ensemble": {"samples": 5}}))
+    out = tmp_path / "crash.h5"
+    monkeypatch.setenv("PYTHONPATH", str(hook) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    monkeypatch.setenv("ROUGHSLIP_CRASH_SAMPLE", "2")
+    with pytest.raises(WorkerError, match=r"worker process died.*--resume"):
+        run(cfg, out, workers=2)
+    monkeypatch.delenv("ROUGHSLIP_CRASH_SAMPLE")
+    r = read_run(out)
+    assert not r.complete[2]
+    s = run(cfg, out, resume=True)
+    assert read_run(out).complete.all() and s.computed >= 1
