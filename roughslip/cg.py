@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import NumericalError
+
 
 @dataclass(frozen=True)
 class CGResult:
@@ -82,6 +84,8 @@ def masked_cg(
         d += r
         rr = rr_new
         res = np.sqrt(rr) / bnorm
+        if not np.isfinite(res):
+            raise NumericalError(f"conjugate gradients: non-finite residual at iteration {it}")
     # true residual (guards against drift of the recursive one)
     apply(x, ax)
     true = np.linalg.norm(((bk - ax * m)).ravel()) / bnorm

@@ -6,8 +6,10 @@ its tolerance in strict mode, 130 interrupted.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import shlex
+import signal
 import sys
 import time
 from collections.abc import Callable
@@ -115,6 +117,37 @@ class _Progress:
             self.bar.close()
 
 
+@contextlib.contextmanager
+def _interruptible(progress: Callable[[dict[str, Any]], None]):
+    """Ctrl-C that cannot be lost: the handler also sets a flag, which the progress callback
+    (called after every depth, and every 0.25 s while workers compute) turns into a
+    KeyboardInterrupt if Python swallowed the first one (e.g. inside a weakref callback)."""
+    flag = {"set": False}
+
+    def handler(signum, frame):
+        flag["set"] = True
+        raise KeyboardInterrupt
+
+    def emit(event: dict[str, Any]) -> None:
+        progress(event)
+        if flag["set"]:
+            raise KeyboardInterrupt
+
+    default_hook = sys.unraisablehook
+
+    def hook(unraisable) -> None:
+        if unraisable.exc_type is not KeyboardInterrupt:
+            default_hook(unraisable)
+
+    old = signal.signal(signal.SIGINT, handler)
+    sys.unraisablehook = hook
+    try:
+        yield emit
+    finally:
+        signal.signal(signal.SIGINT, old)
+        sys.unraisablehook = default_hook
+
+
 @cli.command("run")
 @click.argument("config", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", "out", type=click.Path(dir_okay=False),
@@ -137,8 +170,9 @@ def run_cmd(config, out, overrides, workers, resume, overwrite, scheduler, stric
     out = out or str(Path("results") / (Path(config).stem + ".h5"))
     progress = _Progress(quiet)
     try:
-        summary = run(cfg, out, workers=workers, resume=resume, overwrite=overwrite,
-                      scheduler=scheduler, progress=progress, command_line=shlex.join(sys.argv))
+        with _interruptible(progress) as emit:
+            summary = run(cfg, out, workers=workers, resume=resume, overwrite=overwrite,
+                          scheduler=scheduler, progress=emit, command_line=shlex.join(sys.argv))
     finally:
         progress.close()
     if not quiet:

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg
+from scipy.linalg import blas
 
 from .errors import InputError, NumericalError
 from .normal import check_heights
@@ -70,7 +71,7 @@ class CoupledResult:
     events: list[Event]
     normal_force: float  # F_z after the squeeze and the initial release, at D_x = 0
     contact_area: float  # fraction, at D_x = 0
-    released: int  # bonds released at D_x = 0
+    released: int  # contact sites without a bond when the pull starts (D_x = 0)
     fz0: np.ndarray  # normal forces at D_x = 0 (after release)
     fx0: np.ndarray  # tangential forces at D_x = 0 (after release)
     contact0: np.ndarray
@@ -106,7 +107,17 @@ class CoupledResult:
 
 
 class _Dense:
-    """Reduced block assembled from closed-form kernel tables; Cholesky solves."""
+    """Reduced block assembled from the operator's kernel tables, solved directly.
+
+    The explicit inverse :math:`M` of the block on the current unknowns is updated when the
+    contact or stick set changes: removing an unknown is a rank-one downdate
+    (:math:`M - M_{:k}M_{k:}/M_{kk}`), adding one a bordered inverse, both :math:`O(m^2)`;
+    every ``refresh`` updates, or when many unknowns change at once, the block is factorised
+    afresh. With ``reference=True`` every state is factorised from scratch and displacements
+    are dense sums (no FFT at all): the test reference.
+    """
+
+    refresh = 200
 
     def __init__(self, op: ElasticOperator, reference: bool):
         self.ny, self.nx = op.shape
@@ -114,6 +125,11 @@ class _Dense:
         self.tables = {c: op.pair_table(c) for c in ("zz", "zx", "xx")}
         self.reference = reference
         self.solves = 0
+        self.keys: list[tuple[str, int]] = []  # unknowns in matrix order
+        self.pos: dict[tuple[str, int], int] = {}
+        self.live = np.zeros(0, dtype=bool)  # rows of M still in the system
+        self.M: np.ndarray | None = None
+        self.updates = 0
 
     def _block(self, ci: np.ndarray, cj: np.ndarray, comp: str) -> np.ndarray:
         T, w, off = self.tables[comp]
@@ -122,26 +138,105 @@ class _Dense:
         lin_i, lin_j = iy * w + ix, jy * w + jx
         return T[lin_i[:, None] - lin_j[None, :] + off]
 
-    def prepare(self, C: np.ndarray, S: np.ndarray) -> None:
-        c, s = np.flatnonzero(C), np.flatnonzero(S)
-        zx = self._block(c, s, "zx")
-        # G_xz(i - j) = -G_zx(i - j) = G_zx(j - i): the lower-left block is G_zx(C, S)^T
-        A = np.block([[self._block(c, c, "zz"), zx], [zx.T, self._block(s, s, "xx")]])
-        self.c, self.s = c, s
+    def _entries(self, keys_i: list[tuple[str, int]], keys_j: list[tuple[str, int]]
+                 ) -> np.ndarray:
+        """Block entries between two lists of unknowns (u_a at i due to f_b at j)."""
+        out = np.empty((len(keys_i), len(keys_j)))
+        for a in ("z", "x"):
+            ri = [k for k, (t, _) in enumerate(keys_i) if t == a]
+            si = np.array([keys_i[k][1] for k in ri], dtype=np.int64)
+            for b in ("z", "x"):
+                cj = [k for k, (t, _) in enumerate(keys_j) if t == b]
+                if not ri or not cj:
+                    continue
+                sj = np.array([keys_j[k][1] for k in cj], dtype=np.int64)
+                if a + b == "xz":  # G_xz(i - j) = G_zx(j - i)
+                    blk = self._block(sj, si, "zx").T
+                else:
+                    blk = self._block(si, sj, a + b)
+                out[np.ix_(ri, cj)] = blk
+        return out
+
+    def _factor(self, keys: list[tuple[str, int]]) -> None:
+        A = self._entries(keys, keys)
         try:
-            self.cho = linalg.cho_factor(A, lower=True, check_finite=False)
+            L = linalg.cho_factor(A, lower=True, check_finite=False)
         except linalg.LinAlgError:
             raise NumericalError("the coupled block on the contact and stick sets is not "
                                  "positive definite") from None
+        self.M = np.asfortranarray(linalg.cho_solve(L, np.eye(len(keys)), check_finite=False))
+        self.keys = list(keys)
+        self.pos = {k: i for i, k in enumerate(self.keys)}
+        self.live = np.ones(len(self.keys), dtype=bool)
+        self.updates = 0
+
+    def prepare(self, C: np.ndarray, S: np.ndarray) -> None:
+        want = [("z", int(i)) for i in np.flatnonzero(C)] + \
+            [("x", int(i)) for i in np.flatnonzero(S)]
+        wset = set(want)
+        gone = [k for k, ok in zip(self.keys, self.live, strict=True)
+                if ok and k not in wset] if self.M is not None else []
+        new = [k for k in want if k not in self.pos or not self.live[self.pos[k]]] \
+            if self.M is not None else want
+        m = int(self.live.sum()) if self.M is not None else 0
+        if (self.reference or self.M is None or len(gone) + len(new) > max(4, m // 3)
+                or self.updates + len(gone) + len(new) > self.refresh):
+            self._factor(want)
+            return
+        if gone:  # M -= M[:, R] M[R, R]^-1 M[R, :], in place (one GEMM), then drop R
+            R = np.array([self.pos[k] for k in gone])
+            X = np.asfortranarray(self.M[:, R])
+            W = np.linalg.solve(self.M[np.ix_(R, R)], X.T)
+            out = blas.dgemm(-1.0, X, np.asfortranarray(W), beta=1.0, c=self.M, overwrite_c=1)
+            if not np.shares_memory(out, self.M):
+                self.M = np.asfortranarray(out)
+            self.M[R, :] = 0.0
+            self.M[:, R] = 0.0
+            self.live[R] = False
+            self.updates += len(gone)
+        if new:  # bordered inverse on the live unknowns, then compact
+            keep = np.flatnonzero(self.live)
+            keys = [self.keys[i] for i in keep]
+            Mk = self.M[np.ix_(keep, keep)]
+            B = self._entries(keys, new)
+            D = self._entries(new, new)
+            MB = Mk @ B
+            Sc = D - B.T @ MB
+            try:
+                Si = np.linalg.inv(Sc)
+                np.linalg.cholesky(Sc)
+            except np.linalg.LinAlgError:
+                self._factor(want)
+                return
+            k1, k2 = len(keys), len(new)
+            M2 = np.empty((k1 + k2, k1 + k2), order="F")
+            M2[:k1, :k1] = Mk + MB @ Si @ MB.T
+            M2[:k1, k1:] = -MB @ Si
+            M2[k1:, :k1] = M2[:k1, k1:].T
+            M2[k1:, k1:] = Si
+            self.M = M2
+            self.keys = keys + list(new)
+            self.pos = {k: i for i, k in enumerate(self.keys)}
+            self.live = np.ones(len(self.keys), dtype=bool)
+            self.updates += k2
+        elif (~self.live).sum() > 0.25 * self.live.size:
+            keep = np.flatnonzero(self.live)
+            self.M = np.asfortranarray(self.M[np.ix_(keep, keep)])
+            self.keys = [self.keys[i] for i in keep]
+            self.pos = {k: i for i, k in enumerate(self.keys)}
+            self.live = np.ones(len(self.keys), dtype=bool)
 
     def solve(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Grid fields (fz, fx) for right-hand sides given on the grid (used on C and S)."""
         self.solves += 1
-        rhs = np.concatenate([rz.ravel()[self.c], rx.ravel()[self.s]])
-        sol = linalg.cho_solve(self.cho, rhs, check_finite=False)
+        idx = np.array([i for _, i in self.keys], dtype=np.int64)
+        isz = np.array([t == "z" for t, _ in self.keys])
+        rhs = np.where(isz, rz.ravel()[idx], rx.ravel()[idx]) * self.live
+        sol = self.M @ rhs
+        live_z, live_x = isz & self.live, ~isz & self.live
         fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
-        fz.ravel()[self.c] = sol[: self.c.size]
-        fx.ravel()[self.s] = sol[self.c.size:]
+        fz.ravel()[idx[live_z]] = sol[live_z]
+        fx.ravel()[idx[live_x]] = sol[live_x]
         return fz, fx
 
     def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
@@ -396,23 +491,30 @@ def squeeze_pull_coupled(
                              "no overlap: no contact")
     with blas_threads(threads if method == "dense" else 1):
         st = _State(solver, ubar, float(lam), geo)
-        # squeeze with every contact bonded: the report's removal of negative forces, then
-        # closing penetrations, until neither is left
+        # squeeze with every contact bonded: the report's removal of all negative forces at
+        # once (the set only shrinks, so this ends) ...
         while True:
             st.solve()
-            fz, fx, g = st.at(0.0)
+            fz, _, _ = st.at(0.0)
             fscale = max(float(np.abs(fz).max()), np.finfo(float).tiny)
             neg = st.C & (fz < -TIE * fscale)
-            if neg.any():
-                st.C &= ~neg
-                st.S &= ~neg
-                continue
-            pen = ~st.C & (g < -TIE * st.scale_g)
-            if pen.any():
-                st.C |= pen
-                st.S |= pen
-                continue
-            break
+            if not neg.any():
+                break
+            st.C &= ~neg
+            st.S &= ~neg
+        # ... then every remaining violation one at a time, most violated first: a lost
+        # contact leaves, a penetrating site enters contact unbonded (bonded it may need a
+        # tensile force), an overloaded bond is released
+        seen: set[bytes] = set()
+        while (v := st.violation(0.0)) is not None:
+            st.apply(*v)
+            key = st.C.tobytes() + st.S.tobytes()
+            if key in seen:
+                raise NumericalError("coupled squeeze: the contact and stick sets cycle at "
+                                     "D_x = 0 (no admissible state reached)")
+            seen.add(key)
+            st.solve()
+        released = int((st.C & ~st.S).sum())
         events: list[Event] = []
         states: list | None = [] if record_states else None
 
@@ -423,12 +525,6 @@ def squeeze_pull_coupled(
                 fz, fx, g = st.at(D)
                 states.append((D, fz.copy(), fx.copy(), g.copy(), st.C.copy(), st.S.copy()))
 
-        released = 0
-        while (v := st.violation(0.0)) is not None:  # release overloaded bonds at D_x = 0
-            kind, j = v
-            released += kind.startswith("slip")
-            st.apply(kind, j)
-            st.solve()
         fz0, fx0, _ = st.at(0.0)
         F_x, F_z = st.totals(0.0)
         record(0.0, "start", -1)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing as mp
 import queue as queue_mod
+import signal
 import sys
 import time
 from collections.abc import Callable
@@ -323,7 +324,7 @@ def run(
     overwrite: bool = False,
     scheduler: str | None = None,
     progress: Progress | None = None,
-    command_line: str = "",
+    command_line: str | None = None,
 ) -> RunSummary:
     """Run every pending sample of a configuration and write ``out``.
 
@@ -354,6 +355,10 @@ def run(
     if not scheduler:
         check_memory(scene, workers)
     indices = scene.sample_indices
+    if command_line is None:
+        import shlex
+
+        command_line = shlex.join(sys.argv)
     attrs = provenance(config, command_line)
     attrs["notes"] = list(scene.notes)
     nd = len(config.targets)
@@ -390,6 +395,9 @@ def run(
 
 
 def _worker_init(budget: int, q) -> None:
+    # Ctrl-C reaches the whole process group: only the main process handles it (it stops the
+    # pool and keeps what is done)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     memory.set_limit(budget / 2**30)
     global _QUEUE
     _QUEUE = q
@@ -413,8 +421,9 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
     ctx = mp.get_context("spawn")  # no fork: OpenBLAS and FFTW threads do not survive it
     budget = memory.available_bytes() // workers
     q = ctx.Manager().Queue()
-    with cf.ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
-                                initializer=_worker_init, initargs=(budget, q)) as pool:
+    pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
+                                  initializer=_worker_init, initargs=(budget, q))
+    with pool:
         futures = {pool.submit(_pool_task, config, s): s for s in pending}
         try:
             while futures:
@@ -436,8 +445,12 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
                         f"{broken} were running; completed samples are kept: run again with "
                         "--resume")
         except BaseException:
-            for fut in futures:
-                fut.cancel()
+            # stop now: cancel what has not started and end the running workers (their
+            # samples are recomputed on --resume)
+            procs = list((getattr(pool, "_processes", None) or {}).values())
+            pool.shutdown(wait=False, cancel_futures=True)
+            for proc in procs:
+                proc.terminate()
             raise
     _drain(q, emit)
 

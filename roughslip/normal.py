@@ -333,6 +333,9 @@ class NormalSolver:
             np.subtract(g, gs, out=tmp_g)  # g off the contact set, 0 on it
             pen = max(0.0, -float(tmp_g.min()))
             res = max(gap_err, pen) / max(scale, np.finfo(float).tiny)
+            if not math.isfinite(res):
+                raise NumericalError(f"squeeze (pk): non-finite gap at iteration {it} (a NaN or "
+                                     "inf entered the displacement)")
             if res <= self.tol or it >= self.max_iter:
                 if stale:  # confirm with an exact displacement
                     self._apply(p, u)

@@ -41,6 +41,9 @@ def test_dense_reference_agrees_with_the_fft_solver(nu):
     h = rough(14, seed=5)
     ref = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu, method="dense", reference=True)
     fft = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu, method="cg", tol=1e-13)
+    inc = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu, method="dense")  # updated inverse
+    assert [(e.kind, e.site) for e in inc.events] == [(e.kind, e.site) for e in ref.events]
+    assert np.allclose(inc.fx, ref.fx, rtol=1e-9, atol=1e-12 * np.abs(ref.fx).max())
     assert fft.converged and ref.converged
     assert len(ref.events) == len(fft.events)
     assert len(ref.events) + ref.released > 20  # releases at D_x = 0 are decisions too
