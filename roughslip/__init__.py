@@ -7,6 +7,7 @@ for the model and ``roughslip --help`` for the command line.
 
 from ._version import __version__
 from .config import RunConfig, load_config
+from .coupled import CoupledResult, squeeze_pull_coupled
 from .errors import (
     ConfigError,
     ConvergenceError,
@@ -23,6 +24,7 @@ from .slip import SlipResult, pull
 __all__ = [
     "ConfigError",
     "ConvergenceError",
+    "CoupledResult",
     "ElasticOperator",
     "Grid",
     "InputError",
@@ -39,4 +41,5 @@ __all__ = [
     "load_config",
     "pull",
     "squeeze",
+    "squeeze_pull_coupled",
 ]

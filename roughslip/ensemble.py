@@ -124,13 +124,9 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
             notes.append(f"depth index {k}: squeeze not converged ({r.message})")
         if sq.warm_start:
             x0 = r.fz
-        sc["depth_length"][k] = r.depth
-        sc["normal_force"][k] = r.normal_force
-        sc["contact_area"][k] = r.contact_area
-        sc["iterations"][k] = r.iterations
-        sc["residual"][k] = r.residual
-        sc["converged"][k] = r.converged
-        sc["seconds"][k] = r.seconds
+        _put(sc, k, depth_length=r.depth, normal_force=r.normal_force,
+             contact_area=r.contact_area, iterations=r.iterations, residual=r.residual,
+             converged=r.converged, seconds=r.seconds)
         out: dict[str, np.ndarray] = {}
         for name in ("fz", "uz", "gap", "contact"):
             if name in want:
@@ -139,12 +135,9 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
             s = _pull(cfg, r, pull_op, where)
             if strict and not s.converged:
                 raise ConvergenceError(f"{where}: pull did not converge: {s.message}")
-            sc["friction_force"][k] = s.friction_force
-            sc["friction_normal_force"][k] = s.normal_force
-            sc["pull_seconds"][k] = s.seconds
-            sc["pull_converged"][k] = s.converged
-            sc["pull_steps"][k] = s.steps
-            sc["pull_error_estimate"][k] = s.error_estimate
+            _put(sc, k, friction_force=s.friction_force, friction_normal_force=s.normal_force,
+                 pull_seconds=s.seconds, pull_converged=s.converged, pull_steps=s.steps,
+                 pull_error_estimate=s.error_estimate)
             if "fx" in want:
                 out["fx"] = s.fx_at_peak
             if "stick" in want:
@@ -168,6 +161,12 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     return SampleResult(sample, sc, fields, surfaces, notes)
 
 
+def _put(sc: dict[str, np.ndarray], k: int, **values: float) -> None:
+    """Store scalar results of depth ``k``."""
+    for name, v in values.items():
+        sc[name][k] = v
+
+
 def _coupled_sample(cfg: RunConfig, scene: Scene, sample: int, surf, targets, sc, progress
                     ) -> SampleResult:
     """A sample of the coupled model: squeeze with bonded contacts, then the exact event pull."""
@@ -187,19 +186,11 @@ def _coupled_sample(cfg: RunConfig, scene: Scene, sample: int, surf, targets, sc
             raise NumericalError(f"{where}: coupled model: {exc}") from None
         if cfg.execution.strict and not r.converged:
             raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
-        sc["depth_length"][k] = float(t)
-        sc["normal_force"][k] = r.normal_force
-        sc["contact_area"][k] = r.contact_area
-        sc["iterations"][k] = r.solves
-        sc["residual"][k] = 0.0
-        sc["converged"][k] = r.converged
-        sc["seconds"][k] = r.seconds
-        sc["friction_force"][k] = r.friction_force
-        sc["friction_normal_force"][k] = r.normal_force_at_peak
-        sc["pull_seconds"][k] = r.seconds
-        sc["pull_converged"][k] = r.converged
-        sc["pull_steps"][k] = len(r.events)
-        sc["pull_error_estimate"][k] = 0.0
+        _put(sc, k, depth_length=float(t), normal_force=r.normal_force,
+             contact_area=r.contact_area, iterations=r.solves, residual=0.0,
+             converged=r.converged, seconds=r.seconds, friction_force=r.friction_force,
+             friction_normal_force=r.normal_force_at_peak, pull_seconds=r.seconds,
+             pull_converged=r.converged, pull_steps=len(r.events), pull_error_estimate=0.0)
         notes.append(f"depth index {k}: {r.released} bond(s) released at D_x = 0")
         out: dict[str, np.ndarray] = {}
         if "fz" in want:

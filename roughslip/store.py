@@ -34,7 +34,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -67,7 +66,6 @@ PULL_SCALARS = {
     "pull_error_estimate": ("f8", np.nan),
 }
 BOOL_FIELDS = ("contact", "stick")
-CURVE = ("dx_lim", "fx_lim", "broken_site")
 
 
 @dataclass
@@ -390,7 +388,3 @@ def read_run(path: str | Path) -> RunData:
         except (KeyError, OSError) as exc:
             raise InputError(f"{p}: damaged run file ({exc})") from None
 
-
-def iter_complete(run: RunData, name: str) -> Iterable[np.ndarray]:
-    """Rows of a scalar dataset for the complete samples."""
-    yield from run.scalars[name][run.complete]

@@ -18,6 +18,8 @@ import argparse
 import os
 import time
 
+from bench_squeeze import depth_for_area
+
 from roughslip.normal import NormalSolver
 from roughslip.operators import Grid, Material
 from roughslip.slip import pull
@@ -25,18 +27,10 @@ from roughslip.surfaces import sample_rng, self_affine
 
 
 def contact(n: int, area: float):
+    """The squeezed rough contact of size n whose contact fraction is close to ``area``."""
     h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(2024, 0), oversample=2)
-    s = NormalSolver(h, Grid((n, n)), Material(1.0, 0.3), tol=1e-10, fft="pyfftw")
-    lo, hi = 0.0, float(h.max() - h.min())
-    s.tol = 1e-5
-    for _ in range(14):
-        mid = 0.5 * (lo + hi)
-        if s.solve(depth=mid).contact_area < area:
-            lo = mid
-        else:
-            hi = mid
-    s.tol = 1e-11
-    return s.solve(depth=0.5 * (lo + hi))
+    s = NormalSolver(h, Grid((n, n)), Material(1.0, 0.3), tol=1e-11, fft="pyfftw")
+    return s.solve(depth=depth_for_area(s, area, float(h.max() - h.min())))
 
 
 def main() -> None:

@@ -108,21 +108,21 @@ def main() -> None:
                           f"{control:>5} {r.iterations:>5} {r.convolutions:>5} {sec:>7.3f} "
                           f"{1e3 * per_it:>7.2f} {r.fft_seconds / runs[0][0]:>5.0%} "
                           f"{per_it / floor:>8.2f}", flush=True)
-    # warm-started sweep against cold starts
+    # warm-started sweep against cold starts, for both methods
     n = args.sweep_size
     h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(2024, 0), oversample=2)
-    solver = NormalSolver(h, Grid((n, n)), mat, tol=args.tol, fft="pyfftw")
     depths = np.geomspace(0.2, 2.6, 10)
-    print(f"\n# depth sweep, N = {n}, open, 10 depths 0.2..2.6 (contact "
-          f"{solver.solve(depth=0.2).contact_area:.3f}..{solver.solve(depth=2.6).contact_area:.3f})")
-    for warm in (False, True):
-        x0, its, t0 = None, 0, time.perf_counter()
-        for d in depths:
-            r = solver.solve(depth=d, x0=x0 if warm else None)
-            x0, its = r.fz, its + r.iterations
-        print(f"{'warm' if warm else 'cold':>5}: {its} iterations, "
-              f"{time.perf_counter() - t0:.2f} s")
-
+    print(f"\n# depth sweep, N = {n}, open, 10 depths 0.2..2.6 from first touch")
+    for method in ("pk", "active-set"):
+        solver = NormalSolver(h, Grid((n, n)), mat, tol=args.tol, fft="pyfftw", method=method)
+        for warm in (False, True):
+            x0, its, conv, t0 = None, 0, 0, time.perf_counter()
+            for d in depths:
+                r = solver.solve(depth=d, x0=x0 if warm else None)
+                x0, its, conv = r.fz, its + r.iterations, conv + r.convolutions
+            print(f"{method:>10} {'warm' if warm else 'cold':>5}: {its} iterations, {conv} "
+                  f"convolutions, {time.perf_counter() - t0:.2f} s (contact "
+                  f"{r.contact_area:.3f} at the deepest)", flush=True)
 
 if __name__ == "__main__":
     main()

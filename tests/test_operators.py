@@ -110,3 +110,25 @@ def test_bad_arguments():
     op = ElasticOperator((4, 4))
     with pytest.raises(InputError, match="shape"):
         op.apply("zz", np.zeros((4, 5)))
+
+
+def test_auto_falls_back_to_scipy_with_one_warning(monkeypatch):
+    from roughslip import fft
+
+    monkeypatch.setattr(fft, "_PYFFTW", None)
+    monkeypatch.setattr(fft, "_PYFFTW_ERROR", "ImportError: no pyfftw here")
+    monkeypatch.setattr(fft, "_WARNED", False)
+    with pytest.warns(RuntimeWarning, match="pyfftw unavailable.*scipy"):
+        assert fft.resolve_backend("auto") == "scipy"
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert fft.resolve_backend("auto") == "scipy"  # only one warning per process
+    with pytest.raises(InputError, match="cannot be imported"):
+        fft.resolve_backend("pyfftw")
+    op = ElasticOperator((6, 6), fft="auto")
+    assert op.fft.backend == "scipy"
+    f = np.random.default_rng(0).standard_normal((6, 6))
+    assert np.allclose(op.apply("zz", f), (op.dense("zz") @ f.ravel()).reshape(6, 6),
+                       rtol=1e-12)

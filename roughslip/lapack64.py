@@ -1,0 +1,207 @@
+"""Dense kernels of the pull's inverse method, safe for matrices with more than 2^31 entries.
+
+scipy's bundled LAPACK uses 32-bit integers: its index arithmetic overflows for ``n x n``
+matrices with ``n > 46340`` (a segfault was observed at ``n = 52417``). numpy's bundled
+OpenBLAS is built with 64-bit integers and exports LAPACKE and CBLAS entry points with a
+``64_`` suffix; this module calls them through ctypes, in place, on Fortran-ordered arrays.
+When that library is not present (other numpy builds), the scipy routines are used and larger
+matrices are refused with a clear error instead.
+
+Only what the inverse method needs: Cholesky factorisation and inversion of an SPD matrix
+(lower triangle), a symmetric rank-k update and a symmetric matrix-vector product.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import os
+
+import numpy as np
+from scipy.linalg import blas, lapack
+
+from .errors import MemoryLimitError, NumericalError
+
+#: largest n for which an n x n matrix has fewer than 2^31 entries (32-bit LAPACK is safe)
+LP64_MAX_N = 46340
+
+_COL_MAJOR, _LOWER, _NO_TRANS, _TRANS = 102, 122, 111, 112
+_LIB = None
+_TRIED = False
+
+
+def _load():
+    global _LIB, _TRIED
+    if _TRIED:
+        return _LIB
+    _TRIED = True
+    here = os.path.dirname(np.__file__)
+    for pattern in ("../numpy.libs/libscipy_openblas64_*", ".libs/libscipy_openblas64_*"):
+        for path in glob.glob(os.path.join(here, pattern)):
+            try:
+                lib = ctypes.CDLL(path)
+                potrf = lib.scipy_LAPACKE_dpotrf64_
+                potri = lib.scipy_LAPACKE_dpotri64_
+                syrk = lib.scipy_cblas_dsyrk64_
+                symv = lib.scipy_cblas_dsymv64_
+                gemm = lib.scipy_cblas_dgemm64_
+            except (OSError, AttributeError):
+                continue
+            i64, i32, ptr, dbl = ctypes.c_int64, ctypes.c_int, ctypes.c_void_p, ctypes.c_double
+            for f in (potrf, potri):
+                f.restype = i64
+                f.argtypes = [i32, ctypes.c_char, i64, ptr, i64]
+            syrk.restype = None
+            syrk.argtypes = [i32, i32, i32, i64, i64, dbl, ptr, i64, dbl, ptr, i64]
+            symv.restype = None
+            symv.argtypes = [i32, i32, i64, dbl, ptr, i64, ptr, i64, dbl, ptr, i64]
+            gemm.restype = None
+            gemm.argtypes = [i32, i32, i32, i64, i64, i64, dbl, ptr, i64, ptr, i64, dbl, ptr,
+                             i64]
+            _LIB = (potrf, potri, syrk, symv, gemm)
+            return _LIB
+    return None
+
+
+def available() -> bool:
+    """Whether the 64-bit-integer routines were found."""
+    return _load() is not None
+
+
+def max_n() -> int | None:
+    """Largest supported matrix order (None: no limit beyond memory)."""
+    return None if available() else LP64_MAX_N
+
+
+def _check(a: np.ndarray) -> None:
+    if a.dtype != np.float64 or not a.flags.f_contiguous or a.ndim != 2:
+        raise ValueError("need a Fortran-contiguous float64 matrix")
+
+
+def check_size(n: int) -> None:
+    """Refuse an order the available LAPACK cannot index."""
+    limit = max_n()
+    if limit is not None and n > limit:
+        raise MemoryLimitError(
+            f"{n} bonds: the dense inverse needs a LAPACK with 64-bit integers beyond {limit} "
+            "(this numpy build has none); use pull method 'cg' (exact, matrix-free)")
+
+
+def cholesky_inverse(a: np.ndarray) -> np.ndarray:
+    """Overwrite the lower triangle of SPD ``a`` with that of its inverse (in place)."""
+    _check(a)
+    n = a.shape[0]
+    lib = _load()
+    if lib is None:
+        check_size(n)
+        c, info = lapack.dpotrf(a, lower=1, overwrite_a=1, clean=0)
+        if info == 0:
+            c, info = lapack.dpotri(c, lower=1, overwrite_c=1)
+        if not np.shares_memory(c, a):
+            raise NumericalError("LAPACK did not work in place")
+    elif n > SWEEP_MIN_N:
+        return sweep_inverse(a)
+    else:
+        potrf, potri = lib[0], lib[1]
+        info = potrf(_COL_MAJOR, b"L", n, a.ctypes.data, n)
+        if info == 0:
+            info = potri(_COL_MAJOR, b"L", n, a.ctypes.data, n)
+    if info != 0:
+        raise NumericalError(f"the matrix is not positive definite (LAPACK info {info})")
+    return a
+
+
+#: orders above which the inverse avoids OpenBLAS's dpotrf driver, which segfaults for large
+#: orders (observed here at 52 259; OpenBLAS issues #352 and #2562)
+SWEEP_MIN_N = 32768
+
+
+def sweep_inverse(a: np.ndarray, block: int = 1024) -> np.ndarray:
+    r"""Overwrite the lower triangle of SPD ``a`` with that of its inverse, by block sweeps.
+
+    The sweep operator on a pivot block :math:`p` with the rest :math:`r`,
+
+    .. math::
+
+        A_{pp} \leftarrow -A_{pp}^{-1},\quad A_{rp} \leftarrow A_{rp}A_{pp}^{-1},\quad
+        A_{rr} \leftarrow A_{rr} - A_{rp}A_{pp}^{-1}A_{pr},
+
+    applied to every block gives :math:`-A^{-1}` (symmetric block Gauss–Jordan). Each pivot
+    block is then a Schur complement of the SPD matrix, hence SPD and inverted by Cholesky on
+    a small copy; the updates are GEMMs on block-column panels. Work :math:`n^3`, like
+    Cholesky plus inversion; extra memory two ``n x block`` panels.
+    """
+    _check(a)
+    lib = _load()
+    if lib is None or len(lib) < 5:
+        raise NumericalError("the block sweep needs the 64-bit-integer BLAS")
+    gemm = lib[4]
+    n = a.shape[0]
+    bounds = [*range(0, n, block), n]
+    nb = len(bounds) - 1
+    X = np.empty((n, block), order="F")
+    Z = np.empty((n, block), order="F")
+    base = a.ctypes.data
+    for k in range(nb):
+        k0, k1 = bounds[k], bounds[k + 1]
+        w = k1 - k0
+        akk = np.tril(a[k0:k1, k0:k1])
+        akk = akk + np.tril(akk, -1).T
+        try:
+            d = np.linalg.inv(np.linalg.cholesky(akk))
+        except np.linalg.LinAlgError:
+            raise NumericalError("the matrix is not positive definite (block sweep)") from None
+        d = d.T @ d  # A_kk^{-1}
+        # X = A[:, k] (full symmetric column block, from the lower triangle), Z = X D
+        X[:k0, :w] = a[k0:k1, :k0].T
+        X[k0:k1, :w] = 0.0
+        X[k1:, :w] = a[k1:, k0:k1]
+        np.matmul(X[:, :w], d, out=Z[:, :w])
+        # A_ij -= Z_i X_j^T for all blocks i >= j outside block k: per column block j, the
+        # rows from j down (two panels around block k)
+        for j in range(nb):
+            if j == k:
+                continue
+            j0, j1 = bounds[j], bounds[j + 1]
+            for r0, r1 in ((j0, k0), (max(j0, k1), n)):
+                if r1 <= r0:
+                    continue
+                gemm(_COL_MAJOR, _NO_TRANS, _TRANS, r1 - r0, j1 - j0, w, -1.0,
+                     Z.ctypes.data + 8 * r0, n, X.ctypes.data + 8 * j0, n, 1.0,
+                     base + 8 * (j0 * n + r0), n)
+        a[k1:, k0:k1] = Z[k1:, :w]
+        a[k0:k1, :k0] = Z[:k0, :w].T
+        a[k0:k1, k0:k1] = -d
+    # the sweeps leave -A^{-1}
+    for j in range(nb):
+        j0, j1 = bounds[j], bounds[j + 1]
+        np.negative(a[j0:, j0:j1], out=a[j0:, j0:j1])
+    return a
+
+
+def syrk_update(c: np.ndarray, u: np.ndarray, alpha: float = -1.0) -> None:
+    """``c += alpha u u^T`` on the lower triangle of ``c``, in place."""
+    _check(c)
+    u = np.asfortranarray(u, dtype=np.float64)
+    n, k = u.shape
+    lib = _load()
+    if lib is None:
+        out = blas.dsyrk(alpha, u, beta=1.0, c=c, lower=1, overwrite_c=1)
+        if not np.shares_memory(out, c):
+            c[...] = out
+        return
+    lib[2](_COL_MAJOR, _LOWER, _NO_TRANS, n, k, alpha, u.ctypes.data, max(n, 1), 1.0,
+           c.ctypes.data, n)
+
+
+def symv(a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``a @ x`` for symmetric ``a`` of which only the lower triangle is valid."""
+    _check(a)
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    lib = _load()
+    if lib is None:
+        return blas.dsymv(1.0, a, x, lower=1)
+    n = a.shape[0]
+    y = np.zeros(n)
+    lib[3](_COL_MAJOR, _LOWER, n, 1.0, a.ctypes.data, n, x.ctypes.data, 1, 0.0, y.ctypes.data, 1)
+    return y

@@ -1,0 +1,67 @@
+"""The 64-bit-integer dense kernels agree with scipy's (and fall back to them)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import linalg
+
+from roughslip import lapack64
+from roughslip.errors import MemoryLimitError
+
+
+def spd(n, seed=0):
+    a = np.random.default_rng(seed).standard_normal((n, n))
+    return np.asfortranarray(a @ a.T + n * np.eye(n))
+
+
+@pytest.mark.parametrize("n", [1, 7, 300])
+def test_kernels_match_scipy(n):
+    a = spd(n)
+    inv = np.linalg.inv(a)
+    b = a.copy(order="F")
+    lapack64.cholesky_inverse(b)
+    low = np.tril_indices(n)
+    assert np.allclose(b[low], inv[low], rtol=1e-10, atol=1e-14)
+    x = np.random.default_rng(1).standard_normal(n)
+    assert np.allclose(lapack64.symv(b, x), inv @ x, rtol=1e-10)
+    u = np.random.default_rng(2).standard_normal((n, 5))
+    c = a.copy(order="F")
+    lapack64.syrk_update(c, u, -0.5)
+    assert np.allclose(c[low], (a - 0.5 * u @ u.T)[low], rtol=1e-12)
+
+
+def test_not_positive_definite_is_an_error():
+    a = np.asfortranarray(-np.eye(4))
+    with pytest.raises(Exception, match="not positive definite"):
+        lapack64.cholesky_inverse(a)
+
+
+def test_fallback_refuses_orders_beyond_32_bit_indexing(monkeypatch):
+    monkeypatch.setattr(lapack64, "_load", lambda: None)
+    with pytest.raises(MemoryLimitError, match="64-bit integers"):
+        lapack64.check_size(lapack64.LP64_MAX_N + 1)
+    lapack64.check_size(lapack64.LP64_MAX_N)
+    a = spd(50)
+    b = a.copy(order="F")
+    lapack64.cholesky_inverse(b)  # scipy path
+    assert np.allclose(np.tril(b), np.tril(linalg.inv(a)), rtol=1e-10, atol=1e-14)
+
+
+def test_the_64_bit_library_is_found_with_numpy_openblas():
+    if "openblas64" not in str(np.__config__.CONFIG.get("Build Dependencies", {})):
+        pytest.skip("numpy is not built with a 64-bit-integer OpenBLAS")
+    assert lapack64.available() and lapack64.max_n() is None
+
+
+@pytest.mark.parametrize(("n", "block"), [(1, 4), (37, 8), (300, 64), (257, 256)])
+def test_block_sweep_inverse(n, block):
+    if not lapack64.available():
+        pytest.skip("needs the 64-bit-integer BLAS")
+    a = spd(n, seed=n)
+    b = a.copy(order="F")
+    lapack64.sweep_inverse(b, block=block)
+    low = np.tril_indices(n)
+    assert np.allclose(b[low], np.linalg.inv(a)[low], rtol=1e-10, atol=1e-14)
+    with pytest.raises(Exception, match="not positive definite"):
+        lapack64.sweep_inverse(np.asfortranarray(-np.eye(6)), block=4)
