@@ -54,15 +54,28 @@ class Row:
         return asdict(self)
 
 
-def _hertz(ah: int, method: str, tol: float) -> list[Row]:
-    R, d, E, nu = 1.0, 1 / 16, 1.0, 0.0
+def hertz_scene(a_over_h: int, R: float = 1.0, d: float = 1 / 16
+                ) -> tuple[np.ndarray, float, float, float]:
+    r"""A sphere of radius ``R`` on a grid ``2.4 a_c`` wide with ``a_c / h = a_over_h``.
+
+    Returns ``(heights, h, depth, a_c)``: the depth from first touch that gives the Hertz
+    approach ``d`` of the apex (the apex sits on a pixel corner, ``-max(heights)`` above the
+    highest pixel centre, so the depth is ``d + max(heights)``; GREEN §5a), and the Hertz
+    contact radius :math:`a_c = \sqrt{R d}`.
+    """
     ac = math.sqrt(R * d)
-    h = ac / ah
+    h = ac / a_over_h
     n = math.ceil(2.4 * ac / h)
     n += n % 2
     heights = sphere((n, n), radius=R, a=h)
+    return heights, h, d + float(heights.max()), ac
+
+
+def _hertz(ah: int, method: str, tol: float) -> list[Row]:
+    R, d, E, nu = 1.0, 1 / 16, 1.0, 0.0
+    heights, h, depth, ac = hertz_scene(ah, R, d)
     t0 = time.perf_counter()
-    r = squeeze(heights, depth=d + heights.max(), a=h, E=E, nu=nu, method=method, tol=tol)
+    r = squeeze(heights, depth=depth, a=h, E=E, nu=nu, method=method, tol=tol)
     dt = time.perf_counter() - t0
     F = 4 / 3 * E / (1 - nu**2) * math.sqrt(R) * d**1.5
     a_eq = math.sqrt(r.n_contact * h * h / math.pi)
@@ -109,13 +122,9 @@ def _wavy(n: int, kind: str, tol: float) -> list[Row]:
 def _cattaneo(ah: int, tol: float) -> list[Row]:
     nu, lam, R, d = 0.3, 0.3, 1.0, 1 / 16
     G = 1 / (2 * (1 + nu))
-    ac = math.sqrt(R * d)
-    h = ac / ah
-    n = math.ceil(2.4 * ac / h)
-    n += n % 2
-    heights = sphere((n, n), radius=R, a=h)
+    heights, h, depth, ac = hertz_scene(ah, R, d)
     t0 = time.perf_counter()
-    normal = squeeze(heights, depth=d + heights.max(), a=h, nu=nu, tol=tol)
+    normal = squeeze(heights, depth=depth, a=h, nu=nu, tol=tol)
     res = pull(normal, lam=lam, slip_law="coulomb", tol=max(tol, 1e-12))
     dt = time.perf_counter() - t0
     P = normal.normal_force

@@ -12,6 +12,7 @@ from roughslip.errors import InputError, MemoryLimitError
 from roughslip.normal import squeeze
 from roughslip.slip import choose_method, coulomb_force_at, pull
 from roughslip.surfaces import punch, sample_rng, self_affine, sphere
+from roughslip.verify import hertz_scene
 
 
 @pytest.fixture(scope="module")
@@ -148,12 +149,8 @@ def test_coulomb_matches_cattaneo_mindlin(a_over_h):
     """GREEN §5d at nu = 0.3, lambda = 0.3, delta/delta_s = 0.3 and 0.7."""
     nu, lam, R, d = 0.3, 0.3, 1.0, 1 / 16
     G = 1 / (2 * (1 + nu))
-    ac = math.sqrt(R * d)
-    h = ac / a_over_h
-    n = math.ceil(2.4 * ac / h)
-    n += n % 2
-    heights = sphere((n, n), radius=R, a=h)
-    normal = squeeze(heights, depth=d + heights.max(), a=h, nu=nu, tol=1e-12)
+    heights, h, depth, ac = hertz_scene(a_over_h, R, d)
+    normal = squeeze(heights, depth=depth, a=h, nu=nu, tol=1e-12)
     res = pull(normal, lam=lam, slip_law="coulomb", block=64)
     P = normal.normal_force
     assert res.converged and res.friction_force == pytest.approx(lam * P, rel=1e-12)
