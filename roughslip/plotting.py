@@ -23,6 +23,18 @@ def pyplot():
     return plt
 
 
+def _loglog_png(plt, stem: Path, suffix: str, x, y, xlabel: str, ylabel: str,
+                label: str) -> Path:
+    """One log-log figure with its fitted power law, written to ``<stem>_<suffix>.png``."""
+    fig, ax = plt.subplots(figsize=(5, 4))
+    _loglog_with_fit(ax, x, y, xlabel, ylabel, label)
+    fig.tight_layout()
+    p = stem.parent / f"{stem.name}_{suffix}.png"
+    fig.savefig(p, dpi=120)
+    plt.close(fig)
+    return p
+
+
 def _loglog_with_fit(ax, x, y, xlabel, ylabel, title):
     xm, ym = x.mean(axis=0), y.mean(axis=0)
     if x.shape[0] > 1:
@@ -66,25 +78,14 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
     written = []
     fn = quantity(run, "normal_force")
     depth = quantity(run, "depth_length")
-    fig, ax = plt.subplots(figsize=(5, 4))
-    _loglog_with_fit(ax, depth, fn, "penetration depth $D_z$", "normal force $F_n$",
-                     "$F_n \\propto D_z^{\\beta}$")
-    fig.tight_layout()
-    p = stem.parent / f"{stem.name}_normal.png"
-    fig.savefig(p, dpi=120)
-    plt.close(fig)
-    written.append(p)
+    written.append(_loglog_png(plt, stem, "normal", depth, fn, "penetration depth $D_z$",
+                               "normal force $F_n$", "$F_n \\propto D_z^{\\beta}$"))
     has_pull = "friction_force" in run.scalars
     if has_pull:
         ff = quantity(run, "friction_force")
-        fig, ax = plt.subplots(figsize=(5, 4))
-        _loglog_with_fit(ax, fn, ff, "normal force $F_n$", "static friction $F_{friction}$",
-                         "$F_{friction} \\propto F_n^{\\alpha}$")
-        fig.tight_layout()
-        p = stem.parent / f"{stem.name}_friction.png"
-        fig.savefig(p, dpi=120)
-        plt.close(fig)
-        written.append(p)
+        written.append(_loglog_png(plt, stem, "friction", fn, ff, "normal force $F_n$",
+                                   "static friction $F_{friction}$",
+                                   "$F_{friction} \\propto F_n^{\\alpha}$"))
     s = int(run.sample_index[run.complete][0]) if sample is None else int(sample)
     if s not in set(run.sample_index[run.complete].tolist()):
         raise InputError(f"{run.path}: sample {s} is not complete")

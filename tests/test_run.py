@@ -150,16 +150,23 @@ def _long_cfg(tmp_path: Path) -> Path:
     return write_cfg(tmp_path, data, "long.toml")
 
 
-def test_kill_and_resume_gives_the_same_numbers(tmp_path):
+def _reference_and_killed(tmp_path: Path, name: str, done: int):
+    """An uninterrupted run, and a run of the same config killed (SIGKILL) once ``done``
+    samples are journaled."""
     cfg_path = _long_cfg(tmp_path)
     cfg = load_config(cfg_path)
     ref = tmp_path / "ref.h5"
     run(cfg, ref)
-    out = tmp_path / "killed.h5"
+    out = tmp_path / name
     proc = _start(tmp_path, cfg_path, out)
-    _wait_for_journal(out, proc, 3)
+    _wait_for_journal(out, proc, done)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
+    return cfg, ref, out
+
+
+def test_kill_and_resume_gives_the_same_numbers(tmp_path):
+    cfg, ref, out = _reference_and_killed(tmp_path, "killed.h5", 3)
     partial = len(list(journal_dir(out).glob("s*.h5")))
     assert 3 <= partial < 12
     s = run(cfg, out, resume=True)
@@ -169,15 +176,7 @@ def test_kill_and_resume_gives_the_same_numbers(tmp_path):
 
 
 def test_unreadable_file_is_rebuilt_from_the_journal(tmp_path):
-    cfg_path = _long_cfg(tmp_path)
-    cfg = load_config(cfg_path)
-    ref = tmp_path / "ref.h5"
-    run(cfg, ref)
-    out = tmp_path / "broken.h5"
-    proc = _start(tmp_path, cfg_path, out)
-    _wait_for_journal(out, proc, 2)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
+    cfg, ref, out = _reference_and_killed(tmp_path, "broken.h5", 2)
     out.write_bytes(b"\x89HDF\r\n garbage: a write cut in the middle")
     s = run(cfg, out, resume=True)
     assert s.skipped >= 2
