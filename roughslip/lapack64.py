@@ -180,7 +180,12 @@ def sweep_inverse(a: np.ndarray, block: int = 1024) -> np.ndarray:
 
 
 def syrk_update(c: np.ndarray, u: np.ndarray, alpha: float = -1.0) -> None:
-    """``c += alpha u u^T`` on the lower triangle of ``c``, in place."""
+    """``c += alpha u u^T`` on the lower triangle of ``c``, in place.
+
+    Above :data:`SWEEP_MIN_N` the update is done by GEMMs on column panels
+    (:func:`syrk_panels`): OpenBLAS's threaded DSYRK segfaults there once a DGEMM has run in
+    the process (observed with OpenBLAS 0.3.31 at n = 33 982).
+    """
     _check(c)
     u = np.asfortranarray(u, dtype=np.float64)
     n, k = u.shape
@@ -190,8 +195,28 @@ def syrk_update(c: np.ndarray, u: np.ndarray, alpha: float = -1.0) -> None:
         if not np.shares_memory(out, c):
             c[...] = out
         return
+    if n > SWEEP_MIN_N:
+        syrk_panels(c, u, alpha)
+        return
     lib[2](_COL_MAJOR, _LOWER, _NO_TRANS, n, k, alpha, u.ctypes.data, max(n, 1), 1.0,
            c.ctypes.data, n)
+
+
+def syrk_panels(c: np.ndarray, u: np.ndarray, alpha: float = -1.0, block: int = 1024) -> None:
+    """:func:`syrk_update` by DGEMMs: ``C[j0:, j0:j1] += alpha U[j0:] U[j0:j1]^T`` for each
+    column panel ``j0:j1`` of width ``block`` (the lower triangle and a little above it
+    inside each diagonal block, which is never read)."""
+    _check(c)
+    lib = _load()
+    if lib is None:
+        raise NumericalError("the panel update needs the 64-bit-integer BLAS")
+    u = np.asfortranarray(u, dtype=np.float64)
+    n, k = u.shape
+    gemm = lib[4]
+    for j0 in range(0, n, block):
+        j1 = min(j0 + block, n)
+        gemm(_COL_MAJOR, _NO_TRANS, _TRANS, n - j0, j1 - j0, k, alpha, u.ctypes.data + 8 * j0,
+             n, u.ctypes.data + 8 * j0, n, 1.0, c.ctypes.data + 8 * (j0 * n + j0), n)
 
 
 def symv(a: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -65,3 +65,17 @@ def test_block_sweep_inverse(n, block):
     assert np.allclose(b[low], np.linalg.inv(a)[low], rtol=1e-10, atol=1e-14)
     with pytest.raises(Exception, match="not positive definite"):
         lapack64.sweep_inverse(np.asfortranarray(-np.eye(6)), block=4)
+
+
+@pytest.mark.parametrize(("n", "k", "block"), [(1, 1, 4), (37, 5, 8), (300, 128, 64)])
+def test_panel_rank_k_update_equals_dense(n, k, block):
+    """The GEMM-panel update used for large orders (OpenBLAS's threaded DSYRK crashes there)."""
+    if not lapack64.available():
+        pytest.skip("needs the 64-bit-integer BLAS")
+    rng = np.random.default_rng(n)
+    c = spd(n, seed=k)
+    u = rng.standard_normal((n, k))
+    got = c.copy(order="F")
+    lapack64.syrk_panels(got, u, -0.5, block=block)
+    low = np.tril_indices(n)
+    assert np.allclose(got[low], (c - 0.5 * u @ u.T)[low], rtol=1e-12, atol=1e-12)
