@@ -42,7 +42,6 @@ def _load():
                 lib = ctypes.CDLL(path)
                 potrf = lib.scipy_LAPACKE_dpotrf64_
                 potri = lib.scipy_LAPACKE_dpotri64_
-                syrk = lib.scipy_cblas_dsyrk64_
                 symv = lib.scipy_cblas_dsymv64_
                 gemm = lib.scipy_cblas_dgemm64_
             except (OSError, AttributeError):
@@ -51,14 +50,12 @@ def _load():
             for f in (potrf, potri):
                 f.restype = i64
                 f.argtypes = [i32, ctypes.c_char, i64, ptr, i64]
-            syrk.restype = None
-            syrk.argtypes = [i32, i32, i32, i64, i64, dbl, ptr, i64, dbl, ptr, i64]
             symv.restype = None
             symv.argtypes = [i32, i32, i64, dbl, ptr, i64, ptr, i64, dbl, ptr, i64]
             gemm.restype = None
             gemm.argtypes = [i32, i32, i32, i64, i64, i64, dbl, ptr, i64, ptr, i64, dbl, ptr,
                              i64]
-            _LIB = (potrf, potri, syrk, symv, gemm)
+            _LIB = (potrf, potri, symv, gemm)
             return _LIB
     return None
 
@@ -133,9 +130,9 @@ def sweep_inverse(a: np.ndarray, block: int = 1024) -> np.ndarray:
     """
     _check(a)
     lib = _load()
-    if lib is None or len(lib) < 5:
+    if lib is None:
         raise NumericalError("the block sweep needs the 64-bit-integer BLAS")
-    gemm = lib[4]
+    gemm = lib[3]
     n = a.shape[0]
     bounds = [*range(0, n, block), n]
     nb = len(bounds) - 1
@@ -182,24 +179,20 @@ def sweep_inverse(a: np.ndarray, block: int = 1024) -> np.ndarray:
 def syrk_update(c: np.ndarray, u: np.ndarray, alpha: float = -1.0) -> None:
     """``c += alpha u u^T`` on the lower triangle of ``c``, in place.
 
-    Above :data:`SWEEP_MIN_N` the update is done by GEMMs on column panels
-    (:func:`syrk_panels`): OpenBLAS's threaded DSYRK segfaults there once a DGEMM has run in
-    the process (observed with OpenBLAS 0.3.31 at n = 33 982).
+    With the 64-bit library the update is done by GEMMs on column panels
+    (:func:`syrk_panels`): OpenBLAS's threaded DSYRK segfaults for large orders once a DGEMM
+    has run in the process (observed with OpenBLAS 0.3.31 at n = 33 982 and at n ~ 29 000;
+    single-threaded it does not).
     """
     _check(c)
     u = np.asfortranarray(u, dtype=np.float64)
-    n, k = u.shape
     lib = _load()
     if lib is None:
         out = blas.dsyrk(alpha, u, beta=1.0, c=c, lower=1, overwrite_c=1)
         if not np.shares_memory(out, c):
             c[...] = out
         return
-    if n > SWEEP_MIN_N:
-        syrk_panels(c, u, alpha)
-        return
-    lib[2](_COL_MAJOR, _LOWER, _NO_TRANS, n, k, alpha, u.ctypes.data, max(n, 1), 1.0,
-           c.ctypes.data, n)
+    syrk_panels(c, u, alpha)
 
 
 def syrk_panels(c: np.ndarray, u: np.ndarray, alpha: float = -1.0, block: int = 1024) -> None:
@@ -212,7 +205,7 @@ def syrk_panels(c: np.ndarray, u: np.ndarray, alpha: float = -1.0, block: int = 
         raise NumericalError("the panel update needs the 64-bit-integer BLAS")
     u = np.asfortranarray(u, dtype=np.float64)
     n, k = u.shape
-    gemm = lib[4]
+    gemm = lib[3]
     for j0 in range(0, n, block):
         j1 = min(j0 + block, n)
         gemm(_COL_MAJOR, _NO_TRANS, _TRANS, n - j0, j1 - j0, k, alpha, u.ctypes.data + 8 * j0,
@@ -228,5 +221,5 @@ def symv(a: np.ndarray, x: np.ndarray) -> np.ndarray:
         return blas.dsymv(1.0, a, x, lower=1)
     n = a.shape[0]
     y = np.zeros(n)
-    lib[3](_COL_MAJOR, _LOWER, n, 1.0, a.ctypes.data, n, x.ctypes.data, 1, 0.0, y.ctypes.data, 1)
+    lib[2](_COL_MAJOR, _LOWER, n, 1.0, a.ctypes.data, n, x.ctypes.data, 1, 0.0, y.ctypes.data, 1)
     return y
