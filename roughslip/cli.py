@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import shlex
 import signal
 import sys
 import time
@@ -172,7 +171,7 @@ def run_cmd(config, out, overrides, workers, resume, overwrite, scheduler, stric
     try:
         with _interruptible(progress) as emit:
             summary = run(cfg, out, workers=workers, resume=resume, overwrite=overwrite,
-                          scheduler=scheduler, progress=emit, command_line=shlex.join(sys.argv))
+                          scheduler=scheduler, progress=emit)
     finally:
         progress.close()
     if not quiet:

@@ -125,11 +125,17 @@ class _Dense:
         self.tables = {c: op.pair_table(c) for c in ("zz", "zx", "xx")}
         self.reference = reference
         self.solves = 0
-        self.keys: list[tuple[str, int]] = []  # unknowns in matrix order
-        self.pos: dict[tuple[str, int], int] = {}
-        self.live = np.zeros(0, dtype=bool)  # rows of M still in the system
         self.M: np.ndarray | None = None
+        self._set_keys([])
         self.updates = 0
+
+    def _set_keys(self, keys: list[tuple[str, int]]) -> None:
+        """The unknowns in matrix order (all live), and what :meth:`solve` derives from them."""
+        self.keys = list(keys)
+        self.pos = {k: i for i, k in enumerate(self.keys)}
+        self.live = np.ones(len(self.keys), dtype=bool)  # rows of M still in the system
+        self.idx = np.array([i for _, i in self.keys], dtype=np.int64)  # grid sites
+        self.isz = np.array([t == "z" for t, _ in self.keys], dtype=bool)
 
     def _block(self, ci: np.ndarray, cj: np.ndarray, comp: str) -> np.ndarray:
         T, w, off = self.tables[comp]
@@ -165,20 +171,17 @@ class _Dense:
             raise NumericalError("the coupled block on the contact and stick sets is not "
                                  "positive definite") from None
         self.M = np.asfortranarray(linalg.cho_solve(L, np.eye(len(keys)), check_finite=False))
-        self.keys = list(keys)
-        self.pos = {k: i for i, k in enumerate(self.keys)}
-        self.live = np.ones(len(self.keys), dtype=bool)
+        self._set_keys(keys)
         self.updates = 0
 
     def prepare(self, C: np.ndarray, S: np.ndarray) -> None:
         want = [("z", int(i)) for i in np.flatnonzero(C)] + \
             [("x", int(i)) for i in np.flatnonzero(S)]
         wset = set(want)
-        gone = [k for k, ok in zip(self.keys, self.live, strict=True)
-                if ok and k not in wset] if self.M is not None else []
-        new = [k for k in want if k not in self.pos or not self.live[self.pos[k]]] \
-            if self.M is not None else want
-        m = int(self.live.sum()) if self.M is not None else 0
+        # before the first factorisation there are no keys: everything is new
+        gone = [k for k, ok in zip(self.keys, self.live, strict=True) if ok and k not in wset]
+        new = [k for k in want if k not in self.pos or not self.live[self.pos[k]]]
+        m = int(self.live.sum())
         if (self.reference or self.M is None or len(gone) + len(new) > max(4, m // 3)
                 or self.updates + len(gone) + len(new) > self.refresh):
             self._factor(want)
@@ -202,10 +205,10 @@ class _Dense:
             D = self._entries(new, new)
             MB = Mk @ B
             Sc = D - B.T @ MB
-            try:
-                Si = np.linalg.inv(Sc)
-                np.linalg.cholesky(Sc)
-            except np.linalg.LinAlgError:
+            try:  # the Schur complement of an SPD block is SPD: Cholesky checks and inverts
+                Si = linalg.cho_solve(linalg.cho_factor(Sc, lower=True, check_finite=False),
+                                      np.eye(len(new)), check_finite=False)
+            except linalg.LinAlgError:
                 self._factor(want)
                 return
             k1, k2 = len(keys), len(new)
@@ -215,22 +218,17 @@ class _Dense:
             M2[k1:, :k1] = M2[:k1, k1:].T
             M2[k1:, k1:] = Si
             self.M = M2
-            self.keys = keys + list(new)
-            self.pos = {k: i for i, k in enumerate(self.keys)}
-            self.live = np.ones(len(self.keys), dtype=bool)
+            self._set_keys(keys + list(new))
             self.updates += k2
         elif (~self.live).sum() > 0.25 * self.live.size:
             keep = np.flatnonzero(self.live)
             self.M = np.asfortranarray(self.M[np.ix_(keep, keep)])
-            self.keys = [self.keys[i] for i in keep]
-            self.pos = {k: i for i, k in enumerate(self.keys)}
-            self.live = np.ones(len(self.keys), dtype=bool)
+            self._set_keys([self.keys[i] for i in keep])
 
     def solve(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Grid fields (fz, fx) for right-hand sides given on the grid (used on C and S)."""
         self.solves += 1
-        idx = np.array([i for _, i in self.keys], dtype=np.int64)
-        isz = np.array([t == "z" for t, _ in self.keys])
+        idx, isz = self.idx, self.isz
         rhs = np.where(isz, rz.ravel()[idx], rx.ravel()[idx]) * self.live
         sol = self.M @ rhs
         live_z, live_x = isz & self.live, ~isz & self.live

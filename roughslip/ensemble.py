@@ -11,6 +11,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing as mp
 import queue as queue_mod
+import shlex
 import signal
 import sys
 import time
@@ -334,6 +335,8 @@ def run(
         Address of a Dask scheduler (default ``execution.scheduler``).
     progress : callable, optional
         Receives events ``{"kind": "start"|"depth"|"sample"|"done", ...}``.
+    command_line : str, optional
+        Stored in the file's provenance; default: this process's ``sys.argv``.
     """
     t0 = time.perf_counter()
     scene = Scene.from_config(config)  # validates files before any output is touched
@@ -347,8 +350,6 @@ def run(
         check_memory(scene, workers)
     indices = scene.sample_indices
     if command_line is None:
-        import shlex
-
         command_line = shlex.join(sys.argv)
     attrs = provenance(config, command_line)
     attrs["notes"] = list(scene.notes)

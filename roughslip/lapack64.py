@@ -16,6 +16,7 @@ from __future__ import annotations
 import ctypes
 import glob
 import os
+from types import SimpleNamespace
 
 import numpy as np
 from scipy.linalg import blas, lapack
@@ -24,6 +25,9 @@ from .errors import MemoryLimitError, NumericalError
 
 #: largest n for which an n x n matrix has fewer than 2^31 entries (32-bit LAPACK is safe)
 LP64_MAX_N = 46340
+#: orders above which the inverse avoids OpenBLAS's dpotrf driver, which segfaults for large
+#: orders (observed here at 52 259; OpenBLAS issues #352 and #2562)
+SWEEP_MIN_N = 32768
 
 _COL_MAJOR, _LOWER, _NO_TRANS, _TRANS = 102, 122, 111, 112
 _LIB = None
@@ -55,7 +59,7 @@ def _load():
             gemm.restype = None
             gemm.argtypes = [i32, i32, i32, i64, i64, i64, dbl, ptr, i64, ptr, i64, dbl, ptr,
                              i64]
-            _LIB = (potrf, potri, symv, gemm)
+            _LIB = SimpleNamespace(potrf=potrf, potri=potri, symv=symv, gemm=gemm)
             return _LIB
     return None
 
@@ -99,18 +103,12 @@ def cholesky_inverse(a: np.ndarray) -> np.ndarray:
     elif n > SWEEP_MIN_N:
         return sweep_inverse(a)
     else:
-        potrf, potri = lib[0], lib[1]
-        info = potrf(_COL_MAJOR, b"L", n, a.ctypes.data, n)
+        info = lib.potrf(_COL_MAJOR, b"L", n, a.ctypes.data, n)
         if info == 0:
-            info = potri(_COL_MAJOR, b"L", n, a.ctypes.data, n)
+            info = lib.potri(_COL_MAJOR, b"L", n, a.ctypes.data, n)
     if info != 0:
         raise NumericalError(f"the matrix is not positive definite (LAPACK info {info})")
     return a
-
-
-#: orders above which the inverse avoids OpenBLAS's dpotrf driver, which segfaults for large
-#: orders (observed here at 52 259; OpenBLAS issues #352 and #2562)
-SWEEP_MIN_N = 32768
 
 
 def sweep_inverse(a: np.ndarray, block: int = 1024) -> np.ndarray:
@@ -129,16 +127,11 @@ def sweep_inverse(a: np.ndarray, block: int = 1024) -> np.ndarray:
     Cholesky plus inversion; extra memory two ``n x block`` panels.
     """
     _check(a)
-    lib = _load()
-    if lib is None:
-        raise NumericalError("the block sweep needs the 64-bit-integer BLAS")
-    gemm = lib[3]
     n = a.shape[0]
     bounds = [*range(0, n, block), n]
     nb = len(bounds) - 1
     X = np.empty((n, block), order="F")
     Z = np.empty((n, block), order="F")
-    base = a.ctypes.data
     for k in range(nb):
         k0, k1 = bounds[k], bounds[k + 1]
         w = k1 - k0
@@ -161,11 +154,7 @@ def sweep_inverse(a: np.ndarray, block: int = 1024) -> np.ndarray:
                 continue
             j0, j1 = bounds[j], bounds[j + 1]
             for r0, r1 in ((j0, k0), (max(j0, k1), n)):
-                if r1 <= r0:
-                    continue
-                gemm(_COL_MAJOR, _NO_TRANS, _TRANS, r1 - r0, j1 - j0, w, -1.0,
-                     Z.ctypes.data + 8 * r0, n, X.ctypes.data + 8 * j0, n, 1.0,
-                     base + 8 * (j0 * n + r0), n)
+                _gemm_nt(a, r0, r1, j0, j1, Z, X, w, -1.0)
         a[k1:, k0:k1] = Z[k1:, :w]
         a[k0:k1, :k0] = Z[:k0, :w].T
         a[k0:k1, k0:k1] = -d
@@ -200,16 +189,29 @@ def syrk_panels(c: np.ndarray, u: np.ndarray, alpha: float = -1.0, block: int = 
     column panel ``j0:j1`` of width ``block`` (the lower triangle and a little above it
     inside each diagonal block, which is never read)."""
     _check(c)
+    u = np.asfortranarray(u, dtype=np.float64)
+    n, k = u.shape
+    for j0 in range(0, n, block):
+        _gemm_nt(c, j0, n, j0, min(j0 + block, n), u, u, k, alpha)
+
+
+def _gemm_nt(c: np.ndarray, r0: int, r1: int, j0: int, j1: int, p: np.ndarray, q: np.ndarray,
+             k: int, alpha: float) -> None:
+    """``C[r0:r1, j0:j1] += alpha P[r0:r1, :k] Q[j0:j1, :k]^T`` in place, by the 64-bit DGEMM.
+
+    ``c``, ``p`` and ``q`` are Fortran-ordered with as many rows as ``c`` (the leading
+    dimension of all three); the blocks are addressed inside them without copies.
+    """
+    if r1 <= r0 or j1 <= j0 or k == 0:
+        return
     lib = _load()
     if lib is None:
         raise NumericalError("the panel update needs the 64-bit-integer BLAS")
-    u = np.asfortranarray(u, dtype=np.float64)
-    n, k = u.shape
-    gemm = lib[3]
-    for j0 in range(0, n, block):
-        j1 = min(j0 + block, n)
-        gemm(_COL_MAJOR, _NO_TRANS, _TRANS, n - j0, j1 - j0, k, alpha, u.ctypes.data + 8 * j0,
-             n, u.ctypes.data + 8 * j0, n, 1.0, c.ctypes.data + 8 * (j0 * n + j0), n)
+    n = c.shape[0]
+    if p.shape[0] != n or q.shape[0] != n or not (p.flags.f_contiguous and q.flags.f_contiguous):
+        raise ValueError("panels must be Fortran-ordered with the rows of c")
+    lib.gemm(_COL_MAJOR, _NO_TRANS, _TRANS, r1 - r0, j1 - j0, k, alpha, p.ctypes.data + 8 * r0,
+             n, q.ctypes.data + 8 * j0, n, 1.0, c.ctypes.data + 8 * (j0 * n + r0), n)
 
 
 def symv(a: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -221,5 +223,6 @@ def symv(a: np.ndarray, x: np.ndarray) -> np.ndarray:
         return blas.dsymv(1.0, a, x, lower=1)
     n = a.shape[0]
     y = np.zeros(n)
-    lib[2](_COL_MAJOR, _LOWER, n, 1.0, a.ctypes.data, n, x.ctypes.data, 1, 0.0, y.ctypes.data, 1)
+    lib.symv(_COL_MAJOR, _LOWER, n, 1.0, a.ctypes.data, n, x.ctypes.data, 1, 0.0, y.ctypes.data,
+             1)
     return y

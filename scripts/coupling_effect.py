@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import time
@@ -83,8 +84,8 @@ def main() -> None:
                             rd.scalars["friction_force"][rd.complete])
 
             def fmt(f):
-                e = f.alpha_bootstrap_std if f.alpha_bootstrap_std == f.alpha_bootstrap_std \
-                    else f.alpha_stderr
+                e = f.alpha_stderr if math.isnan(f.alpha_bootstrap_std) else \
+                    f.alpha_bootstrap_std
                 return f"{f.alpha:.3f} ± {e:.3f}"
 
             print(f"| {scene} | {nu} | {fmt(fd)} | {fmt(fc)} | {ratio:.3f} | "

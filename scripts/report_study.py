@@ -17,6 +17,7 @@ to the report's numbers.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import time
 from pathlib import Path
@@ -30,8 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def fit_row(path: Path, x: str, y: str) -> str:
     f = fit_files([path], x, y)[0].fit
-    boot = f"{f.alpha_bootstrap_std:.3f}" if f.alpha_bootstrap_std == f.alpha_bootstrap_std \
-        else "n/a"
+    boot = "n/a" if math.isnan(f.alpha_bootstrap_std) else f"{f.alpha_bootstrap_std:.3f}"
     return f"{f.alpha:.3f} | {boot} | {f.alpha_stderr:.3f} | {f.r2:.4f}"
 
 

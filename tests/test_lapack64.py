@@ -7,7 +7,7 @@ import pytest
 from scipy import linalg
 
 from roughslip import lapack64
-from roughslip.errors import MemoryLimitError
+from roughslip.errors import MemoryLimitError, NumericalError
 
 
 def spd(n, seed=0):
@@ -63,8 +63,15 @@ def test_block_sweep_inverse(n, block):
     lapack64.sweep_inverse(b, block=block)
     low = np.tril_indices(n)
     assert np.allclose(b[low], np.linalg.inv(a)[low], rtol=1e-10, atol=1e-14)
-    with pytest.raises(Exception, match="not positive definite"):
-        lapack64.sweep_inverse(np.asfortranarray(-np.eye(6)), block=4)
+
+
+def test_block_sweep_refuses_an_indefinite_matrix():
+    if not lapack64.available():
+        pytest.skip("needs the 64-bit-integer BLAS")
+    a = spd(12, seed=3)
+    a[9, 9] = -1.0  # the third pivot block's Schur complement is indefinite
+    with pytest.raises(NumericalError, match="not positive definite"):
+        lapack64.sweep_inverse(a, block=4)
 
 
 @pytest.mark.parametrize(("n", "k", "block"), [(1, 1, 4), (37, 5, 8), (300, 128, 64)])
