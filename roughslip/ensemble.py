@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import multiprocessing as mp
+import os
 import queue as queue_mod
 import shlex
 import signal
@@ -38,7 +39,7 @@ from .normal import NormalResult, NormalSolver
 from .operators import ElasticOperator
 from .scene import Scene
 from .slip import SlipResult, pull
-from .store import RunWriter, SampleResult
+from .store import RunWriter, SampleResult, scalar_specs
 
 Progress = Callable[[dict[str, Any]], None]
 
@@ -96,16 +97,7 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
                           operator=_operator(scene, ("zz",)))
     pull_op = _operator(scene, ("xx",)) if scene.pull else None
     nd = len(targets)
-    sc: dict[str, np.ndarray] = {
-        "depth_length": np.zeros(nd), "normal_force": np.zeros(nd),
-        "contact_area": np.zeros(nd), "iterations": np.zeros(nd, np.int64),
-        "residual": np.zeros(nd), "converged": np.zeros(nd, np.uint8), "seconds": np.zeros(nd),
-    }
-    if scene.pull:
-        sc.update({"friction_force": np.zeros(nd), "friction_normal_force": np.zeros(nd),
-                   "pull_seconds": np.zeros(nd), "pull_converged": np.zeros(nd, np.uint8),
-                   "pull_steps": np.zeros(nd, np.int64),
-                   "pull_error_estimate": np.zeros(nd)})
+    sc = {name: np.zeros(nd, dtype) for name, (dtype, _) in scalar_specs(cfg).items()}
     fields: list[dict[str, np.ndarray]] = []
     notes = list(scene.notes)
     x0 = None
@@ -191,7 +183,8 @@ def _coupled_sample(cfg: RunConfig, scene: Scene, sample: int, surf, targets, sc
              contact_area=r.contact_area, iterations=r.solves, residual=0.0,
              converged=r.converged, seconds=r.seconds, friction_force=r.friction_force,
              friction_normal_force=r.normal_force_at_peak, pull_seconds=r.seconds,
-             pull_converged=r.converged, pull_steps=len(r.events), pull_error_estimate=0.0)
+             pull_converged=r.converged, pull_steps=len(r.events), pull_error_estimate=0.0,
+             released_bonds=r.released)
         notes.append(f"depth index {k}: {r.released} bond(s) released at D_x = 0")
         out: dict[str, np.ndarray] = {}
         if "fz" in want:
@@ -393,6 +386,7 @@ def _worker_init(budget: int, q) -> None:
     memory.set_limit(budget / 2**30)
     global _QUEUE
     _QUEUE = q
+    q.put(("pid", os.getpid()))  # so that the main process can end this worker on failure
 
 
 _QUEUE = None
@@ -413,6 +407,7 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
     ctx = mp.get_context("spawn")  # no fork: OpenBLAS and FFTW threads do not survive it
     budget = memory.available_bytes() // workers
     q = ctx.Manager().Queue()
+    pids: set[int] = set()
     pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
                                   initializer=_worker_init, initargs=(budget, q))
     with pool:
@@ -420,7 +415,7 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
         try:
             while futures:
                 finished, _ = cf.wait(futures, timeout=0.25, return_when=cf.FIRST_COMPLETED)
-                _drain(q, emit)
+                _drain(q, emit, pids)
                 broken = []
                 for fut in sorted(finished, key=futures.get):
                     s = futures.pop(fut)
@@ -439,21 +434,27 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
         except BaseException:
             # stop now: cancel what has not started and end the running workers (their
             # samples are recomputed on --resume)
-            procs = list((getattr(pool, "_processes", None) or {}).values())
+            _drain(q, emit, pids)
+            # the pool's workers: live children of this process that reported their pid
+            procs = [p for p in mp.active_children() if p.pid in pids]
             pool.shutdown(wait=False, cancel_futures=True)
             for proc in procs:
                 proc.terminate()
             raise
-    _drain(q, emit)
+    _drain(q, emit, pids)
 
 
-def _drain(q, emit: Progress) -> None:
+def _drain(q, emit: Progress, pids: set[int]) -> None:
+    """Forward the workers' progress messages; collect the pids they announce."""
     while True:
         try:
-            si, k = q.get_nowait()
+            a, b = q.get_nowait()
         except (queue_mod.Empty, EOFError, OSError):
             return
-        emit({"kind": "depth", "sample": si, "depth_index": k})
+        if a == "pid":
+            pids.add(b)
+        else:
+            emit({"kind": "depth", "sample": a, "depth_index": b})
 
 
 def _run_dask(config: RunConfig, pending: list[int], writer: RunWriter, emit: Progress,

@@ -65,6 +65,10 @@ PULL_SCALARS = {
     "pull_steps": ("i8", 0),
     "pull_error_estimate": ("f8", np.nan),
 }
+#: scalars of the coupled model only
+COUPLED_SCALARS = {
+    "released_bonds": ("i8", 0),  # contact sites whose bond breaks already at D_x = 0
+}
 BOOL_FIELDS = ("contact", "stick")
 
 
@@ -249,12 +253,19 @@ def _init_file(f: h5py.File, config: RunConfig, indices: list[int], n_targets: i
     else:
         d = f.create_dataset("force_target", data=axis)
         d.attrs["unit"] = config.squeeze.force_unit
+    for name, (dtype, fill) in scalar_specs(config).items():
+        f.create_dataset(name, shape=(ns, n_targets), dtype=dtype, fillvalue=fill)
+    f.create_group("samples")
+
+
+def scalar_specs(config: RunConfig) -> dict[str, tuple[str, Any]]:
+    """The per-(sample, depth) scalars a run of ``config`` stores: name -> (dtype, fill)."""
     specs = dict(SCALARS)
     if config.pull.enabled:
         specs.update(PULL_SCALARS)
-    for name, (dtype, fill) in specs.items():
-        f.create_dataset(name, shape=(ns, n_targets), dtype=dtype, fillvalue=fill)
-    f.create_group("samples")
+    if config.coupling.enabled:
+        specs.update(COUPLED_SCALARS)
+    return specs
 
 
 def _check_format(f: h5py.File, path: Path) -> None:
@@ -379,7 +390,8 @@ def read_run(path: str | Path) -> RunData:
         try:
             attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
             axis_name = "depth" if "depth" in f else "force_target"
-            scalars = {k: f[k][()] for k in (*SCALARS, *PULL_SCALARS) if k in f}
+            scalars = {k: f[k][()] for k in (*SCALARS, *PULL_SCALARS, *COUPLED_SCALARS)
+                       if k in f}
             return RunData(
                 path=p, attrs=attrs, config_toml=str(attrs.get("config", "")),
                 sample_index=f["sample_index"][()], complete=f["complete"][()].astype(bool),

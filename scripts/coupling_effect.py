@@ -13,10 +13,8 @@ Prints Markdown (docs/results.md holds the output of a run).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
-import re
 import time
 from pathlib import Path
 
@@ -32,19 +30,20 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def released_fraction(path: Path) -> float:
-    """Bonds released at D_x = 0 over the contact sites, averaged over samples and depths."""
-    rel, total = 0, 0
+    """Bonds released at D_x = 0 over the contact sites, summed over samples and depths."""
     run_data = read_run(path)
+    done = run_data.complete
+    released = run_data.scalars["released_bonds"][done]
+    sites = run_data.scalars["contact_area"][done] * grid_sites(path)
+    total = float(np.rint(sites).sum())
+    return float(released.sum()) / total if total else float("nan")
+
+
+def grid_sites(path: Path) -> int:
+    """Number of grid sites of a run (the contact area is a fraction of it)."""
     with h5py.File(path, "r") as f:
-        for name in f["samples"]:
-            notes = json.loads(f["samples"][name].attrs.get("notes", "[]"))
-            for k, note in enumerate(n for n in notes if "released at D_x = 0" in n):
-                rel += int(re.search(r"(\d+) bond", note).group(1))
-                idx = int(name[1:])
-                row = int(np.flatnonzero(run_data.sample_index == idx)[0])
-                total += round(run_data.scalars["contact_area"][row, k] *
-                                   f["samples"][name]["rigid_surface"].size)
-    return rel / total if total else float("nan")
+        name = next(iter(f["samples"]))
+        return int(f["samples"][name]["rigid_surface"].size)
 
 
 def main() -> None:

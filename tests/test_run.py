@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -251,12 +252,17 @@ def test_coupled_run_end_to_end(tmp_path):
         assert {"dx_lim", "fx_lim", "fz_lim", "broken_site"} <= set(d)
         assert d["fx_lim"][()].max() == pytest.approx(f["friction_force"][0, 2])
         assert np.all(d["gap"][()] >= -1e-9)
-        assert "released at D_x = 0" in f["samples/s000000"].attrs["notes"]
+        notes = json.loads(f["samples/s000000"].attrs["notes"])
+    # the released-bond count is a scalar dataset, and the notes say the same
+    released = [int(n.split(": ")[1].split()[0]) for n in notes if "released at D_x = 0" in n]
+    assert released == list(r.scalars["released_bonds"][0])
+    assert r.scalars["released_bonds"].dtype == np.int64
     # nu = 1/2: no coupling, the decoupled path is used and the run says so
     half = {**data, "material": {"nu": 0.5}}
     r2 = CliRunner().invoke(cli, ["run", str(write_cfg(tmp_path, half, "half.toml")), "-o",
                                   str(tmp_path / "half.h5")])
     assert r2.exit_code == 0 and "G_zx vanishes" in r2.output
+    assert np.all(read_run(tmp_path / "half.h5").scalars["released_bonds"] == 0)
 
 
 def test_coupling_with_load_control_is_refused(tmp_path):
