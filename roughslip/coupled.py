@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import time
+from contextlib import nullcontext
 from dataclasses import dataclass
 
 import numpy as np
@@ -487,7 +488,8 @@ def squeeze_pull_coupled(
         return CoupledResult(0.0, 0.0, 0.0, [], 0.0, 0.0, 0, zero, zero, geo, geo, zero, zero,
                              geo, geo, True, time.perf_counter() - t0, 0, method,
                              "no overlap: no contact")
-    with blas_threads(threads if method == "dense" else 1):
+    with blas_threads(threads if method == "dense" else 1), \
+            (operator.fft_threads(1) if method == "dense" else nullcontext()):
         st = _State(solver, ubar, float(lam), geo)
         # squeeze with every contact bonded: the report's removal of all negative forces at
         # once (the set only shrinks, so this ends) ...

@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -641,7 +642,9 @@ def pull(
     # Dense linear algebra gets the threads; FFT-bound CG loops keep BLAS single-threaded
     # (competing FFTW and OpenBLAS thread pools made CG iterations 60x slower).
     dense = chosen == "inverse" or slip_law == "coulomb"
-    with blas_threads(threads if dense else 1):
+    # ... and the dense methods' FFTs (certification) run on one thread next to threaded BLAS
+    with blas_threads(threads if dense else 1), \
+            (b.op.fft_threads(1) if dense else nullcontext()):
         return _pull(b, slip_law, method, chosen, tol, early_stop, int(batch_size), int(block),
                      max_iter, t0)
 

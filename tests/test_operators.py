@@ -132,3 +132,20 @@ def test_auto_falls_back_to_scipy_with_one_warning(monkeypatch):
     f = np.random.default_rng(0).standard_normal((6, 6))
     assert np.allclose(op.apply("zz", f), (op.dense("zz") @ f.ravel()).reshape(6, 6),
                        rtol=1e-12)
+
+
+@pytest.mark.parametrize("backend", ["pyfftw", "scipy"])
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+def test_fft_threads_block_gives_the_same_field_and_restores(backend, boundary):
+    op = ElasticOperator((20, 24), material=Material(1.0, 0.3), boundary=boundary,
+                         components=("xx",), fft=backend, threads=2)
+    f = np.random.default_rng(1).standard_normal((20, 24))
+    ref = op.apply("xx", f)
+    before = op.fft
+    with op.fft_threads(1) as one:
+        assert one is op and op.fft.threads == 1 and op.fft.pruned == before.pruned
+        single = op.apply("xx", f)
+    assert op.fft is before and op.fft.threads == 2
+    np.testing.assert_allclose(single, ref, rtol=1e-13, atol=1e-13 * np.abs(ref).max())
+    with op.fft_threads(1):  # the one-thread transform is built once and reused
+        assert op.fft is op._fft_by_threads[1]
