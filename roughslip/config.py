@@ -200,6 +200,8 @@ class PullConfig:
                      choices=("auto", "literal", "inverse", "cg", "batch"))
     tol: float = _f(1e-10, "relative tolerance of the tangential solves", _tol_rule)
     batch_size: int = _f(16, "sites broken per solve by method = 'batch'", _at_least(1))
+    error_bound: bool = _f(False, "estimate cond(G_xx) on the bonds (Lanczos) and store "
+                           "cond * residual as pull_error_estimate of the exact methods")
     coulomb_steps: int = _f(32, "pull displacements on the Coulomb curve", _at_least(2))
 
 

@@ -220,7 +220,7 @@ def _pull(cfg: RunConfig, r: NormalResult, op: ElasticOperator, where: str) -> S
     try:
         return pull(r, lam=pl.lam, slip_law=pl.slip_law, method=pl.method, tol=pl.tol,
                     batch_size=pl.batch_size, fft=cfg.execution.fft,
-                    threads=cfg.execution.threads, operator=op)
+                    threads=cfg.execution.threads, operator=op, error_bound=pl.error_bound)
     except NumericalError as exc:
         raise NumericalError(f"{where}: pull: {exc}") from None
 

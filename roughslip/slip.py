@@ -26,7 +26,8 @@ Methods (all exact except ``"batch"``)
     ``"inverse"``: the inverse of :math:`G_{xx}[S,S]`, updated by delayed blocks of rank-one
     removals applied as one symmetric rank-k product (BLAS-3); :math:`\varphi` is updated in
     :math:`O(n)` per break and certified against the FFT operator after every block. Needs
-    ~1.6 :math:`n^2` doubles of memory (checked before starting).
+    one :math:`n \times n` matrix of doubles, compacted in place as bonds break (checked
+    before starting, see :func:`inverse_memory_bytes`).
     ``"cg"``: matrix-free; per break a warm-started CG solve of the correction, with the early
     stop. Memory :math:`O(N^2)`.
     ``"batch"``: approximate; breaks the ``batch_size`` sites with the largest ratios per solve.
@@ -81,8 +82,14 @@ class SlipResult:
     method : str
         The method actually used (``"auto"`` resolved).
     error_estimate : float
-        Estimated relative error of ``friction_force``: 0 for the exact methods, the measured
-        batch-size sensitivity for ``"batch"``.
+        Estimated relative error of ``friction_force``: for ``"batch"`` the measured batch-size
+        sensitivity; for the exact methods 0, or with ``pull(..., error_bound=True)``
+        :math:`\kappa\,\rho`, the condition estimate times the worst relative residual
+        ``residual`` (see :func:`bond_spectrum`).
+    condition : float
+        With ``error_bound=True``: :math:`\kappa`, the estimated condition number of
+        :math:`G_{xx}` on the initial bonds, which bounds that of every later stick set;
+        NaN otherwise.
     """
 
     friction_force: float
@@ -105,6 +112,7 @@ class SlipResult:
     residual: float = 0.0
     message: str = ""
     normal_force: float = 0.0
+    condition: float = math.nan
 
     @property
     def peak_dx(self) -> float:
@@ -412,9 +420,19 @@ def _break_inverse(b: _Bonds, tol: float, early_stop: bool, block: int, t0: floa
             res, nref = _certify(b, sw, "phi", None, tol)
             worst, refinements = max(worst, res), refinements + nref
             ok &= res <= tol
+    if curve.peak_state is not None:  # the state that gives the friction force, certified
+        pos, f, dx = curve.peak_state
+        res = _residual(b, pos, f / dx)
+        worst, ok = max(worst, res), ok and res <= tol
     return curve.result(t0, "inverse", converged=bool(ok), residual=worst,
                         solves=refinements,
                         message=f"{b.n} bonds, block {block}, {refinements} refinements")
+
+
+def _residual(b: _Bonds, pos: np.ndarray, phi: np.ndarray) -> float:
+    r"""Relative residual :math:`\|1 - G_{xx}[S,S]\varphi\| / \|1\|` on the stick set ``pos``."""
+    u = b.apply(b.field(phi, pos), np.empty(b.shape)).ravel()[b.sites[pos]]
+    return float(np.linalg.norm(1.0 - u)) / math.sqrt(max(pos.size, 1))
 
 
 def _certify(b: _Bonds, sw: _InverseSweep, name: str, load: np.ndarray | None, tol: float
@@ -561,6 +579,53 @@ def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 
 
+def bond_spectrum(normal: NormalResult, *, rtol: float = 1e-2, fft: str = "auto",
+                  threads: int = 1, operator: ElasticOperator | None = None
+                  ) -> tuple[float, float]:
+    r"""Bounds :math:`(\lambda_{\min}, \lambda_{\max})` of the spectrum of :math:`G_{xx}[S_0,S_0]`
+    on the bonds :math:`S_0` of a squeeze, by Lanczos on the FFT operator.
+
+    By Cauchy interlacing the spectrum of :math:`G_{xx}[S,S]` lies in
+    :math:`[\lambda_{\min}, \lambda_{\max}]` for every stick set :math:`S \subset S_0` the pull
+    visits, so :math:`\kappa = \lambda_{\max}/\lambda_{\min}` bounds the condition number of
+    every tangential solve. For :math:`G\varphi = 1_S` solved with residual :math:`r`,
+    :math:`\|\delta\varphi\|/\|\varphi\| \le \kappa\,\|r\|/\|1_S\|`, and the same bound holds for
+    :math:`\sum_S\varphi` (:math:`|1^T\delta\varphi| = |\varphi^T r|`, :math:`\|\varphi\|\le
+    \sqrt{n}/\lambda_{\min}`, :math:`\sum\varphi \ge n/\lambda_{\max}`).
+
+    The extreme Ritz values, converged to the relative accuracy ``rtol``, are widened by that
+    factor. Measured (H = 0.8, nu = 0.3, 2 cores): 3 275 bonds kappa 64 (dense: 64.3), 0.1 s;
+    52 259 bonds kappa 231, ~930 operator applications, 12 s. Small sets use a dense
+    eigensolver.
+    """
+    from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigsh
+
+    b = _Bonds(normal, 1.0, operator, fft, threads)
+    if b.n == 0:
+        raise InputError("bond_spectrum: the squeeze has no contact sites")
+    if b.n <= 500:
+        w = np.linalg.eigvalsh(b.dense())
+        lo, hi = float(w[0]), float(w[-1])
+    else:
+        tmp = np.empty(b.shape)
+
+        def matvec(x: np.ndarray) -> np.ndarray:
+            return b.apply(b.field(np.ravel(x)), tmp).ravel()[b.sites]
+
+        A = LinearOperator((b.n, b.n), matvec=matvec, dtype=float)
+        try:
+            with blas_threads(1):
+                hi = float(eigsh(A, k=1, which="LA", tol=rtol, return_eigenvectors=False)[0])
+                lo = float(eigsh(A, k=1, which="SA", tol=rtol, return_eigenvectors=False)[0])
+        except (ArpackError, ArpackNoConvergence) as exc:
+            raise NumericalError(f"bond_spectrum: Lanczos did not converge ({exc})") from None
+        lo, hi = lo * (1.0 - rtol), hi * (1.0 + rtol)
+    if not (lo > 0 and math.isfinite(hi)):
+        raise NumericalError(f"G_xx on the bonds is not positive definite (smallest "
+                             f"eigenvalue {lo:.3e})")
+    return lo, hi
+
+
 def choose_method(n: int, memory: int | None = None) -> str:
     """The exact method ``"auto"`` picks for ``n`` bonds given ``memory`` bytes.
 
@@ -592,6 +657,7 @@ def pull(
     fft: str = "auto",
     threads: int = 1,
     operator: ElasticOperator | None = None,
+    error_bound: bool = False,
 ) -> SlipResult:
     r"""Pull a squeezed contact sideways until it slides (MODEL §3).
 
@@ -615,6 +681,10 @@ def pull(
         ``method="literal"`` always runs to the last bond, as the report does.
     batch_size : int
         Bonds broken per solve by ``method="batch"``.
+    error_bound : bool
+        Also estimate the condition number :math:`\kappa` of :math:`G_{xx}` on the bonds
+        (:func:`bond_spectrum`, a few hundred operator applications) and report
+        :math:`\kappa` times the worst residual as ``error_estimate`` of the exact methods.
 
     Returns
     -------
@@ -645,8 +715,15 @@ def pull(
     # ... and the dense methods' FFTs (certification) run on one thread next to threaded BLAS
     with blas_threads(threads if dense else 1), \
             (b.op.fft_threads(1) if dense else nullcontext()):
-        return _pull(b, slip_law, method, chosen, tol, early_stop, int(batch_size), int(block),
-                     max_iter, t0)
+        res = _pull(b, slip_law, method, chosen, tol, early_stop, int(batch_size), int(block),
+                    max_iter, t0)
+    if error_bound:
+        lo, hi = bond_spectrum(normal, operator=b.op)
+        kappa = hi / lo
+        est = res.error_estimate if res.method == "batch" else kappa * res.residual
+        res = _replace(res, condition=kappa, error_estimate=est,
+                       seconds=time.perf_counter() - t0)
+    return res
 
 
 def _pull(b: _Bonds, slip_law, method, chosen, tol, early_stop, batch_size, block, max_iter,

@@ -284,3 +284,13 @@ def test_ctrl_c_with_workers_stops_promptly_and_resumes(tmp_path):
     r = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(out), "--resume", "--quiet"])
     assert r.exit_code == 0, r.output
     assert read_run(out).complete.all()
+
+
+def test_pull_error_bound_is_stored_when_asked(serial_run, tmp_path):
+    data = {**CFG, "ensemble": {"samples": 1, "seed": 5},
+            "pull": {**CFG["pull"], "method": "inverse", "error_bound": True}}
+    out = tmp_path / "bound.h5"
+    run(load_config(write_cfg(tmp_path, data)), out)
+    est = read_run(out).scalars["pull_error_estimate"]
+    assert np.all(est > 0) and np.all(est < 1e-12)  # cond ~ 10, residual ~ 1e-16
+    assert np.all(read_run(serial_run[1]).scalars["pull_error_estimate"] == 0)

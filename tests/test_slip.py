@@ -10,7 +10,7 @@ import pytest
 from roughslip import memory
 from roughslip.errors import InputError, MemoryLimitError
 from roughslip.normal import squeeze
-from roughslip.slip import choose_method, coulomb_force_at, pull
+from roughslip.slip import _Bonds, bond_spectrum, choose_method, coulomb_force_at, pull
 from roughslip.surfaces import punch, sample_rng, self_affine, sphere
 from roughslip.verify import hertz_scene
 
@@ -49,6 +49,35 @@ def test_fast_exact_methods_equal_literal(rough_contact, hertz_contact, literal,
     assert np.array_equal(res.broken_site, ref.broken_site[:k])
     assert np.allclose(res.fx_lim, ref.fx_lim[:k], rtol=1e-8)
     assert np.array_equal(res.stick_at_peak, ref.stick_at_peak)
+
+
+def test_bond_spectrum_brackets_every_stick_set():
+    """Lanczos bounds against dense eigenvalues, on the bonds and on a random subset
+    (Cauchy interlacing), with enough bonds for the matrix-free path."""
+    h = self_affine((48, 48), hurst=0.8, rms_height=1.0, rng=sample_rng(4, 0), oversample=2)
+    normal = squeeze(h, depth=4.0, tol=1e-12)
+    b = _Bonds(normal, 1.0, None, "auto", 1)
+    assert b.n > 500  # the Lanczos path
+    lo, hi = bond_spectrum(normal, rtol=1e-3)
+    w = np.linalg.eigvalsh(b.dense())
+    assert w[0] * (1 - 3e-3) <= lo <= w[0] and w[-1] <= hi <= w[-1] * (1 + 3e-3)
+    keep = np.sort(np.random.default_rng(0).choice(b.n, b.n // 3, replace=False))
+    ws = np.linalg.eigvalsh(b.dense(keep))
+    assert lo <= ws[0] and ws[-1] <= hi
+
+
+def test_error_bound_is_condition_times_residual(rough_contact):
+    res = pull(rough_contact, method="inverse", error_bound=True)
+    lo, hi = bond_spectrum(rough_contact)
+    assert res.condition == pytest.approx(hi / lo) and res.condition > 1
+    assert res.error_estimate == pytest.approx(res.condition * res.residual)
+    assert 0 < res.error_estimate < 1e-12
+    cg = pull(rough_contact, method="cg", tol=1e-9, error_bound=True)
+    assert cg.error_estimate == pytest.approx(cg.condition * cg.residual)
+    # the bound holds: cg's friction force is within it of the inverse's
+    diff = abs(cg.friction_force - res.friction_force) / res.friction_force
+    assert diff <= cg.error_estimate + res.error_estimate
+    assert math.isnan(pull(rough_contact, method="inverse").condition)
 
 
 def test_early_stop_is_exact(rough_contact):
