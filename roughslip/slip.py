@@ -630,8 +630,8 @@ def choose_method(n: int, memory: int | None = None) -> str:
     """The exact method ``"auto"`` picks for ``n`` bonds given ``memory`` bytes.
 
     The inverse (~n^3 flops, ~n^2 doubles) whenever it fits in memory and the LAPACK can
-    index it (measured on 2 cores: 38 s for 13 074 bonds; for 3 271 bonds 1.4 s against
-    120 s for one warm-started CG solve per break); otherwise the matrix-free exact method.
+    index it (measured on 2 cores: 41 s for 13 074 bonds; for 3 271 bonds 1.2 s against
+    141 s for one warm-started CG solve per break); otherwise the matrix-free exact method.
     Tiny contacts use the literal algorithm.
     """
     memory = available_bytes() if memory is None else memory

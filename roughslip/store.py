@@ -15,6 +15,7 @@ Layout of ``OUT.h5`` (``n_s`` samples, ``n_d`` depths or loads)::
     /iterations, /residual, /converged, /seconds                    squeeze solver record
     /pull_seconds, /pull_converged, /pull_steps, /pull_error_estimate, /friction_normal_force
                    (n_s, n_d)                                       pull record (with the pull)
+    /released_bonds (n_s, n_d) coupled model: bonds released already at D_x = 0
     /samples/s000007/        one group per sample (global number), attr complete
         rigid_surface, elastic_surface (two-surface scenes)
         d000/ ... d{n_d-1}/  per depth: the fields listed in output.fields
