@@ -434,7 +434,7 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
         except BaseException:
             # stop now: cancel what has not started and end the running workers (their
             # samples are recomputed on --resume)
-            _drain(q, emit, pids)
+            _drain(q, None, pids)  # no progress output while stopping: only the pids
             # the pool's workers: live children of this process that reported their pid
             procs = [p for p in mp.active_children() if p.pid in pids]
             pool.shutdown(wait=False, cancel_futures=True)
@@ -444,8 +444,9 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
     _drain(q, emit, pids)
 
 
-def _drain(q, emit: Progress, pids: set[int]) -> None:
-    """Forward the workers' progress messages; collect the pids they announce."""
+def _drain(q, emit: Progress | None, pids: set[int]) -> None:
+    """Forward the workers' progress messages to ``emit`` (dropped if None); collect the pids
+    the workers announce."""
     while True:
         try:
             a, b = q.get_nowait()
@@ -453,7 +454,7 @@ def _drain(q, emit: Progress, pids: set[int]) -> None:
             return
         if a == "pid":
             pids.add(b)
-        else:
+        elif emit is not None:
             emit({"kind": "depth", "sample": a, "depth_index": b})
 
 

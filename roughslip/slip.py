@@ -422,17 +422,21 @@ def _break_inverse(b: _Bonds, tol: float, early_stop: bool, block: int, t0: floa
             ok &= res <= tol
     if curve.peak_state is not None:  # the state that gives the friction force, certified
         pos, f, dx = curve.peak_state
-        res = _residual(b, pos, f / dx)
+        _, res = _stick_residual(b, pos, f / dx, 1.0)
         worst, ok = max(worst, res), ok and res <= tol
     return curve.result(t0, "inverse", converged=bool(ok), residual=worst,
                         solves=refinements,
                         message=f"{b.n} bonds, block {block}, {refinements} refinements")
 
 
-def _residual(b: _Bonds, pos: np.ndarray, phi: np.ndarray) -> float:
-    r"""Relative residual :math:`\|1 - G_{xx}[S,S]\varphi\| / \|1\|` on the stick set ``pos``."""
-    u = b.apply(b.field(phi, pos), np.empty(b.shape)).ravel()[b.sites[pos]]
-    return float(np.linalg.norm(1.0 - u)) / math.sqrt(max(pos.size, 1))
+def _stick_residual(b: _Bonds, pos: np.ndarray, v: np.ndarray, rhs: np.ndarray | float
+                    ) -> tuple[np.ndarray, float]:
+    r"""Residual :math:`r = \mathrm{rhs} - G_{xx}[S,S]\,v` on the stick set ``pos`` (bond
+    positions), by the FFT operator, and its norm relative to that of ``rhs``."""
+    u = b.apply(b.field(v, pos), np.empty(b.shape)).ravel()[b.sites[pos]]
+    rhs = np.broadcast_to(np.asarray(rhs, dtype=float), u.shape)
+    r = rhs - u
+    return r, float(np.linalg.norm(r)) / max(float(np.linalg.norm(rhs)), 1e-300)
 
 
 def _certify(b: _Bonds, sw: _InverseSweep, name: str, load: np.ndarray | None, tol: float
@@ -444,20 +448,12 @@ def _certify(b: _Bonds, sw: _InverseSweep, name: str, load: np.ndarray | None, t
     ``load`` :math:`= f_L` of fixed slip forces (:math:`\psi`). Returns the relative residual
     and the number of refinements.
     """
+    v, live = sw.v[name], sw.alive()
+    pos = sw.v["pos"][live]
+    rhs = 1.0 if load is None else b.apply(load, np.empty(b.shape)).ravel()[b.sites[pos]]
     nref = 0
     while True:
-        v, pos = sw.v[name], sw.v["pos"]
-        live = sw.alive()
-        sites = b.sites[pos[live]]
-        f = b.field(v[live], pos[live])
-        u = b.apply(f, np.empty(b.shape)).ravel()
-        if load is None:
-            rhs = np.ones(sites.size)
-        else:
-            rhs = b.apply(load, np.empty(b.shape)).ravel()[sites]
-        r = rhs - u[sites]
-        scale = max(float(np.linalg.norm(rhs)), 1e-300)
-        res = float(np.linalg.norm(r)) / scale
+        r, res = _stick_residual(b, pos, v[live], rhs)
         if res <= tol or nref >= 3:
             return res, nref
         full = np.zeros(sw.nb)
