@@ -81,6 +81,17 @@ class _Progress:
         self.total = 0
         self.t0 = time.monotonic()
         self.last = 0.0
+        self.first: float | None = None  # time of the first finished solve
+
+    def eta(self, now: float) -> str:
+        """Remaining time from the rate since the first finished solve (set-up excluded);
+        empty until at least 3 solves and 5 % of the work have followed that one."""
+        if self.first is None:
+            return ""
+        since = self.done - 1
+        if since < max(3, 0.05 * self.total) or now <= self.first:
+            return ""
+        return f", ETA {(now - self.first) / since * (self.total - self.done):.0f} s"
 
     def __call__(self, e: dict[str, Any]) -> None:
         kind = e["kind"]
@@ -99,15 +110,16 @@ class _Progress:
                                 desc=f"{e['samples']} samples x {e['depths']} depths")
         elif kind == "depth":
             self.done += 1
+            now = time.monotonic()
+            if self.first is None:
+                self.first = now
             if self.bar is not None:
                 self.bar.update(1)
-            elif not self.quiet and time.monotonic() - self.last >= self.every:
-                self.last = time.monotonic()
-                el = self.last - self.t0
-                eta = el / self.done * (self.total - self.done)
+            elif not self.quiet and now - self.last >= self.every:
+                self.last = now
                 click.echo(f"roughslip: {self.done}/{self.total} solves (sample {e['sample']}, "
-                           f"depth {e['depth_index']}), {el:.0f} s elapsed, ETA {eta:.0f} s",
-                           err=True)
+                           f"depth {e['depth_index']}), {now - self.t0:.0f} s elapsed"
+                           f"{self.eta(now)}", err=True)
         elif kind == "done" and self.bar is not None:
             self.bar.close()
 

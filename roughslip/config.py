@@ -200,8 +200,9 @@ class PullConfig:
                      choices=("auto", "literal", "inverse", "cg", "batch"))
     tol: float = _f(1e-10, "relative tolerance of the tangential solves", _tol_rule)
     batch_size: int = _f(16, "sites broken per solve by method = 'batch'", _at_least(1))
-    error_bound: bool = _f(False, "estimate cond(G_xx) on the bonds (Lanczos) and store "
-                           "cond * residual as pull_error_estimate of the exact methods")
+    error_estimate: bool = _f(False, "estimate cond(G_xx) on the bonds (Lanczos, fixed start) "
+                              "and store cond * residual as pull_error_estimate of the exact "
+                              "methods (an estimate, not a bound)")
     coulomb_steps: int = _f(32, "pull displacements on the Coulomb curve", _at_least(2))
 
 
@@ -610,13 +611,20 @@ def _coerce(value: Any, tp: Any, key: str, ctx: _Ctx) -> Any:
 
 _SPECIAL = {("squeeze", "depths"), ("squeeze", "forces")}
 
+#: keys renamed since they were introduced: old (section, key) -> new key. The old spelling
+#: is still read, so configs and run files written with it keep working.
+_RENAMED = {("pull", "error_bound"): "error_estimate"}
+
 
 def _build_section(name: str, cls: type, table: dict[str, Any], ctx: _Ctx) -> Any:
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs: dict[str, Any] = {}
     for k, v in table.items():
+        k = _RENAMED.get((name, k), k)
         key = f"{name}.{k}"
+        if k in kwargs:
+            raise ctx.fail(key, rule="given twice (once under its former name)")
         if k not in fields:
             raise ctx.fail(key, rule="unknown key" + _suggest(k, list(fields)))
         if (name, k) in _SPECIAL:

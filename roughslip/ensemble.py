@@ -220,7 +220,7 @@ def _pull(cfg: RunConfig, r: NormalResult, op: ElasticOperator, where: str) -> S
     try:
         return pull(r, lam=pl.lam, slip_law=pl.slip_law, method=pl.method, tol=pl.tol,
                     batch_size=pl.batch_size, fft=cfg.execution.fft,
-                    threads=cfg.execution.threads, operator=op, error_bound=pl.error_bound)
+                    threads=cfg.execution.threads, operator=op, estimate_error=pl.error_estimate)
     except NumericalError as exc:
         raise NumericalError(f"{where}: pull: {exc}") from None
 
@@ -336,9 +336,17 @@ def run(
     workers = int(workers or config.execution.workers)
     if workers < 1:
         raise InputError(f"--workers {workers}: must be >= 1")
-    if config.execution.memory_limit_gb is not None:
-        memory.set_limit(config.execution.memory_limit_gb)
-    scheduler = scheduler or config.execution.scheduler
+    if resume and overwrite:
+        raise InputError("--resume and --overwrite exclude each other")
+    with memory.limited(config.execution.memory_limit_gb):
+        return _run(config, scene, Path(out), workers, resume, overwrite,
+                    scheduler or config.execution.scheduler, progress or (lambda e: None),
+                    command_line, t0)
+
+
+def _run(config: RunConfig, scene: Scene, out: Path, workers: int, resume: bool,
+         overwrite: bool, scheduler: str | None, emit: Progress, command_line: str | None,
+         t0: float) -> RunSummary:
     if not scheduler:
         check_memory(scene, workers)
     indices = scene.sample_indices
@@ -347,18 +355,15 @@ def run(
     attrs = provenance(config, command_line)
     attrs["notes"] = list(scene.notes)
     nd = len(config.targets)
-    out = Path(out)
-    if resume and overwrite:
-        raise InputError("--resume and --overwrite exclude each other")
     if resume:
         writer = RunWriter.resume(out, config, indices, nd, attrs)
     else:
         writer = RunWriter.create(out, config, indices, nd, attrs, overwrite=overwrite)
+    notes = list(scene.notes) + ([writer.recovery] if writer.recovery else [])
     done = set(writer.completed())
     pending = [s for s in indices if s not in done]
-    emit = progress or (lambda e: None)
     emit({"kind": "start", "total": len(pending) * nd, "samples": len(pending),
-          "depths": nd, "skipped": len(done), "notes": list(scene.notes)})
+          "depths": nd, "skipped": len(done), "notes": notes})
     try:
         if scheduler:
             _run_dask(config, pending, writer, emit, scheduler)
@@ -376,17 +381,48 @@ def run(
     writer.finish()
     emit({"kind": "done"})
     return RunSummary(out, len(indices), len(pending), len(done), time.perf_counter() - t0,
-                      list(scene.notes))
+                      notes)
 
 
-def _worker_init(budget: int, q) -> None:
+def _worker_init(budget: int, q, parent: int) -> None:
     # Ctrl-C reaches the whole process group: only the main process handles it (it stops the
     # pool and keeps what is done)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(parent)
     memory.set_limit(budget / 2**30)
     global _QUEUE
     _QUEUE = q
     q.put(("pid", os.getpid()))  # so that the main process can end this worker on failure
+
+
+def die_with_parent(parent: int) -> None:
+    """End this process as soon as the process ``parent`` is gone, however it ended.
+
+    On Linux the kernel delivers SIGKILL when the parent exits (``prctl(PR_SET_PDEATHSIG)``;
+    the pool's workers are started from the main thread, whose end is the process's end).
+    Elsewhere a daemon thread checks the parent every half second. Either way a parent that
+    died before this call is caught by comparing ``os.getppid()``.
+    """
+    armed = False
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(1, signal.SIGKILL, 0, 0, 0) == 0  # PR_SET_PDEATHSIG = 1
+        except (OSError, AttributeError):
+            armed = False
+    if os.getppid() != parent:
+        os._exit(1)
+    if not armed:
+        import threading
+
+        def watch() -> None:
+            while os.getppid() == parent:
+                time.sleep(0.5)
+            os._exit(1)
+
+        threading.Thread(target=watch, name="roughslip-parent-watch", daemon=True).start()
 
 
 _QUEUE = None
@@ -406,10 +442,12 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
               workers: int) -> None:
     ctx = mp.get_context("spawn")  # no fork: OpenBLAS and FFTW threads do not survive it
     budget = memory.available_bytes() // workers
-    q = ctx.Manager().Queue()
+    # a plain queue, not a Manager's: no server process that could outlive this one
+    q = ctx.Queue()
     pids: set[int] = set()
     pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
-                                  initializer=_worker_init, initargs=(budget, q))
+                                  initializer=_worker_init,
+                                  initargs=(budget, q, os.getpid()))
     with pool:
         futures = {pool.submit(_pool_task, config, s): s for s in pending}
         try:
@@ -442,6 +480,7 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
                 proc.terminate()
             raise
     _drain(q, emit, pids)
+    q.close()
 
 
 def _drain(q, emit: Progress | None, pids: set[int]) -> None:

@@ -7,7 +7,9 @@ with :func:`set_limit` (``execution.memory_limit_gb`` in a config).
 
 from __future__ import annotations
 
+import contextlib
 import os
+from collections.abc import Iterator
 
 _LIMIT: int | None = None
 
@@ -16,6 +18,19 @@ def set_limit(gigabytes: float | None) -> None:
     """Cap the budget for this process (None removes the cap)."""
     global _LIMIT
     _LIMIT = None if gigabytes is None else int(gigabytes * 2**30)
+
+
+@contextlib.contextmanager
+def limited(gigabytes: float | None) -> Iterator[None]:
+    """Cap the budget inside the block (None: leave it as it is), restoring it after."""
+    global _LIMIT
+    old = _LIMIT
+    if gigabytes is not None:
+        set_limit(gigabytes)
+    try:
+        yield
+    finally:
+        _LIMIT = old
 
 
 def system_available_bytes() -> int:

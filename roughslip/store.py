@@ -24,10 +24,27 @@ Layout of ``OUT.h5`` (``n_s`` samples, ``n_d`` depths or loads)::
 
 Entries of samples that are not complete are NaN (floats) or 0; read ``/complete`` first.
 
-Writing is single-writer. Every finished sample is first written atomically (temporary file
-and rename) to the journal folder ``OUT.h5.journal/`` and then into ``OUT.h5``, which is
-flushed; ``--resume`` merges journalled samples that ``OUT.h5`` lacks and rebuilds an
-unreadable ``OUT.h5`` from the journal. The journal is removed when every sample is done.
+Writing is single-writer and crash-safe. The journal folder ``OUT.h5.journal/`` is the
+record of a run until it ends: it is made first (with ``run.json``, the configuration digest),
+and every finished sample is written to it atomically (a temporary file, flushed to disk, then
+renamed) before it goes into ``OUT.h5``, which is flushed after each sample. When every sample
+is done the journal is renamed ``OUT.h5.journal.done`` and removed. ``--resume`` is therefore
+always safe to pass, from any state a kill can leave:
+
+* neither file nor journal: a new run starts;
+* a journal (the run did not finish): ``OUT.h5`` is rebuilt from the journal into a temporary
+  file that replaces it by a rename, whatever state ``OUT.h5`` was left in (missing, open for
+  writing, cut in the middle of a write); a second kill during the rebuild leaves the journal
+  as it was;
+* no journal and a readable ``OUT.h5``: a finished run (nothing to do), or one of an older
+  version;
+* leftovers (``OUT.h5.creating``, ``OUT.h5.rebuilding``, ``*.tmp`` entries, a
+  ``.journal.done`` folder) are removed.
+
+Files are written with HDF5's earliest compatible format (superblock version 0, ``libver =
+"earliest"``): readable by every HDF5 1.8+ tool, and without the superblock status flags of the
+newer format, which a killed writer leaves set so that the file can no longer be opened
+without ``h5clear``. The journal, not the format, guarantees integrity.
 """
 
 from __future__ import annotations
@@ -72,6 +89,31 @@ COUPLED_SCALARS = {
 }
 BOOL_FIELDS = ("contact", "stick")
 
+#: ``description`` attribute of each root dataset
+DESCRIPTIONS = {
+    "sample_index": "global sample numbers (ensemble.first_sample + row)",
+    "complete": "1 once the sample is fully written; entries of other rows are fill values",
+    "depth": "configured depths, in squeeze.depth_unit",
+    "force_target": "configured normal loads, in squeeze.force_unit",
+    "depth_length": "penetration D_z in length units",
+    "normal_force": "total normal force F_n",
+    "contact_area": "contact area as a fraction of the grid",
+    "iterations": "squeeze solver iterations",
+    "residual": "squeeze residual: worst gap error relative to the depth",
+    "converged": "1 when the squeeze met its tolerance",
+    "seconds": "squeeze wall-clock time (a measurement, differs between runs)",
+    "friction_force": "static friction force: the peak of the pull curve",
+    "friction_normal_force": "normal force of the pulled state",
+    "pull_seconds": "pull wall-clock time (a measurement, differs between runs)",
+    "pull_converged": "1 when every pull solve met its tolerance",
+    "pull_steps": "bonds broken (or sites slipped) until the pull stopped",
+    "pull_error_estimate": "estimate (not a bound) of the relative error of friction_force: "
+                           "batch-size sensitivity for method 'batch'; with "
+                           "pull.error_estimate, Lanczos condition estimate x certified "
+                           "residual for the exact methods; 0 otherwise",
+    "released_bonds": "coupled model: contact sites whose bond is released at D_x = 0",
+}
+
 
 @dataclass
 class SampleResult:
@@ -89,12 +131,40 @@ def journal_dir(path: Path) -> Path:
     return path.with_name(path.name + ".journal")
 
 
+def _sibling(path: Path, suffix: str) -> Path:
+    return path.with_name(path.name + suffix)
+
+
 def _group_name(sample: int) -> str:
     return f"s{sample:06d}"
 
 
+def _fsync(path: Path) -> None:
+    """Flush a closed file's data to disk (so that a rename after it is durable)."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data))
+    _fsync(tmp)
+    os.replace(tmp, path)
+
+
+def _digest_mismatch(path: Path, stored: str, config: RunConfig) -> InputError:
+    return InputError(
+        f"{path}: was made with a different configuration (stored digest "
+        f"{str(stored)[:12]}..., now {config.digest()[:12]}...); run "
+        "`roughslip inspect` to see the stored one, or use --overwrite")
+
+
 class RunWriter:
-    """Creates or resumes ``OUT.h5`` and writes finished samples into it."""
+    """Creates or resumes ``OUT.h5`` and writes finished samples into it (see the module
+    docstring for the journal and the states a resume recovers from)."""
 
     def __init__(self, path: Path, f: h5py.File, config: RunConfig, indices: list[int]):
         self.path = path
@@ -103,16 +173,16 @@ class RunWriter:
         self.indices = indices
         self.row = {s: i for i, s in enumerate(indices)}
         self.journal = journal_dir(path)
+        #: what :meth:`resume` found and did, for the user
+        self.recovery = ""
 
     # -- opening ---------------------------------------------------------------------------------
     @classmethod
     def create(cls, path: str | Path, config: RunConfig, indices: list[int], n_targets: int,
-               attrs: dict[str, Any], overwrite: bool = False,
-               keep_journal: bool = False) -> RunWriter:
+               attrs: dict[str, Any], overwrite: bool = False) -> RunWriter:
         """Start a new run file; refuses to replace an existing file unless ``overwrite``.
 
-        A new run removes any journal left beside the file, unless ``keep_journal`` (used to
-        rebuild an unreadable file from its journal).
+        Any journal left beside the file is replaced by the new run's.
         """
         path = Path(path)
         if path.exists() and not overwrite:
@@ -120,64 +190,97 @@ class RunWriter:
                 f"{path}: exists; use --resume to continue it or --overwrite to replace it")
         if path.is_dir():
             raise InputError(f"{path}: is a directory")
+        jdir = journal_dir(path)
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_name(path.name + ".creating")
-            with h5py.File(tmp, "w", libver="latest") as f:
-                _init_file(f, config, indices, n_targets, attrs)
-            if not keep_journal:
-                shutil.rmtree(journal_dir(path), ignore_errors=True)
-            os.replace(tmp, path)
+            for old in (jdir, _sibling(jdir, ".done")):
+                shutil.rmtree(old, ignore_errors=True)
+            jdir.mkdir()
+            _write_json_atomic(jdir / "run.json", {"config_digest": config.digest(),
+                                                   "format_version": FORMAT_VERSION})
+            cls._build(path, ".creating", config, indices, n_targets, attrs, [])
             f = h5py.File(path, "r+")
         except OSError as exc:
             raise OutputError(f"{path}: cannot create ({exc})") from None
         return cls(path, f, config, indices)
 
     @classmethod
+    def _build(cls, path: Path, suffix: str, config: RunConfig, indices: list[int],
+               n_targets: int, attrs: dict[str, Any], samples: list[Path]) -> None:
+        """Write a run file with the journalled ``samples`` into ``path + suffix``, then
+        rename it to ``path`` (so that ``path`` is never half-written)."""
+        tmp = _sibling(path, suffix)
+        with h5py.File(tmp, "w", libver="earliest") as f:
+            _init_file(f, config, indices, n_targets, attrs)
+            writer = cls(path, f, config, indices)
+            for p in samples:
+                res = _read_journal_entry(p, config)
+                if res is not None and res.sample in writer.row:
+                    writer._write_main(res)
+        _fsync(tmp)
+        os.replace(tmp, path)
+
+    @classmethod
     def resume(cls, path: str | Path, config: RunConfig, indices: list[int], n_targets: int,
                attrs: dict[str, Any]) -> RunWriter:
-        """Reopen a run file; refuses when it was made with a different configuration."""
+        """Continue a run from whatever state it was left in (module docstring); refuses a run
+        made with a different configuration, and a file that is not a roughslip run file."""
         path = Path(path)
         jdir = journal_dir(path)
-        if not path.exists() and not jdir.exists():
-            raise InputError(f"{path}: no such run file to resume")
+        for leftover in (_sibling(path, ".creating"), _sibling(path, ".rebuilding")):
+            leftover.unlink(missing_ok=True)
+        shutil.rmtree(_sibling(jdir, ".done"), ignore_errors=True)  # a finished run's journal
+        if jdir.is_dir():
+            return cls._rebuild(path, config, indices, n_targets, attrs)
+        if not path.exists():
+            writer = cls.create(path, config, indices, n_targets, attrs)
+            writer.recovery = "no run file yet: started a new run"
+            return writer
         try:
             f = h5py.File(path, "r+")
+        except OSError as exc:
+            if "already open for write" in str(exc):
+                # superblock status flags left set by a writer that was killed before its
+                # first sample was journalled (files of earlier versions): nothing to keep
+                writer = cls.create(path, config, indices, n_targets, attrs, overwrite=True)
+                writer.recovery = (f"{path.name} was left open by a killed run with no "
+                                   "sample journalled: started it anew")
+                return writer
+            raise InputError(f"{path}: cannot be resumed: not a readable HDF5 file and no "
+                             f"journal to rebuild it from ({exc})") from None
+        try:
             _check_format(f, path)
-        except (OSError, InputError) as exc:
-            if not jdir.exists():
-                raise InputError(f"{path}: cannot be resumed: not a readable roughslip run "
-                                 f"file ({exc})") from None
-            # unreadable (e.g. killed during a write): rebuild it from the journal
-            writer = cls.create(path, config, indices, n_targets, attrs, overwrite=True,
-                                keep_journal=True)
-            writer._merge_journal()
-            return writer
-        digest = f.attrs.get("config_digest", "")
-        if digest != config.digest():
+            digest = f.attrs.get("config_digest", "")
+            if digest != config.digest():
+                raise _digest_mismatch(path, digest, config)
+        except InputError:
             f.close()
-            raise InputError(
-                f"{path}: was made with a different configuration (stored digest "
-                f"{str(digest)[:12]}..., now {config.digest()[:12]}...); run "
-                "`roughslip inspect` to see the stored one, or use --overwrite")
-        writer = cls(path, f, config, indices)
-        writer._merge_journal()
-        return writer
+            raise
+        return cls(path, f, config, indices)
 
-    def _merge_journal(self) -> None:
-        if not self.journal.is_dir():
-            return
-        done = set(self.completed())
-        for p in sorted(self.journal.glob("s*.h5")):
-            try:
-                with h5py.File(p, "r") as jf:
-                    if jf.attrs.get("config_digest") != self.config.digest():
-                        continue
-                    res = _read_sample_file(jf)
-            except OSError:
-                continue  # a journal file is only renamed into place when complete
-            if res.sample in self.row and res.sample not in done:
-                self._write_main(res)
+    @classmethod
+    def _rebuild(cls, path: Path, config: RunConfig, indices: list[int], n_targets: int,
+                 attrs: dict[str, Any]) -> RunWriter:
+        """Rebuild ``path`` from its journal (the record of an unfinished run)."""
+        jdir = journal_dir(path)
+        for tmp in jdir.glob("*.tmp"):
+            tmp.unlink(missing_ok=True)
+        stored = _journal_digest(jdir, path)
+        if stored is not None and stored != config.digest():
+            raise _digest_mismatch(path, stored, config)
+        entries = sorted(jdir.glob("s*.h5"))
+        try:
+            if not (jdir / "run.json").exists():  # journal of an older version
+                _write_json_atomic(jdir / "run.json", {"config_digest": config.digest(),
+                                                       "format_version": FORMAT_VERSION})
+            cls._build(path, ".rebuilding", config, indices, n_targets, attrs, entries)
+            f = h5py.File(path, "r+")
+        except OSError as exc:
+            raise OutputError(f"{path}: cannot rebuild from its journal ({exc})") from None
+        writer = cls(path, f, config, indices)
+        writer.recovery = (f"rebuilt {path.name} from its journal "
+                           f"({len(writer.completed())} sample(s) kept)")
+        return writer
 
     # -- state -----------------------------------------------------------------------------------
     def completed(self) -> list[int]:
@@ -192,12 +295,13 @@ class RunWriter:
             self.journal.mkdir(exist_ok=True)
             final = self.journal / f"{_group_name(res.sample)}.h5"
             tmp = final.with_suffix(".tmp")
-            with h5py.File(tmp, "w") as jf:
+            with h5py.File(tmp, "w", libver="earliest") as jf:
                 jf.attrs["config_digest"] = self.config.digest()
                 jf.attrs["sample"] = res.sample
                 _write_sample_group(jf, res, self.config)
                 for k, v in res.scalars.items():
                     jf.create_dataset(f"scalars/{k}", data=v)
+            _fsync(tmp)
             os.replace(tmp, final)
             self._write_main(res)
         except OSError as exc:
@@ -221,11 +325,16 @@ class RunWriter:
         f.flush()
 
     def finish(self) -> None:
-        """Close; remove the journal when every sample is complete."""
+        """Close; retire the journal when every sample is complete (renamed first, so that a
+        kill while it is removed cannot be mistaken for an unfinished run)."""
         all_done = bool(np.all(self.f["complete"][()]))
         self.f.close()
-        if all_done:
-            shutil.rmtree(self.journal, ignore_errors=True)
+        if all_done and self.journal.is_dir():
+            _fsync(self.path)
+            done = _sibling(self.journal, ".done")
+            shutil.rmtree(done, ignore_errors=True)
+            os.replace(self.journal, done)
+            shutil.rmtree(done, ignore_errors=True)
 
     def close(self) -> None:
         """Close without touching the journal (interrupted runs)."""
@@ -233,6 +342,39 @@ class RunWriter:
             self.f.flush()
         finally:
             self.f.close()
+
+
+def _journal_digest(jdir: Path, path: Path) -> str | None:
+    """The configuration digest a journal belongs to: ``run.json``, else (older versions)
+    the run file's or the first readable entry's."""
+    try:
+        return str(json.loads((jdir / "run.json").read_text())["config_digest"])
+    except (OSError, ValueError, KeyError):
+        pass
+    try:
+        with h5py.File(path, "r") as f:
+            return str(f.attrs["config_digest"])
+    except (OSError, KeyError):
+        pass
+    for p in sorted(jdir.glob("s*.h5")):
+        try:
+            with h5py.File(p, "r") as jf:
+                return str(jf.attrs["config_digest"])
+        except (OSError, KeyError):
+            continue
+    return None
+
+
+def _read_journal_entry(p: Path, config: RunConfig) -> SampleResult | None:
+    """A journalled sample, or None when the entry cannot be read (it is recomputed)."""
+    try:
+        with h5py.File(p, "r") as jf:
+            if jf.attrs.get("config_digest") != config.digest():
+                raise InputError(f"{p}: journal entry of a different configuration; move the "
+                                 "journal away or use --overwrite")
+            return _read_sample_file(jf)
+    except (OSError, KeyError, ValueError):
+        return None
 
 
 def _init_file(f: h5py.File, config: RunConfig, indices: list[int], n_targets: int,
@@ -256,6 +398,9 @@ def _init_file(f: h5py.File, config: RunConfig, indices: list[int], n_targets: i
         d.attrs["unit"] = config.squeeze.force_unit
     for name, (dtype, fill) in scalar_specs(config).items():
         f.create_dataset(name, shape=(ns, n_targets), dtype=dtype, fillvalue=fill)
+    for name in f:
+        if name in DESCRIPTIONS:
+            f[name].attrs["description"] = DESCRIPTIONS[name]
     f.create_group("samples")
 
 

@@ -1,4 +1,11 @@
-"""Shared fixtures."""
+"""Shared fixtures, and what makes the suite independent of order and chance.
+
+* Hypothesis runs derandomized (examples are a function of the test) and keeps no example
+  database, so a run does not depend on earlier runs.
+* The process-wide memory cap is restored after every test.
+* Test order is shuffled by pytest-randomly (``-p no:randomly`` turns it off; the seed is
+  printed in the header, and ``--randomly-seed=N`` replays an order).
+"""
 
 from __future__ import annotations
 
@@ -6,8 +13,21 @@ import json
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+from roughslip import memory
 
 DATA = Path(__file__).parent / "data"
+
+settings.register_profile("roughslip", derandomize=True, database=None)
+settings.load_profile("roughslip")
+
+
+@pytest.fixture(autouse=True)
+def _restore_memory_cap():
+    old = memory._LIMIT
+    yield
+    memory._LIMIT = old
 
 
 @pytest.fixture(scope="session")

@@ -1,0 +1,163 @@
+"""Fault injection and process helpers for testing runs against kills.
+
+A run is killed at a named point of the writer's life (:data:`KILL_POINTS`) by
+``python -m roughslip.testing [--signal NAME] POINT COUNT run CONFIG ...``: the process arms
+the point, then runs the ``roughslip`` command line given after it and sends itself SIGKILL
+(or the named signal, e.g. ``INT`` for a Ctrl-C) when the point is reached for the
+``COUNT``-th time. This gives every state a kill can leave, at fixed and
+reproducible moments, without hooks in the library itself.
+
+The process helpers read Linux's ``/proc``: :func:`session_processes` lists every process of a
+session (a run started with ``start_new_session=True`` keeps its workers and helpers in the
+session of its main process, even after they are re-parented), which is how orphans are found.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+#: where a run can be killed: name -> what state it leaves
+KILL_POINTS = {
+    "start": "before anything is written: no run file, no journal",
+    "creating": "the new run file written to OUT.h5.creating, not yet renamed",
+    "journal-entry": "a sample's journal entry written to a temporary file, not yet renamed",
+    "main-write": "a sample journalled and half-written into OUT.h5 (open for writing)",
+    "sample-done": "COUNT samples fully written, OUT.h5 open for writing",
+    "finish": "every sample done, the journal renamed .journal.done but not removed",
+    "rebuild": "during a resume: OUT.h5 being rebuilt from the journal",
+}
+
+#: datasets that measure the machine rather than the model: excluded from comparisons
+TIMINGS = ("seconds", "pull_seconds")
+
+
+def arm(point: str, count: int = 1, sig: int = signal.SIGKILL) -> None:
+    """Make this process send itself ``sig`` the ``count``-th time the run reaches
+    ``point``."""
+    from . import store
+
+    if point not in KILL_POINTS:
+        raise ValueError(f"unknown kill point {point!r}; choose from {sorted(KILL_POINTS)}")
+    hits = {"n": 0}
+
+    def hit() -> None:
+        hits["n"] += 1
+        if hits["n"] == count:
+            os.kill(os.getpid(), sig)
+
+    def wrap(owner: object, name: str, before: Callable[..., bool] | None = None,
+             after: Callable[..., bool] | None = None) -> None:
+        real = getattr(owner, name)
+
+        def patched(*args, **kwargs):
+            if before is not None and before(*args, **kwargs):
+                hit()
+            out = real(*args, **kwargs)
+            if after is not None and after(*args, **kwargs):
+                hit()
+            return out
+
+        setattr(owner, name, patched)
+
+    if point == "start":
+        wrap(store.RunWriter, "create", before=lambda *a, **k: True)
+    elif point == "creating":
+        wrap(store, "_fsync", after=lambda p: str(p).endswith(".creating"))
+    elif point == "journal-entry":
+        wrap(store, "_fsync", after=lambda p: Path(p).name.startswith("s")
+             and str(p).endswith(".tmp"))
+    elif point == "main-write":
+        # the first dataset of the sample's group is in OUT.h5, the rest is not
+        wrap(store, "_write_array", after=lambda g, name, *a: name == "rigid_surface"
+             and not g.file.filename.endswith(".tmp"))
+    elif point == "sample-done":
+        wrap(store.RunWriter, "write_sample", after=lambda *a: True)
+    elif point == "finish":
+        wrap(store.shutil, "rmtree", before=lambda p, **k: str(p).endswith(".journal.done")
+             and Path(p).exists())
+    elif point == "rebuild":
+        wrap(store, "_read_journal_entry", after=lambda *a: True)
+
+
+def session_processes(sid: int) -> list[int]:
+    """Pids of the live (not zombie) processes whose session id is ``sid`` (Linux)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat", encoding="ascii", errors="replace") as fh:
+                stat = fh.read()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2:].split()  # after "pid (comm) "
+        state, session = fields[0], int(fields[3])
+        if session == sid and state not in ("Z", "X"):
+            found.append(int(entry))
+    return found
+
+
+def wait_gone(sid: int, timeout: float) -> list[int]:
+    """Wait up to ``timeout`` seconds for every process of session ``sid`` to end; return
+    those still alive."""
+    deadline = time.monotonic() + timeout
+    while True:
+        alive = session_processes(sid)
+        if not alive or time.monotonic() > deadline:
+            return alive
+        time.sleep(0.05)
+
+
+def datasets(path: str | Path) -> dict[str, np.ndarray]:
+    """Every dataset of an HDF5 file, by path."""
+    import h5py
+
+    out: dict[str, np.ndarray] = {}
+    with h5py.File(path, "r") as f:
+        f.visititems(lambda n, o: out.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset)
+                     else None)
+    return out
+
+
+def differences(a: str | Path, b: str | Path) -> list[str]:
+    """Datasets that are not bitwise equal between two run files (NaN equals NaN), the
+    wall-clock timings excepted; a dataset present in one file only counts too."""
+    da, db = datasets(a), datasets(b)
+    diff = sorted(set(da) ^ set(db))
+    for k in sorted(set(da) & set(db)):
+        if k in TIMINGS:
+            continue
+        x, y = da[k], db[k]
+        same = x.dtype == y.dtype and x.shape == y.shape and (
+            np.array_equal(x, y, equal_nan=True) if x.dtype.kind == "f"
+            else np.array_equal(x, y))
+        if not same:
+            diff.append(k)
+    return diff
+
+
+def main(argv: list[str]) -> None:
+    """``python -m roughslip.testing [--signal NAME] POINT COUNT ARGS...``: arm, then run
+    the command line ``roughslip ARGS...``."""
+    sig = signal.SIGKILL
+    if argv[:1] == ["--signal"] and len(argv) > 1:
+        sig = getattr(signal, "SIG" + argv[1].upper())
+        argv = argv[2:]
+    if len(argv) < 3:
+        sys.exit("usage: python -m roughslip.testing [--signal NAME] POINT COUNT "
+                 "roughslip-args...")
+    arm(argv[0], int(argv[1]), sig)
+    from .cli import cli
+
+    cli.main(argv[2:], prog_name="roughslip")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

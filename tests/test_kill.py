@@ -1,0 +1,169 @@
+"""Runs against kills: every state a SIGKILL can leave resumes to the same numbers, bitwise,
+with one and two workers, and no process outlives a killed run.
+
+Kills happen at named points of the writer's life (:mod:`roughslip.testing`), so each state
+is reached at a fixed moment, whatever the machine's speed.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from roughslip.cli import cli
+from roughslip.config import dumps_toml, load_config
+from roughslip.ensemble import run
+from roughslip.store import journal_dir, read_run
+from roughslip.testing import KILL_POINTS, differences, session_processes, wait_gone
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                reason="kills and process sessions are tested on Linux")
+
+CFG = {
+    "grid": {"n": 16},
+    "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1.0},
+    "squeeze": {"depths": [0.5, 1.5], "depth_unit": "rms"},
+    "pull": {"enabled": True, "lam": 0.2},
+    "ensemble": {"samples": 4, "seed": 17},
+    "output": {"fields": ["contact", "fz", "fx", "pull_curve"]},
+}
+ORPHAN_DEADLINE = 10.0  # seconds; the kernel ends the workers at once (PR_SET_PDEATHSIG)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ref")
+    cfg_path = d / "run.toml"
+    cfg_path.write_text(dumps_toml(CFG))
+    ref = d / "ref.h5"
+    run(load_config(cfg_path), ref)
+    return cfg_path, ref
+
+
+def _killed_run(point: str, count: int, cfg_path: Path, out: Path, workers: int,
+                *extra: str) -> None:
+    """Run the CLI, SIGKILLed at ``point``; check it died there and left no process."""
+    log = out.with_name("stderr.txt")  # a file, not a pipe: a survivor could hold a pipe
+    with open(log, "wb") as err:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "roughslip.testing", point, str(count), "run",
+             str(cfg_path), "-o", str(out), "--workers", str(workers), "--quiet", *extra],
+            start_new_session=True, stdout=subprocess.DEVNULL, stderr=err)
+        proc.wait(timeout=300)
+    assert proc.returncode == -signal.SIGKILL, log.read_text()
+    assert wait_gone(proc.pid, ORPHAN_DEADLINE) == []
+
+
+def _resume(cfg_path: Path, out: Path, workers: int) -> str:
+    r = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(out), "--resume",
+                                 "--workers", str(workers)])
+    assert r.exit_code == 0, r.output
+    return r.output
+
+
+def _assert_finished_like(ref: Path, out: Path) -> None:
+    assert differences(ref, out) == []
+    assert read_run(out).complete.all()
+    leftovers = [p.name for p in out.parent.iterdir() if p.name.startswith(out.name + ".")]
+    assert leftovers == []  # no journal, temporary file or retired journal
+
+
+STATES = [("start", 1), ("creating", 1), ("journal-entry", 2), ("main-write", 2),
+          ("sample-done", 2), ("finish", 1)]
+
+
+def test_every_kill_point_is_covered():
+    assert {p for p, _ in STATES} | {"rebuild"} == set(KILL_POINTS)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+@pytest.mark.parametrize(("point", "count"), STATES)
+def test_resume_after_a_kill_gives_the_same_numbers(reference, tmp_path, point, count,
+                                                    workers):
+    cfg_path, ref = reference
+    out = tmp_path / "killed.h5"
+    _killed_run(point, count, cfg_path, out, workers)
+    if point == "start":
+        assert not out.exists() and not journal_dir(out).exists()
+    if point in ("main-write", "sample-done"):
+        assert len(list(journal_dir(out).glob("s*.h5"))) == count
+    if point == "journal-entry":
+        assert len(list(journal_dir(out).glob("s*.tmp"))) == 1
+    said = _resume(cfg_path, out, workers)
+    if point == "start":
+        assert "started a new run" in said
+    if point in ("creating", "journal-entry", "main-write", "sample-done"):
+        assert "from its journal" in said
+    _assert_finished_like(ref, out)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_kills_during_resumes(reference, tmp_path, workers):
+    """A kill during the rebuild of the file, then during the computation of the resumed
+    run, then a resume that completes."""
+    cfg_path, ref = reference
+    out = tmp_path / "twice.h5"
+    _killed_run("sample-done", 1, cfg_path, out, workers)
+    _killed_run("rebuild", 1, cfg_path, out, workers, "--resume")
+    assert out.with_name(out.name + ".rebuilding").exists()
+    _killed_run("sample-done", 1, cfg_path, out, workers, "--resume")
+    assert len(list(journal_dir(out).glob("s*.h5"))) == 2
+    _resume(cfg_path, out, workers)
+    _assert_finished_like(ref, out)
+
+
+def test_file_left_open_by_an_earlier_version_is_started_anew(reference, tmp_path):
+    """Files written with HDF5's newest format keep a 'file is open' flag that a kill leaves
+    set; without a journal nothing was completed, so the run starts anew."""
+    cfg_path, ref = reference
+    out = tmp_path / "flagged.h5"
+    code = ("import h5py, os, signal, sys\n"
+            "f = h5py.File(sys.argv[1], 'w', libver='latest')\n"
+            "f.attrs['format'] = 'roughslip-run'\nf.flush()\n"
+            "os.kill(os.getpid(), signal.SIGKILL)\n")
+    subprocess.run([sys.executable, "-c", code, str(out)], check=False)
+    said = _resume(cfg_path, out, 1)
+    assert "started it anew" in said
+    _assert_finished_like(ref, out)
+
+
+def test_resume_never_replaces_a_foreign_file(reference, tmp_path):
+    cfg_path, _ref = reference
+    out = tmp_path / "precious.h5"
+    out.write_bytes(b"precious")
+    r = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(out), "--resume"])
+    assert r.exit_code == 2 and "not a readable HDF5 file" in r.output
+    assert out.read_bytes() == b"precious"
+
+
+def test_workers_die_with_a_killed_manager(tmp_path):
+    """SIGKILL to the main process of `run --workers 2` while both workers compute: every
+    process of the run (workers, queue feeder, resource tracker) ends within the deadline."""
+    data = {**CFG, "grid": {"n": 48}, "ensemble": {"samples": 12, "seed": 3}}
+    cfg_path = tmp_path / "long.toml"
+    cfg_path.write_text(dumps_toml(data))
+    out = tmp_path / "orphans.h5"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "roughslip", "run", str(cfg_path), "-o", str(out),
+         "--workers", "2", "--quiet"], start_new_session=True,
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    while not list(journal_dir(out).glob("s*.h5")):
+        assert proc.poll() is None, proc.stderr.read().decode()
+        assert time.monotonic() < deadline, "no sample finished"
+        time.sleep(0.02)
+    family = session_processes(proc.pid)
+    assert len(family) >= 3  # the manager and two workers at least
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    alive = wait_gone(proc.pid, ORPHAN_DEADLINE)
+    for pid in alive:  # do not leave them behind on failure
+        os.kill(pid, signal.SIGKILL)
+    assert alive == []
