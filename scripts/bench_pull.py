@@ -12,9 +12,10 @@ method where literal is skipped). ``--extra N:area`` adds cases run with the inv
 only (e.g. 512:0.05, 512:0.2; ``--sizes --extra 512:0.2`` runs only that case, ~21 GiB and
 ~37 min). ``resid`` is the worst relative residual of the tangential solves (for ``inverse``:
 of its certification against the FFT operator after every block of breaks and at the peak).
-``kappa`` bounds the condition number of G_xx on every stick set (``bond_spectrum``, Lanczos on
-the initial bonds, not part of the timed pull) and ``bound`` = kappa * resid bounds the
-relative error of the tangential forces and of their sum at every certified solve.
+``kappa`` estimates the condition number of G_xx on the initial bonds, which bounds that of
+every later stick set (``bond_spectrum``, Lanczos from a fixed start, not part of the timed
+pull), and ``bound`` = kappa * resid estimates the bound on the relative error of the
+tangential forces and of their sum at every certified solve.
 """
 
 from __future__ import annotations

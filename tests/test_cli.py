@@ -56,3 +56,23 @@ def test_every_shipped_config_loads_and_rejects_bad_nu():
         assert r.exit_code == 0, (p.name, r.output)
         r = CliRunner().invoke(cli, ["show-config", str(p), "--set", "material.nu=0.7"])
         assert r.exit_code == 2 and "material.nu = 0.7" in r.output, p.name
+
+
+def test_progress_lines_give_no_eta_until_it_means_something(monkeypatch, capsys):
+    """Set-up time (imports, kernels, worker start) is not work: the rate is measured from the
+    first finished solve, and no ETA is printed before 3 solves and 5 % of the work follow it."""
+    from roughslip import cli as cli_mod
+
+    clock = {"t": 0.0}
+    monkeypatch.setattr(cli_mod.time, "monotonic", lambda: clock["t"])
+    progress = cli_mod._Progress(quiet=False, every=0.0)
+    progress.tty = False
+    progress({"kind": "start", "total": 40, "samples": 10, "depths": 4, "skipped": 0})
+    lines = []
+    for k, t in enumerate([100.0, 101.0, 102.0, 103.0, 104.0]):  # 100 s of set-up
+        clock["t"] = t
+        progress({"kind": "depth", "sample": 0, "depth_index": k % 4})
+        lines.append(capsys.readouterr().err.strip())
+    assert all("ETA" not in line for line in lines[:3])
+    assert lines[3].endswith("103 s elapsed, ETA 36 s")  # 1 s per solve, 36 to go
+    assert lines[4].endswith("ETA 35 s")
