@@ -231,6 +231,32 @@ def fit_cmd(files, xname, yname, xrange, as_json, plot_path):
         plot_fits(list(files), fits, xname, yname, plot_path)
 
 
+@cli.command("bursts")
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--min-tail", type=click.IntRange(min=10), default=50, show_default=True,
+              help="Fewest bursts a fit range may hold.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Also plot the distributions with their fits (needs the plot extra).")
+@handle_errors
+def bursts_cmd(files, min_tail, as_json, plot_path):
+    """Burst sizes and force drops of the pulls in FILES: distributions and power laws."""
+    import json
+
+    from .bursts import burst_report, format_table
+
+    sample, fits = burst_report(list(files), min_tail=min_tail)
+    if as_json:
+        click.echo(json.dumps({"files": sample.files, "pulls": sample.pulls,
+                               "fits": [f.as_dict() for f in fits]}, indent=1))
+    else:
+        click.echo(format_table(sample, fits))
+    if plot_path:
+        from .plotting import plot_bursts
+
+        click.echo(str(plot_bursts(sample, fits, plot_path)))
+
+
 @cli.command("verify")
 @click.option("--quick", is_flag=True, help="Small sizes and two tolerances (under a minute).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")

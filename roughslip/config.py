@@ -204,6 +204,9 @@ class PullConfig:
                               "and store cond * residual as pull_error_estimate of the exact "
                               "methods (an estimate, not a bound)")
     coulomb_steps: int = _f(32, "pull displacements on the Coulomb curve", _at_least(2))
+    early_stop: bool = _f(True, "stop the break sequence once no later break can exceed the "
+                          "peak (exact for the friction force); false records every break, "
+                          "for the bursts after the peak")
 
 
 @dataclass(frozen=True)
@@ -307,12 +310,27 @@ class RunConfig:
         """The resolved configuration as TOML text (round-trips through :func:`load_config`)."""
         return dumps_toml(self.to_dict())
 
-    def digest(self) -> str:
-        """SHA-256 of everything that determines the numbers (execution settings excluded)."""
+    def digest(self, *, legacy: bool = False) -> str:
+        """SHA-256 of everything that determines the numbers (execution settings excluded).
+
+        ``legacy=True``: the digest the same configuration had before keys were renamed or
+        added (:data:`_RENAMED`, :data:`_ADDED`), so that runs started then can be resumed.
+        """
         d = self.to_dict()
         d.pop("execution", None)
         d.pop("title", None)
+        if legacy:
+            for (section, old), new in _RENAMED.items():
+                if section in d and new in d[section]:
+                    d[section] = {old if k == new else k: v for k, v in d[section].items()}
+            for (section, key), default in _ADDED.items():
+                if d.get(section, {}).get(key, default) == default:
+                    d.get(section, {}).pop(key, None)
         return hashlib.sha256(dumps_toml(d).encode()).hexdigest()
+
+    def matches(self, digest: str) -> bool:
+        """Whether a stored digest is this configuration's (now or before renames)."""
+        return digest in (self.digest(), self.digest(legacy=True))
 
     @property
     def shape(self) -> tuple[int, int] | None:
@@ -614,6 +632,9 @@ _SPECIAL = {("squeeze", "depths"), ("squeeze", "forces")}
 #: keys renamed since they were introduced: old (section, key) -> new key. The old spelling
 #: is still read, so configs and run files written with it keep working.
 _RENAMED = {("pull", "error_bound"): "error_estimate"}
+#: keys added since the first run-file format, with the default that reproduces the former
+#: behaviour (a configuration at that default has the digest it had before)
+_ADDED = {("pull", "early_stop"): True}
 
 
 def _build_section(name: str, cls: type, table: dict[str, Any], ctx: _Ctx) -> Any:

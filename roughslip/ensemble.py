@@ -220,7 +220,8 @@ def _pull(cfg: RunConfig, r: NormalResult, op: ElasticOperator, where: str) -> S
     try:
         return pull(r, lam=pl.lam, slip_law=pl.slip_law, method=pl.method, tol=pl.tol,
                     batch_size=pl.batch_size, fft=cfg.execution.fft,
-                    threads=cfg.execution.threads, operator=op, estimate_error=pl.error_estimate)
+                    threads=cfg.execution.threads, operator=op, estimate_error=pl.error_estimate,
+                    early_stop=pl.early_stop)
     except NumericalError as exc:
         raise NumericalError(f"{where}: pull: {exc}") from None
 

@@ -122,21 +122,88 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
         except InputError:
             dx = fx = None
         if dx is not None and dx.size:
-            fig, ax = plt.subplots(figsize=(5, 4))
-            ax.plot(dx, fx, ".-", ms=2, lw=0.6)
-            i = int(np.argmax(fx))
-            ax.plot(dx[i], fx[i], "o", color="C3", label=f"$F_{{friction}}$ = {fx[i]:.4g}")
-            ax.set_xlabel("$D_{x,lim}$ (pull displacement at each break)")
-            ax.set_ylabel("$F_{x,lim}$")
-            ax.set_title(f"pull curve: sample {s}, depth index {k}")
-            ax.legend(fontsize=8)
-            ax.grid(True, alpha=0.3)
-            fig.tight_layout()
-            p = stem.parent / f"{stem.name}_pull.png"
-            fig.savefig(p, dpi=120)
-            plt.close(fig)
-            written.append(p)
+            cfg = run.config_dict()
+            written.append(_pull_figure(plt, stem, cfg, dx, fx, f"sample {s}, depth index {k}"))
     return written
+
+
+def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
+                 where: str) -> Path:
+    """The pull curve under monotone D_x (a sawtooth for the break law, with its bursts),
+    over the break sequence's points."""
+    from .bursts import pull_curve
+
+    pull = cfg.get("pull", {})
+    coupled = bool(cfg.get("coupling", {}).get("enabled"))
+    law = "coupled" if coupled else pull.get("slip_law", "break")
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    ax.plot(dx, fx, ".", color="0.6", ms=2.5, label="break sequence $(D_{x,lim}, F_{x,lim})$")
+    i = int(np.argmax(fx))
+    if law == "break" and pull.get("method") != "batch":
+        exhausted = pull.get("method") == "literal" or not pull.get("early_stop", True)
+        c = pull_curve(dx, fx, exhausted=exhausted)
+        ax.plot(c.dx, c.fx, "-", color="C0", lw=0.8, label="pull curve, monotone $D_x$")
+        big = c.complete & (c.burst_size > 1)
+        if np.any(big):
+            ax.plot(c.burst_dx[big], fx[c.burst_start[big]], "v", color="C1", ms=3,
+                    label=f"bursts of 2+ breaks ({int(big.sum())})")
+        title = "pull curve (break law)"
+    else:
+        # Coulomb law (affine between slip events, no drops) and the coupled model's events
+        order = np.argsort(dx, kind="stable")
+        ax.plot(np.r_[0.0, dx[order]], np.r_[0.0, fx[order]], "-", color="C0", lw=0.8,
+                label="pull curve between events")
+        title = f"pull curve ({law})"
+    ax.plot(dx[i], fx[i], "o", color="C3", label=f"$F_{{friction}}$ = {fx[i]:.4g}")
+    ax.set_xlabel("pull displacement $D_x$")
+    ax.set_ylabel("pull force $F_x$")
+    ax.set_title(f"{title}: {where}", fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    p = stem.parent / f"{stem.name}_pull.png"
+    fig.savefig(p, dpi=120)
+    plt.close(fig)
+    return p
+
+
+def plot_bursts(sample, fits, out: str | Path) -> Path:
+    """Burst-size and force-drop distributions (log bins) with their power-law fits, per
+    phase."""
+    from .bursts import log_binned
+
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    for ax, name, data, discrete in ((axes[0], "size", sample.sizes, True),
+                                     (axes[1], "drop", sample.drops, False)):
+        for j, bf in enumerate(fits):
+            vals = np.asarray(data[bf.phase], dtype=float)
+            x, dens = log_binned(vals, discrete=discrete)
+            if not x.size:
+                continue
+            ax.loglog(x, dens, "o", color=f"C{j}", ms=4, label=f"{bf.phase} ({vals.size})")
+            fit = getattr(bf, name)
+            if fit is not None:
+                xx = np.geomspace(fit.xmin, fit.xmax, 50)
+                frac = fit.n_tail / fit.n
+                if discrete:
+                    from scipy.special import zeta
+
+                    yy = frac * xx ** -fit.alpha / zeta(fit.alpha, fit.xmin)
+                else:
+                    yy = frac * (fit.alpha - 1) / fit.xmin * (xx / fit.xmin) ** -fit.alpha
+                ax.loglog(xx, yy, "-", color=f"C{j}",
+                          label=f"{bf.phase}: $\\alpha$ = {fit.alpha:.2f} ± {fit.sigma:.2f}")
+        ref = {"size": "burst size (breaks)", "drop": "force drop"}[name]
+        ax.set_xlabel(ref)
+        ax.set_ylabel("probability density")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"bursts of {sample.pulls} pulls (log bins; fits from x_min)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return Path(out)
 
 
 def plot_fits(paths: list[str], fits, x: str, y: str, out: str | Path) -> Path:

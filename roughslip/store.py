@@ -251,7 +251,7 @@ class RunWriter:
         try:
             _check_format(f, path)
             digest = f.attrs.get("config_digest", "")
-            if digest != config.digest():
+            if not config.matches(str(digest)):
                 raise _digest_mismatch(path, digest, config)
         except InputError:
             f.close()
@@ -266,7 +266,7 @@ class RunWriter:
         for tmp in jdir.glob("*.tmp"):
             tmp.unlink(missing_ok=True)
         stored = _journal_digest(jdir, path)
-        if stored is not None and stored != config.digest():
+        if stored is not None and not config.matches(stored):
             raise _digest_mismatch(path, stored, config)
         entries = sorted(jdir.glob("s*.h5"))
         try:
@@ -369,7 +369,7 @@ def _read_journal_entry(p: Path, config: RunConfig) -> SampleResult | None:
     """A journalled sample, or None when the entry cannot be read (it is recomputed)."""
     try:
         with h5py.File(p, "r") as jf:
-            if jf.attrs.get("config_digest") != config.digest():
+            if not config.matches(str(jf.attrs.get("config_digest"))):
                 raise InputError(f"{p}: journal entry of a different configuration; move the "
                                  "journal away or use --overwrite")
             return _read_sample_file(jf)

@@ -287,3 +287,28 @@ def test_pull_error_estimate_is_stored_when_asked_and_reproducible(serial_run, t
     # the former name of the key is still read, as the same configuration
     old = {**data, "pull": {**CFG["pull"], "method": "inverse", "error_bound": True}}
     assert load_config(write_cfg(tmp_path, old, "old.toml")).digest() == cfg.digest()
+
+
+def test_runs_started_before_keys_were_renamed_or_added_resume(tmp_path):
+    """A file whose stored digest is that of the configuration before `pull.error_bound`
+    became `pull.error_estimate` and `pull.early_stop` was added resumes as the same run."""
+    import hashlib
+
+    from roughslip.config import dumps_toml as dump
+
+    cfg = load_config(write_cfg(tmp_path))
+    old = cfg.to_dict()
+    old.pop("execution", None)
+    old["pull"] = {("error_bound" if k == "error_estimate" else k): v
+                   for k, v in old["pull"].items() if k != "early_stop"}
+    legacy = hashlib.sha256(dump(old).encode()).hexdigest()
+    assert cfg.digest(legacy=True) == legacy != cfg.digest() and cfg.matches(legacy)
+    out = tmp_path / "old.h5"
+    run(load_config(data={**CFG, "ensemble": {"samples": 4, "seed": 5}}), out)
+    with h5py.File(out, "r+") as f:
+        f.attrs["config_digest"] = legacy
+    assert run(cfg, out, resume=True).skipped == 4
+    # a real change is still refused
+    other = load_config(data={**CFG, "pull": {**CFG["pull"], "early_stop": False}})
+    with pytest.raises(InputError, match="different configuration"):
+        run(other, out, resume=True)
