@@ -231,6 +231,38 @@ def fit_cmd(files, xname, yname, xrange, as_json, plot_path):
         plot_fits(list(files), fits, xname, yname, plot_path)
 
 
+@cli.command("topography")
+@click.argument("path", required=False, type=click.Path(dir_okay=False))
+@click.option("--key", help="Channel (instrument files), array (.npz) or dataset (HDF5).")
+@click.option("--unit", type=click.Choice(["m", "mm", "um", "nm", "pm"]),
+              help="Unit of a file that carries none (for the labels).")
+@click.option("--sample", type=int, help="Run files: the sample whose surface to describe.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Also draw the height map and the PSD with its fit (needs the plot extra).")
+@click.option("--formats", "list_formats", is_flag=True,
+              help="List the file formats that can be read, and exit.")
+@handle_errors
+def topography_cmd(path, key, unit, sample, as_json, plot_path, list_formats):
+    """What to check in a topography (or a run file's surface) before a run: format, shape,
+    pixel size and unit, missing points, rms height, slope and curvature, Hurst exponent."""
+    import json
+
+    from .topography import describe, format_stats, formats, plot_stats
+
+    if list_formats:
+        for name, exts in formats() or [("(instrument formats need the topography extra: "
+                                          "pip install 'roughslip[topography]')", "")]:
+            click.echo(f"{name}: {exts}" if exts else name)
+        return
+    if path is None:
+        raise click.UsageError("missing argument PATH")
+    st, h = describe(path, key=key, unit=unit, sample=sample)
+    click.echo(json.dumps(st.as_dict(), indent=1) if as_json else format_stats(st))
+    if plot_path:
+        click.echo(str(plot_stats(st, h, plot_path)))
+
+
 @cli.command("bursts")
 @click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("--min-tail", type=click.IntRange(min=10), default=50, show_default=True,

@@ -71,6 +71,19 @@ def _pair(v):
     return None if len(v) == 2 else "must be a list of two numbers"
 
 
+def _crop_rule(v):
+    if len(v) != 4:
+        return "must be [y0, y1, x0, x1]"
+    y0, y1, x0, x1 = v
+    if min(v) < 0 or not (y0 < y1 and x0 < x1):
+        return "must satisfy 0 <= y0 < y1 and 0 <= x0 < x1"
+    return None
+
+
+#: length units a run and a file can be in, in metres
+LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "nm": 1e-9, "pm": 1e-12}
+
+
 # --------------------------------------------------------------------------------------------
 # Sections
 # --------------------------------------------------------------------------------------------
@@ -88,7 +101,8 @@ SURFACE_KEYS: dict[str, tuple[set[str], set[str]]] = {
     "punch": ({"radius", "center", "step"}, {"radius"}),
     "sinusoid": ({"amplitude", "wavelength", "direction", "phase"}, {"amplitude", "wavelength"}),
     "plane": ({"slope"}, set()),
-    "file": ({"path", "key", "scale"}, {"path"}),
+    "file": ({"path", "key", "scale", "unit", "override_pixel_size", "missing", "detrend",
+              "crop", "downsample", "tiles"}, {"path"}),
 }
 
 FIELD_NAMES = ("fz", "uz", "gap", "contact", "fx", "ux", "stick", "pull_curve")
@@ -157,14 +171,38 @@ class SurfaceConfig:
     # plane
     slope: list[float] | None = _f(None, "[dh/dx, dh/dy]", _pair)
     # file
-    path: str | None = _f(None, "topography file (.npy, .npz, .txt/.csv/.dat, .h5/.hdf5)")
-    key: str | None = _f(None, "array name in .npz or dataset path in HDF5")
+    path: str | None = _f(None, "topography file: .npy, .npz, .txt/.csv/.dat/.asc, .h5/.hdf5, "
+                          "or an instrument format (with the topography extra)")
+    key: str | None = _f(None, "array name in .npz, dataset path in HDF5, or channel name in "
+                         "an instrument file (default: its only or default channel)")
     scale: float = _f(1.0, "factor applied to the heights read from the file", _positive)
+    unit: str | None = _f(None, "length unit of a file that carries none (heights and pixel "
+                          "size); a file with units is converted to units.length",
+                          choices=LENGTH_UNITS)
+    override_pixel_size: bool = _f(False, "use grid.pixel_size even where the file gives "
+                                   "another pixel size")
+    missing: str = _f("error", "missing (NaN or masked) points: error, interpolate (from the "
+                      "neighbours) or void (a deep valley that never touches)",
+                      choices=("error", "interpolate", "void"))
+    detrend: str = _f("none", "remove the mean, a tilt (plane) or a curvature (quadric) fitted "
+                      "to the heights, per tile", choices=("none", "mean", "tilt", "curvature"))
+    crop: list[int] | None = _f(None, "[y0, y1, x0, x1]: keep rows y0..y1-1 and columns "
+                                "x0..x1-1 of the file's grid", lambda v: _crop_rule(v))
+    downsample: int = _f(1, "average blocks of k x k pixels (after cropping)", _at_least(1))
+    tiles: list[int] | None = _f(None, "[ny, nx]: cut the (cropped) scan into ny x nx tiles, "
+                                 "one sample each (sample i is tile i, row-major)",
+                                 lambda v: _pair(v) or (None if min(v) >= 1 else
+                                                        "both counts must be >= 1"))
 
     @property
     def is_random(self) -> bool:
         """True for kinds that differ from sample to sample."""
         return self.kind == "self-affine"
+
+    @property
+    def n_tiles(self) -> int:
+        """Samples a tiled file gives (1 without tiles)."""
+        return self.tiles[0] * self.tiles[1] if self.tiles else 1
 
 
 @dataclass(frozen=True)
@@ -249,6 +287,15 @@ class ExecutionConfig:
                                        _positive)
 
 
+@dataclass(frozen=True)
+class UnitsConfig:
+    """``[units]``: the run's length unit (stored in the provenance, used in labels)."""
+
+    length: str | None = _f(None, "the length unit of the run: grid.pixel_size, heights, "
+                            "depths and displacements are in it; files with units are "
+                            "converted to it", choices=LENGTH_UNITS)
+
+
 def _fields_rule(v: Sequence[str]) -> str | None:
     bad = [x for x in v if x not in FIELD_NAMES]
     if bad:
@@ -269,6 +316,7 @@ SECTIONS: dict[str, type] = {
     "ensemble": EnsembleConfig,
     "output": OutputConfig,
     "execution": ExecutionConfig,
+    "units": UnitsConfig,
 }
 TOP_LEVEL_KEYS = ("title",)
 
@@ -287,8 +335,16 @@ class RunConfig:
     output: OutputConfig = field(default_factory=OutputConfig)
     execution: ExecutionConfig = field(default_factory=ExecutionConfig)
     elastic_surface: SurfaceConfig | None = None
+    units: UnitsConfig | None = None
     title: str | None = None
     source: str = field(default="<config>", compare=False)
+    #: dotted keys the user gave (file and overrides), as opposed to defaults
+    given: frozenset[str] = field(default=frozenset(), compare=False)
+
+    @property
+    def length_unit(self) -> str | None:
+        """``units.length``, or None for bare numbers."""
+        return None if self.units is None else self.units.length
 
     def to_dict(self) -> dict[str, Any]:
         """Nested plain dict of all set values (None values omitted), in section order."""
@@ -343,6 +399,10 @@ class RunConfig:
         random = self.surface.is_random or (
             self.elastic_surface is not None and self.elastic_surface.is_random
         )
+        tiles = max(self.surface.n_tiles, self.elastic_surface.n_tiles
+                    if self.elastic_surface is not None else 1)
+        if tiles > 1:
+            return tiles
         return self.ensemble.samples if random else 1
 
     @property
@@ -582,7 +642,9 @@ def _build(data: dict[str, Any], ctx: _Ctx, base_dir: Path) -> RunConfig:
         if name in sections:
             sections[name] = _check_surface(name, sections[name], data[name], ctx, base_dir)
     sections["squeeze"] = _check_squeeze(data.get("squeeze", {}), sections.get("squeeze"), ctx)
-    cfg = RunConfig(title=title, source=ctx.source, **sections)
+    given = frozenset(f"{sec}.{k}" for sec, t in data.items() if isinstance(t, dict)
+                      for k in t)
+    cfg = RunConfig(title=title, source=ctx.source, given=given, **sections)
     _check_cross(cfg, data, ctx)
     return cfg
 
@@ -634,7 +696,11 @@ _SPECIAL = {("squeeze", "depths"), ("squeeze", "forces")}
 _RENAMED = {("pull", "error_bound"): "error_estimate"}
 #: keys added since the first run-file format, with the default that reproduces the former
 #: behaviour (a configuration at that default has the digest it had before)
-_ADDED = {("pull", "early_stop"): True}
+_ADDED = {("pull", "early_stop"): True,
+          **{(role, k): v for role in ("surface", "elastic_surface")
+             for k, v in (("unit", None), ("override_pixel_size", False), ("missing", "error"),
+                          ("detrend", "none"), ("crop", None), ("downsample", 1),
+                          ("tiles", None))}}
 
 
 def _build_section(name: str, cls: type, table: dict[str, Any], ctx: _Ctx) -> Any:
@@ -776,6 +842,16 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
     if cfg.coupling.enabled and cfg.pull.slip_law != "break":
         raise ctx.fail("pull.slip_law", cfg.pull.slip_law,
                        "the coupled model implements the break law only")
+    es = cfg.elastic_surface
+    tiled = [r for r in ("surface", "elastic_surface") if getattr(cfg, r) is not None
+             and getattr(cfg, r).kind == "file" and getattr(cfg, r).tiles]
+    if tiled and cfg.ensemble.first_sample != 0:
+        raise ctx.fail("ensemble.first_sample", cfg.ensemble.first_sample,
+                       f"must be 0 with {tiled[0]}.tiles (sample i is tile i)")
+    if (es is not None and cfg.surface.tiles and es.tiles
+            and cfg.surface.n_tiles != es.n_tiles):
+        raise ctx.fail("elastic_surface.tiles", es.tiles, f"must give as many tiles as "
+                       f"surface.tiles ({cfg.surface.tiles})")
     pull_fields = {"fx", "ux", "stick", "pull_curve"} & set(cfg.output.fields)
     if pull_fields and not cfg.pull.enabled:
         raise ctx.fail("output.fields", cfg.output.fields,

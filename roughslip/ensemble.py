@@ -89,7 +89,7 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     scene = _scene(config)
     cfg = config
     surf = scene.surfaces(sample)
-    targets = scene.targets(surf.composite)
+    targets = scene.targets(surf.composite, surf.valid)
     sq, _pl = cfg.squeeze, cfg.pull
     strict = cfg.execution.strict
     solver = NormalSolver(surf.composite, scene.grid, scene.material, method=sq.method,
@@ -113,6 +113,7 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
             raise NumericalError(f"{where}: {exc}") from None
         if strict and not r.converged:
             raise ConvergenceError(f"{where}: squeeze did not converge: {r.message}")
+        _check_voids(r.contact, surf.valid, where)
         if not r.converged:
             notes.append(f"depth index {k}: squeeze not converged ({r.message})")
         if sq.warm_start:
@@ -154,6 +155,14 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     return SampleResult(sample, sc, fields, surfaces, notes)
 
 
+def _check_voids(contact: np.ndarray, valid: np.ndarray | None, where: str) -> None:
+    """A void (missing point) never carries force; one in contact means the run is wrong."""
+    if valid is not None and np.any(contact & ~valid):
+        raise NumericalError(f"{where}: {int(np.sum(contact & ~valid))} void point(s) came "
+                             "into contact; the depth reaches below the voids' stand-in "
+                             "height (use surface.missing = 'interpolate')")
+
+
 def _put(sc: dict[str, np.ndarray], k: int, **values: float) -> None:
     """Store scalar results of depth ``k``."""
     for name, v in values.items():
@@ -179,6 +188,7 @@ def _coupled_sample(cfg: RunConfig, scene: Scene, sample: int, surf, targets, sc
             raise NumericalError(f"{where}: coupled model: {exc}") from None
         if cfg.execution.strict and not r.converged:
             raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
+        _check_voids(r.contact0, surf.valid, where)
         _put(sc, k, depth_length=float(t), normal_force=r.normal_force,
              contact_area=r.contact_area, iterations=r.solves, residual=0.0,
              converged=r.converged, seconds=r.seconds, friction_force=r.friction_force,
@@ -259,7 +269,8 @@ def provenance(config: RunConfig, command_line: str) -> dict[str, Any]:
         "threads": config.execution.threads,
         "seed": config.ensemble.seed,
         "units": {
-            "length": "the unit of grid.pixel_size (heights, depths, displacements)",
+            "length": config.length_unit or "the unit of grid.pixel_size (heights, depths, "
+                                             "displacements)",
             "stress": "the unit of material.E",
             "force": "stress x length^2 (pixel forces, total forces)",
             "contact_area": "fraction of the nominal area",
@@ -355,6 +366,9 @@ def _run(config: RunConfig, scene: Scene, out: Path, workers: int, resume: bool,
         command_line = shlex.join(sys.argv)
     attrs = provenance(config, command_line)
     attrs["notes"] = list(scene.notes)
+    attrs["pixel_size"] = scene.grid.a
+    if scene.topography:
+        attrs["topography"] = scene.topography
     nd = len(config.targets)
     if resume:
         writer = RunWriter.resume(out, config, indices, nd, attrs)

@@ -9,6 +9,7 @@ import numpy as np
 from .errors import InputError
 from .fit import fit_power_law, quantity
 from .store import read_run
+from .summary import length_unit
 
 
 def pyplot():
@@ -78,13 +79,16 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
     written = []
     fn = quantity(run, "normal_force")
     depth = quantity(run, "depth_length")
-    written.append(_loglog_png(plt, stem, "normal", depth, fn, "penetration depth $D_z$",
-                               "normal force $F_n$", "$F_n \\propto D_z^{\\beta}$"))
+    unit = length_unit(run)
+    lu = f" ({unit})" if unit else ""
+    fu = f" (E x {unit}$^2$)" if unit else ""
+    written.append(_loglog_png(plt, stem, "normal", depth, fn, f"penetration depth $D_z${lu}",
+                               f"normal force $F_n${fu}", "$F_n \\propto D_z^{\\beta}$"))
     has_pull = "friction_force" in run.scalars
     if has_pull:
         ff = quantity(run, "friction_force")
-        written.append(_loglog_png(plt, stem, "friction", fn, ff, "normal force $F_n$",
-                                   "static friction $F_{friction}$",
+        written.append(_loglog_png(plt, stem, "friction", fn, ff, f"normal force $F_n${fu}",
+                                   f"static friction $F_{{friction}}${fu}",
                                    "$F_{friction} \\propto F_n^{\\alpha}$"))
     s = int(run.sample_index[run.complete][0]) if sample is None else int(sample)
     if s not in set(run.sample_index[run.complete].tolist()):
@@ -123,12 +127,13 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
             dx = fx = None
         if dx is not None and dx.size:
             cfg = run.config_dict()
-            written.append(_pull_figure(plt, stem, cfg, dx, fx, f"sample {s}, depth index {k}"))
+            written.append(_pull_figure(plt, stem, cfg, dx, fx, f"sample {s}, depth index {k}",
+                                        unit))
     return written
 
 
 def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
-                 where: str) -> Path:
+                 where: str, unit: str | None = None) -> Path:
     """The pull curve under monotone D_x (a sawtooth for the break law, with its bursts),
     over the break sequence's points."""
     from .bursts import pull_curve
@@ -155,8 +160,8 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
                 label="pull curve between events")
         title = f"pull curve ({law})"
     ax.plot(dx[i], fx[i], "o", color="C3", label=f"$F_{{friction}}$ = {fx[i]:.4g}")
-    ax.set_xlabel("pull displacement $D_x$")
-    ax.set_ylabel("pull force $F_x$")
+    ax.set_xlabel("pull displacement $D_x$" + (f" ({unit})" if unit else ""))
+    ax.set_ylabel("pull force $F_x$" + (f" (E x {unit}$^2$)" if unit else ""))
     ax.set_title(f"{title}: {where}", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)

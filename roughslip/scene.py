@@ -6,6 +6,12 @@ needs ``G_zz``; the pull adds ``G_xx``; only the coupled model builds ``G_zx``, 
 ``nu = 0.5`` where it vanishes. Fixed shapes (sphere, punch, sinusoid, plane, file) run one
 sample whatever ``ensemble.samples`` says.
 
+Measured topographies (``kind = "file"``) are read and prepared by
+:mod:`roughslip.topography`: units, pixel size, missing points, crop, down-sampling, detrending
+and tiles; with tiles, sample ``i`` is tile ``i``. Missing points kept as voids are NaN in the
+stored surfaces; the solvers see them far below every other point (so they never touch, and a
+solve in which one did is an error).
+
 Randomness: sample ``i`` of a run with seed ``s`` draws its rigid surface from
 ``SeedSequence(s, spawn_key=(i,))`` (child ``i`` of ``SeedSequence(s).spawn``) and the elastic
 body's own roughness from ``SeedSequence(s, spawn_key=(i, 1))``: the same numbers whatever the
@@ -28,9 +34,11 @@ from .operators import Grid, Material
 class SampleSurfaces:
     """The topographies of one sample."""
 
-    rigid: np.ndarray
+    rigid: np.ndarray  # NaN at voids
     elastic: np.ndarray | None
-    composite: np.ndarray  # rigid + elastic: what the contact problem sees (MODEL §1)
+    composite: np.ndarray  # rigid + elastic: what the contact problem sees (MODEL §1), voids
+    # filled with a depth no contact reaches
+    valid: np.ndarray | None = None  # False at voids; None: no voids
 
 
 @dataclass(frozen=True)
@@ -42,6 +50,9 @@ class Scene:
     material: Material
     fixed: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     notes: tuple[str, ...] = ()
+    tiles: dict[str, list[np.ndarray]] = field(default_factory=dict, repr=False)
+    #: what was read and done per file surface (stored in the run file's provenance)
+    topography: dict[str, dict] = field(default_factory=dict)
 
     @classmethod
     def from_config(cls, cfg: RunConfig) -> Scene:
@@ -50,30 +61,52 @@ class Scene:
         Raises :class:`InputError` naming the file for unreadable or invalid topographies, and
         for grid shapes that disagree between the config and the files.
         """
+        from .topography import prepare, read_raw
+
         fixed: dict[str, np.ndarray] = {}
+        tiles: dict[str, list[np.ndarray]] = {}
+        provenance: dict[str, dict] = {}
+        file_notes: list[str] = []
         shape = cfg.shape
+        a = cfg.grid.pixel_size
+        a_given = "grid.pixel_size" in cfg.given
+        a_from: str | None = None
         for role in ("surface", "elastic_surface"):
             sc: SurfaceConfig | None = getattr(cfg, role)
             if sc is None or sc.kind != "file":
                 continue
-            h = S.load_topography(sc.path, sc.key, sc.scale)
+            prep = prepare(read_raw(sc.path, sc.key), sc, cfg.length_unit, role,
+                           cfg.grid.pixel_size, a_given)
+            h = prep.tiles[0]
             if shape is not None and h.shape != shape:
+                what = "tiles have" if len(prep.tiles) > 1 else "heights have"
                 raise InputError(
-                    f"{sc.path}: heights have shape {list(h.shape)} but the grid is "
+                    f"{sc.path}: {what} shape {list(h.shape)} but the grid is "
                     f"{list(shape)} (set grid.shape to match, or leave grid.n/grid.shape out)"
                 )
             shape = h.shape
-            fixed[role] = h
+            if a_from is not None and not np.isclose(prep.pixel_size, a, rtol=1e-9):
+                raise InputError(f"{sc.path}: pixel size {prep.pixel_size:.10g} differs "
+                                 f"from that of {a_from} ({a:.10g})")
+            a, a_from = prep.pixel_size, sc.path
+            tiles[role] = prep.tiles
+            fixed[role] = prep.tiles[0]
+            provenance[role] = prep.provenance
+            file_notes += prep.notes
         assert shape is not None  # guaranteed by config validation
         g = cfg.grid
-        grid = Grid(shape, g.pixel_size, g.boundary, g.periodic_kernel)
+        grid = Grid(shape, a, g.boundary, g.periodic_kernel)
         material = Material(cfg.material.E, cfg.material.nu)
         for role in ("surface", "elastic_surface"):
             sc = getattr(cfg, role)
             if sc is not None and not sc.is_random and role not in fixed:
                 fixed[role] = _analytic(sc, grid, f"[{role}]")
-        notes = []
-        if cfg.n_samples == 1 and cfg.ensemble.samples > 1:
+        notes = list(file_notes)
+        n_tiles = max((len(t) for t in tiles.values()), default=1)
+        if n_tiles > 1:
+            notes.append(f"tiles: running {n_tiles} samples, sample i is tile i "
+                         "(ensemble.samples is not used)")
+        elif cfg.n_samples == 1 and cfg.ensemble.samples > 1:
             notes.append(
                 f"fixed shapes only: running 1 sample (ensemble.samples = "
                 f"{cfg.ensemble.samples} would repeat identical work)"
@@ -81,7 +114,7 @@ class Scene:
         if cfg.coupling.enabled and material.nu == 0.5:
             notes.append("nu = 0.5: the normal-tangential coupling G_zx vanishes; using the "
                          "decoupled model")
-        return cls(cfg, grid, material, fixed, tuple(notes))
+        return cls(cfg, grid, material, fixed, tuple(notes), tiles, provenance)
 
     # -- what the run needs ---------------------------------------------------------------------
     @property
@@ -121,10 +154,28 @@ class Scene:
         if cfg.elastic_surface is not None:
             elastic = self._one(cfg.elastic_surface, "elastic_surface", sample, (sample, 1))
         composite = rigid if elastic is None else rigid + elastic
-        return SampleSurfaces(rigid, elastic, composite)
+        valid = np.isfinite(composite)
+        if valid.all():
+            return SampleSurfaces(rigid, elastic, composite)
+        # voids: far below anything a contact at these depths (or loads) can reach
+        ok = composite[valid]
+        span = float(ok.max() - ok.min())
+        reach = span
+        if self.config.control == "depth":
+            reach += float(self.targets(composite, valid).max())
+        filled = np.where(valid, composite, float(ok.min()) - 100.0 * reach - 1.0)
+        return SampleSurfaces(rigid, elastic, filled, valid)
 
     def _one(self, sc: SurfaceConfig, role: str, sample: int, key: tuple[int, ...]
              ) -> np.ndarray:
+        if role in self.tiles:
+            tiles = self.tiles[role]
+            if len(tiles) == 1:
+                return tiles[0]
+            if not 0 <= sample < len(tiles):
+                raise InputError(f"sample {sample}: there are {len(tiles)} tiles (0.."
+                                 f"{len(tiles) - 1})")
+            return tiles[sample]
         if role in self.fixed:
             return self.fixed[role]
         rng = np.random.default_rng(np.random.SeedSequence(self.config.ensemble.seed,
@@ -135,12 +186,15 @@ class Scene:
             cutoff_wavelength=sc.cutoff_wavelength, oversample=sc.oversample,
         )
 
-    def targets(self, composite: np.ndarray) -> np.ndarray:
+    def targets(self, composite: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
         """Depths (length) or total forces of a sample, in increasing order.
 
         ``depth_unit = "rms"`` multiplies by the composite rms height, ``"range"`` by its
-        peak-to-valley; ``force_unit = "pressure"`` multiplies by ``E*`` times the nominal area.
+        peak-to-valley (both over the ``valid`` points: voids excluded); ``force_unit =
+        "pressure"`` multiplies by ``E*`` times the nominal area.
         """
+        if valid is not None:
+            composite = composite[valid]
         sq = self.config.squeeze
         vals = np.asarray(self.config.targets, dtype=float)
         if self.config.control == "force":

@@ -486,6 +486,7 @@ class RunData:
     axis_name: str
     axis: np.ndarray
     scalars: dict[str, np.ndarray]
+    axis_unit: str = ""
 
     @property
     def n_complete(self) -> int:
@@ -538,10 +539,12 @@ def read_run(path: str | Path) -> RunData:
             axis_name = "depth" if "depth" in f else "force_target"
             scalars = {k: f[k][()] for k in (*SCALARS, *PULL_SCALARS, *COUPLED_SCALARS)
                        if k in f}
+            unit = f[axis_name].attrs.get("unit", "")
             return RunData(
                 path=p, attrs=attrs, config_toml=str(attrs.get("config", "")),
                 sample_index=f["sample_index"][()], complete=f["complete"][()].astype(bool),
                 axis_name=axis_name, axis=f[axis_name][()], scalars=scalars,
+                axis_unit=unit.decode() if isinstance(unit, bytes) else str(unit),
             )
         except (KeyError, OSError) as exc:
             raise InputError(f"{p}: damaged run file ({exc})") from None

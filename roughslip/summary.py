@@ -18,6 +18,11 @@ def mean_sem(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return mean, sem
 
 
+def length_unit(run) -> str | None:
+    """The run's length unit (``units.length``), or None for bare numbers."""
+    return run.config_dict().get("units", {}).get("length")
+
+
 def summarize(path: str | Path) -> str:
     """Config, progress, per-depth means +- standard errors, and convergence problems."""
     run = read_run(path)
@@ -33,18 +38,30 @@ def summarize(path: str | Path) -> str:
         lines.append(f"  title: {title}")
     s = cfg.get("surface", {})
     g = cfg.get("grid", {})
+    unit = length_unit(run)
     shape = g.get("shape") or [g.get("n"), g.get("n")]
-    lines.append(f"  surface: {s.get('kind')}" + (f", H = {s['hurst']}" if "hurst" in s else "")
-                 + f"; grid {shape[0]} x {shape[1]}, a = {g.get('pixel_size')}, "
+    if run.n_complete:  # file surfaces set the grid; the stored surface has its shape
+        shape = list(run.surface(int(run.sample_index[run.complete][0])).shape)
+    pixel = a.get("pixel_size", g.get("pixel_size"))
+    where = f", from {Path(str(s['path'])).name}" if s.get("kind") == "file" else ""
+    lines.append(f"  surface: {s.get('kind')}{where}"
+                 + (f", H = {s['hurst']}" if "hurst" in s else "")
+                 + f"; grid {shape[0]} x {shape[1]}, a = {pixel}{' ' + unit if unit else ''}, "
                  f"{g.get('boundary')}; E = {cfg['material']['E']}, nu = {cfg['material']['nu']}")
+    if unit:
+        lines.append(f"  length unit: {unit} (forces in units of E x {unit}^2)")
     if run.n_complete == 0:
         lines.append("  no complete samples yet")
         return "\n".join(lines)
     sel = run.complete
     names = ["normal_force", "contact_area"] + (["friction_force"]
                                                  if "friction_force" in run.scalars else [])
-    run.attrs.get("control", "depth")
-    head = f"  {run.axis_name:>12} " + " ".join(f"{n + ' (mean +- sem)':>30}" for n in names)
+    axis = run.axis_name
+    axis_unit = run.axis_unit
+    if axis_unit == "length" and unit:
+        axis_unit = unit
+    axis_label = f"{axis} ({axis_unit})" if axis_unit else axis
+    head = f"  {axis_label:>12} " + " ".join(f"{n + ' (mean +- sem)':>30}" for n in names)
     lines.append(head)
     stats = {n: mean_sem(run.scalars[n][sel]) for n in names}
     for k, x in enumerate(run.axis):

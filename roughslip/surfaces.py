@@ -196,13 +196,15 @@ TEXT_SUFFIXES = (".txt", ".csv", ".dat", ".asc")
 HDF5_SUFFIXES = (".h5", ".hdf5", ".hdf")
 
 
-def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0) -> np.ndarray:
+def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0,
+                    allow_missing: bool = False) -> np.ndarray:
     """Read a 2-D height map; never executes code from the file.
 
     Supported: ``.npy`` (``allow_pickle=False``), ``.npz`` (array ``key``, or the only one),
     text matrices (``.txt``, ``.dat``, ``.asc`` whitespace- and ``.csv`` comma-separated), HDF5
-    (dataset ``key``, or the only dataset). NaN/inf, empty, 1-D, ragged or non-numeric input is
-    rejected with an :class:`InputError` naming the file.
+    (dataset ``key``, or the only dataset). Empty, 1-D, ragged or non-numeric input, infinite
+    values, and NaN (missing points) unless ``allow_missing``, are rejected with an
+    :class:`InputError` naming the file. Instrument formats: :mod:`roughslip.topography`.
     """
     p = Path(path)
     name = str(p)
@@ -228,8 +230,9 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
             arr = _load_hdf5(p, key)
         else:
             raise InputError(
-                f"{name}: unknown topography format {suffix!r} (use .npy, .npz, "
-                f"{', '.join(TEXT_SUFFIXES)}, {', '.join(HDF5_SUFFIXES)})"
+                f"{name}: unknown topography format {suffix!r} (built in: .npy, .npz, "
+                f"{', '.join(TEXT_SUFFIXES)}, {', '.join(HDF5_SUFFIXES)}; instrument formats "
+                "through roughslip.topography)"
             )
     except InputError:
         raise
@@ -240,7 +243,7 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
         raise InputError(f"{name}: cannot read heights ({msg})") from None
     except OSError as exc:
         raise InputError(f"{name}: cannot read ({exc})") from None
-    return _validate(np.asarray(arr), name) * float(scale)
+    return _validate(np.asarray(arr), name, allow_missing) * float(scale)
 
 
 def _load_text(p: Path, delimiter: str | None) -> np.ndarray:
@@ -284,7 +287,7 @@ def _load_hdf5(p: Path, key: str | None) -> np.ndarray:
         return f[key][()]
 
 
-def _validate(arr: np.ndarray, name: str) -> np.ndarray:
+def _validate(arr: np.ndarray, name: str, allow_missing: bool = False) -> np.ndarray:
     if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number)) or np.iscomplexobj(arr):
         raise InputError(f"{name}: heights must be real numbers (got dtype {arr.dtype})")
     if arr.ndim != 2:
@@ -293,7 +296,9 @@ def _validate(arr: np.ndarray, name: str) -> np.ndarray:
     if arr.size == 0:
         raise InputError(f"{name}: is empty")
     arr = arr.astype(float)
-    bad = ~np.isfinite(arr)
+    bad = np.isinf(arr) if allow_missing else ~np.isfinite(arr)
+    if allow_missing and np.isnan(arr).all():
+        raise InputError(f"{name}: every height is missing (NaN)")
     if bad.any():
         iy, ix = np.argwhere(bad)[0]
         raise InputError(f"{name}: {int(bad.sum())} non-finite height(s), first at [iy, ix] = "

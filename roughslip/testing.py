@@ -7,6 +7,9 @@ the point, then runs the ``roughslip`` command line given after it and sends its
 ``COUNT``-th time. This gives every state a kill can leave, at fixed and
 reproducible moments, without hooks in the library itself.
 
+:func:`write_x3p` and :func:`write_sdf` write topography files from the formats' specifications
+(ISO 25178-72 and -71), so that readers can be tested against an independent writer.
+
 The process helpers read Linux's ``/proc``: :func:`session_processes` lists every process of a
 session (a run started with ``start_new_session=True`` keeps its workers and helpers in the
 session of its main process, even after they are re-parented), which is how orphans are found.
@@ -14,10 +17,12 @@ session of its main process, even after they are re-parented), which is how orph
 
 from __future__ import annotations
 
+import hashlib
 import os
 import signal
 import sys
 import time
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -141,6 +146,50 @@ def differences(a: str | Path, b: str | Path) -> list[str]:
         if not same:
             diff.append(k)
     return diff
+
+
+# ----------------------------------------------------------------------------------------------
+# Topography files written from their specifications (independent of any reader)
+# ----------------------------------------------------------------------------------------------
+
+
+def write_x3p(path: str | Path, h: np.ndarray, dx: float, dy: float) -> None:
+    """ISO 25178-72 (X3P), written from the specification: a zip with main.xml (axes in
+    metres), bindata/data.bin (little-endian doubles, x fastest) and md5checksum.hex."""
+    data = np.ascontiguousarray(h, dtype="<f8").tobytes()
+    ny, nx = h.shape
+
+    def axis(name: str, kind: str, inc: float | None) -> str:
+        inc_xml = "" if inc is None else f"<Increment>{inc!r}</Increment>"
+        return (f"<{name}><AxisType>{kind}</AxisType><DataType>D</DataType>{inc_xml}"
+                f"<Offset>0</Offset></{name}>")
+
+    xml = ('<?xml version="1.0" encoding="UTF-8"?>\n'
+           '<p:ISO5436_2 xmlns:p="http://www.opengps.eu/2008/ISO5436_2"><Record1>'
+           '<Revision>ISO5436 - 2000</Revision><FeatureType>SUR</FeatureType><Axes>'
+           + axis("CX", "I", dx) + axis("CY", "I", dy) + axis("CZ", "A", None)
+           + '</Axes></Record1><Record3><MatrixDimension>'
+           f'<SizeX>{nx}</SizeX><SizeY>{ny}</SizeY><SizeZ>1</SizeZ></MatrixDimension>'
+           '<DataLink><PointDataLink>bindata/data.bin</PointDataLink>'
+           f'<MD5ChecksumPointData>{hashlib.md5(data).hexdigest()}</MD5ChecksumPointData>'
+           '</DataLink></Record3><Record4><ChecksumFile>md5checksum.hex</ChecksumFile>'
+           '</Record4></p:ISO5436_2>').encode()
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("main.xml", xml)
+        z.writestr("bindata/data.bin", data)
+        z.writestr("md5checksum.hex", f"{hashlib.md5(xml).hexdigest()} *main.xml\n")
+
+
+def write_sdf(path: str | Path, h: np.ndarray, dx: float, dy: float) -> None:
+    """ISO 25178-71 SDF, ASCII, written from the specification (scales in metres)."""
+    ny, nx = h.shape
+    head = (f"aISO-1.0\nManufacID   = test\nCreateDate  = 010120261200\n"
+            f"ModDate     = 010120261200\nNumPoints   = {nx}\nNumProfiles = {ny}\n"
+            f"Xscale      = {dx!r}\nYscale      = {dy!r}\nZscale      = 1.0\n"
+            "Zresolution = -1\nCompression = 0\nDataType    = 7\nCheckType   = 0\n*\n")
+    body = "\n".join(" ".join(repr(float(v)) for v in row) for row in h)
+    Path(path).write_text(head + body + "\n*\n")
+
 
 
 def main(argv: list[str]) -> None:

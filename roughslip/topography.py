@@ -1,0 +1,523 @@
+r"""Measured topographies: instrument files, units, missing data, preparation, tiles, statistics.
+
+Reading
+    The built-in formats (``.npy``, ``.npz``, text matrices, HDF5; :func:`roughslip.surfaces.
+    load_topography`) need nothing more; they carry no units or pixel size. Every other file is
+    read by SurfaceTopography (the ``topography`` extra, ``pip install 'roughslip[topography]'``),
+    which recognises about 40 instrument formats by content and extension (:func:`formats`
+    lists them), with their units, pixel sizes and masks of missing points. SurfaceTopography
+    indexes heights ``[ix, iy]``; they are transposed to roughslip's ``[iy, ix]``.
+
+Units
+    A file with a length unit is converted to the run's unit ``units.length`` (an error when
+    the run has none); a file without one needs ``surface.unit`` when the run has a unit. The
+    pixel size comes from the file when it has one: ``grid.pixel_size`` given as well must agree
+    (relative 1e-9) unless ``surface.override_pixel_size``.
+
+Preparation, in this order
+    1. *Non-square pixels* are resampled onto square pixels at the finer of the two spacings,
+       by linear interpolation along the coarser axis over the same physical extent (end points
+       kept), which leaves the heights at the original rows or columns unchanged.
+    2. *Crop* ``[y0, y1, x0, x1]`` (pixel indices of the resampled grid, end excluded).
+    3. *Missing points* (NaN in built-in formats, masked points in instrument files): an error
+       by default naming the file and the count; ``interpolate`` fills each from its valid
+       neighbours (a harmonic fill: the discrete Laplace equation with the valid points as
+       boundary values, solved directly); ``void`` keeps them as points that never touch
+       (stored as NaN; during the squeeze they sit far below every other point, which in this
+       model is exact: a void carries no force).
+    4. *Down-sampling* by ``k``: means of ``k x k`` blocks (missing points excluded; a block
+       with no valid point stays missing); the pixel size grows by ``k``.
+    5. *Tiles* ``[ny, nx]``: the scan is cut into equal tiles (the remainder rows and columns at
+       the high end are dropped), sample ``i`` is tile ``i`` in row-major order.
+    6. *Detrending* per tile, on the valid points: ``mean``, ``tilt`` (least-squares plane) or
+       ``curvature`` (least-squares quadric).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .config import LENGTH_UNITS, SurfaceConfig
+from .errors import InputError
+from .surfaces import HDF5_SUFFIXES, TEXT_SUFFIXES, load_topography
+
+BUILTIN_SUFFIXES = (".npy", ".npz", *TEXT_SUFFIXES, *HDF5_SUFFIXES)
+EXTRA_HINT = "pip install 'roughslip[topography]'"
+
+#: unit spellings of instrument files -> LENGTH_UNITS keys (or metres per unit)
+_UNIT_ALIASES: dict[str, float] = {
+    **LENGTH_UNITS, "µm": 1e-6, "μm": 1e-6, "micrometer": 1e-6, "micron": 1e-6,
+    "Å": 1e-10, "A": 1e-10, "angstrom": 1e-10, "km": 1e3, "cm": 1e-2, "dm": 1e-1,
+}
+
+
+@dataclass(frozen=True)
+class RawTopography:
+    """A height map as read, before preparation.
+
+    ``heights`` are ``[iy, ix]`` with NaN at missing points; ``pixel_size`` is ``(dy, dx)`` in
+    ``unit``, or None when the file gives none.
+    """
+
+    heights: np.ndarray
+    pixel_size: tuple[float, float] | None
+    unit: str | None
+    format: str
+    path: str
+    channel: str | None = None
+
+
+def metres_per(unit: str, where: str) -> float:
+    """Metres per ``unit``; an InputError naming ``where`` for an unknown unit."""
+    try:
+        return _UNIT_ALIASES[unit]
+    except KeyError:
+        raise InputError(f"{where}: unknown length unit {unit!r} (known: "
+                         f"{', '.join(_UNIT_ALIASES)})") from None
+
+
+def formats() -> list[tuple[str, str]]:
+    """``(name, file extensions)`` of every format SurfaceTopography reads (empty without the
+    extra)."""
+    try:
+        from SurfaceTopography.IO import readers
+    except ImportError:
+        return []
+    out = []
+    for r in readers:
+        exts = getattr(r, "_file_extensions", None) or []
+        out.append((r.name(), ", ".join(f".{e}" for e in exts)))
+    return out
+
+
+def read_raw(path: str | Path, key: str | None = None) -> RawTopography:
+    """Read a topography file: built-in formats directly, others through SurfaceTopography."""
+    p = Path(path)
+    name = str(p)
+    if not p.is_file():
+        raise InputError(f"{name}: no such file")
+    if p.stat().st_size == 0:
+        raise InputError(f"{name}: is empty (0 bytes)")
+    if p.suffix.lower() in BUILTIN_SUFFIXES:
+        try:
+            h = load_topography(p, key, allow_missing=True)
+            return RawTopography(h, None, None, p.suffix.lower().lstrip("."), name, key)
+        except InputError as builtin_error:
+            # an instrument file with a common extension (e.g. Zygo MetroPro .dat)?
+            try:
+                return _read_instrument(p, key)
+            except InputError:
+                raise builtin_error from None
+    return _read_instrument(p, key)
+
+
+def _read_instrument(p: Path, key: str | None) -> RawTopography:
+    name = str(p)
+    try:
+        from SurfaceTopography import open_topography
+    except ImportError:
+        raise InputError(f"{name}: reading {p.suffix or 'this'} files needs the topography "
+                         f"extra: {EXTRA_HINT}") from None
+    try:
+        reader = open_topography(name)
+        channels = list(reader.channels)
+        if key is None:
+            index = reader.default_channel.index
+        else:
+            names = [c.name for c in channels]
+            if key not in names:
+                raise InputError(f"{name}: no channel {key!r} (it has {names})")
+            index = names.index(key)
+        ch = channels[index]
+        if ch.dim != 2:
+            raise InputError(f"{name}: channel {ch.name!r} is a line scan, not a 2-D map")
+        t = reader.topography(channel_index=index)
+        if not t.is_uniform:
+            raise InputError(f"{name}: non-uniform grid; roughslip needs a uniform one")
+        h = t.heights()
+        if isinstance(h, np.ma.MaskedArray):
+            h = h.astype(float).filled(np.nan)
+        h = np.array(h, dtype=float).T  # [ix, iy] -> [iy, ix]
+        sx, sy = (float(v) for v in t.pixel_size)
+        unit = t.unit
+        fmt = type(reader).__name__.removesuffix("Reader").lower()
+    except InputError:
+        raise
+    except Exception as exc:  # the reader's own errors: corrupt, truncated, unknown format
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{name}: cannot read as a topography ({type(exc).__name__}: "
+                         f"{msg})") from None
+    if h.ndim != 2 or h.size == 0:
+        raise InputError(f"{name}: holds no 2-D height map")
+    if np.isinf(h).any():
+        raise InputError(f"{name}: {int(np.isinf(h).sum())} infinite height(s)")
+    return RawTopography(h, (sy, sx), unit, fmt, name, ch.name)
+
+
+# ----------------------------------------------------------------------------------------------
+# Preparation
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PreparedTopography:
+    """Heights ready for a run: ``tiles`` (one or more ``[iy, ix]`` arrays, NaN at voids), the
+    square pixel size in the run's unit, and what was done."""
+
+    tiles: list[np.ndarray]
+    pixel_size: float
+    provenance: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.tiles[0].shape
+
+
+def prepare(raw: RawTopography, sc: SurfaceConfig, run_unit: str | None, role: str,
+            grid_pixel: float = 1.0, pixel_given: bool = False) -> PreparedTopography:
+    """Units, resampling, crop, missing points, down-sampling, tiles and detrending (module
+    docstring), each with an InputError naming the file and the key when impossible.
+
+    ``grid_pixel`` is ``grid.pixel_size``: the spacing of a file that gives none (or of any
+    file, with ``override_pixel_size``), before down-sampling; ``pixel_given`` says whether
+    the user set it (then it must agree with a file that gives one)."""
+    name = raw.path
+    notes: list[str] = []
+    h = raw.heights
+    # units: heights and pixel size to the run's unit
+    file_unit = raw.unit
+    if file_unit is not None and sc.unit is not None:
+        if metres_per(file_unit, name) != metres_per(sc.unit, name):
+            raise InputError(f"{name}: the file's unit is {file_unit!r}; {role}.unit = "
+                             f"{sc.unit!r} contradicts it (remove {role}.unit)")
+    unit = file_unit or sc.unit
+    if unit is not None and run_unit is None:
+        raise InputError(f"{name}: heights are in {unit!r}; set units.length (e.g. "
+                         f"units.length = \"um\") to say which unit the run uses")
+    if unit is None and run_unit is not None:
+        raise InputError(f"{name}: the file carries no unit; set {role}.unit (the unit of its "
+                         f"heights and pixel size)")
+    factor = 1.0 if unit is None else metres_per(unit, name) / metres_per(run_unit, name)
+    h = h * (factor * sc.scale)
+    pixel = None if raw.pixel_size is None else (raw.pixel_size[0] * factor,
+                                                 raw.pixel_size[1] * factor)
+    prov: dict[str, Any] = {"file": name, "format": raw.format, "channel": raw.channel,
+                            "file_unit": unit, "file_shape": list(raw.heights.shape),
+                            "file_pixel_size": None if pixel is None else list(pixel)}
+    # 1. non-square pixels
+    if pixel is not None and not math.isclose(pixel[0], pixel[1], rel_tol=1e-9):
+        h, pixel = _square(h, pixel)
+        notes.append(f"{Path(name).name}: pixels {raw.pixel_size[0]:.6g} x "
+                     f"{raw.pixel_size[1]:.6g} {unit} resampled to square "
+                     f"{pixel[0]:.6g} (linear interpolation), grid {list(h.shape)}")
+        prov["resampled_to"] = list(h.shape)
+    # the grid's pixel size against the file's
+    if sc.override_pixel_size:
+        if not pixel_given:
+            raise InputError(f"{role}.override_pixel_size needs grid.pixel_size")
+        a = grid_pixel
+        prov["pixel_size_overridden"] = True
+    elif pixel is None:
+        a = grid_pixel
+    elif pixel_given and not math.isclose(pixel[0], grid_pixel, rel_tol=1e-9):
+        raise InputError(f"{name}: the file's pixel size is {pixel[0]:.10g} "
+                         f"{run_unit or ''}; grid.pixel_size = {grid_pixel!r} contradicts it "
+                         f"(remove grid.pixel_size, or set {role}.override_pixel_size = true)")
+    else:
+        a = pixel[0]
+    # 2. crop
+    if sc.crop is not None:
+        y0, y1, x0, x1 = sc.crop
+        if y1 > h.shape[0] or x1 > h.shape[1]:
+            raise InputError(f"{role}.crop = {sc.crop}: outside the grid of {name} "
+                             f"({list(h.shape)})")
+        h = h[y0:y1, x0:x1]
+    # 3. missing points
+    missing = ~np.isfinite(h)
+    n_missing = int(missing.sum())
+    prov.update(missing=sc.missing, missing_points=n_missing)
+    if n_missing == h.size:
+        raise InputError(f"{name}: every point is missing (NaN or masked)")
+    if n_missing and sc.missing == "error":
+        iy, ix = (int(v) for v in np.argwhere(missing)[0])
+        raise InputError(f"{name}: {n_missing} missing point(s) of {h.size} (NaN or masked), "
+                         f"first at [iy, ix] = [{iy}, {ix}]; set {role}.missing = "
+                         f"\"interpolate\" or \"void\"")
+    if n_missing and sc.missing == "interpolate":
+        h = harmonic_fill(h)
+        notes.append(f"{Path(name).name}: {n_missing} missing point(s) interpolated")
+    elif n_missing:
+        notes.append(f"{Path(name).name}: {n_missing} missing point(s) kept as voids")
+    # 4. down-sampling
+    k = sc.downsample
+    if k > 1:
+        ny, nx = (h.shape[0] // k) * k, (h.shape[1] // k) * k
+        if ny == 0 or nx == 0:
+            raise InputError(f"{role}.downsample = {k}: larger than the grid {list(h.shape)}")
+        blocks = h[:ny, :nx].reshape(ny // k, k, nx // k, k)
+        valid = np.isfinite(blocks)
+        count = valid.sum(axis=(1, 3))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            h = np.where(valid, blocks, 0.0).sum(axis=(1, 3)) / count
+        h[count == 0] = np.nan
+        a = a * k
+    # 5. tiles
+    ty, tx = sc.tiles or (1, 1)
+    sy, sx = h.shape[0] // ty, h.shape[1] // tx
+    if sy < 2 or sx < 2:
+        raise InputError(f"{role}.tiles = {sc.tiles}: tiles of {sy} x {sx} pixels from a "
+                         f"{list(h.shape)} grid; use fewer tiles")
+    tiles = [h[i * sy:(i + 1) * sy, j * sx:(j + 1) * sx].copy()
+             for i in range(ty) for j in range(tx)]
+    for i, t in enumerate(tiles):
+        if not np.isfinite(t).any():
+            raise InputError(f"{name}: tile {i} has no valid point")
+    # 6. detrending
+    if sc.detrend != "none":
+        tiles = [detrend(t, sc.detrend) for t in tiles]
+    prov.update(pixel_size=a, unit=run_unit, crop=sc.crop, downsample=k, tiles=[ty, tx],
+                tile_shape=[sy, sx], detrend=sc.detrend)
+    return PreparedTopography(tiles, a, prov, notes)
+
+
+def _square(h: np.ndarray, pixel: tuple[float, float]) -> tuple[np.ndarray, tuple[float, float]]:
+    """Linear interpolation along the coarser axis onto the finer spacing (same extent)."""
+    dy, dx = pixel
+    fine = min(dy, dx)
+    axis = 0 if dy > dx else 1
+    n = h.shape[axis]
+    length = (n - 1) * max(dy, dx)
+    m = math.floor(length / fine + 1e-9) + 1
+    old = np.arange(n) * max(dy, dx)
+    new = np.arange(m) * fine
+    hh = np.moveaxis(h, axis, 0)
+    out = np.empty((m, hh.shape[1]))
+    for c in range(hh.shape[1]):
+        col = hh[:, c]
+        ok = np.isfinite(col)
+        out[:, c] = np.interp(new, old[ok], col[ok]) if ok.sum() >= 2 else np.nan
+        # a new point next to a missing old one is missing too
+        near = np.clip(np.searchsorted(old, new, side="right") - 1, 0, n - 2)
+        bad = ~(ok[near] & ok[np.minimum(near + 1, n - 1)])
+        out[bad, c] = np.nan
+    return np.moveaxis(out, 0, axis), (fine, fine)
+
+
+def harmonic_fill(h: np.ndarray) -> np.ndarray:
+    """Fill NaN points by solving the 5-point discrete Laplace equation on them, with the valid
+    points as boundary values (grid edges: zero normal derivative)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    miss = ~np.isfinite(h)
+    ny, nx = h.shape
+    idx = -np.ones(h.shape, dtype=np.int64)
+    idx[miss] = np.arange(int(miss.sum()))
+    rows, cols, vals = [], [], []
+    rhs = np.zeros(int(miss.sum()))
+    ys, xs = np.nonzero(miss)
+    for r, (y, x) in enumerate(zip(ys, xs, strict=True)):
+        deg = 0
+        for yy, xx in ((y - 1, x), (y + 1, x), (y, x - 1), (y, x + 1)):
+            if not (0 <= yy < ny and 0 <= xx < nx):
+                continue
+            deg += 1
+            if miss[yy, xx]:
+                rows.append(r)
+                cols.append(idx[yy, xx])
+                vals.append(-1.0)
+            else:
+                rhs[r] += h[yy, xx]
+        rows.append(r)
+        cols.append(r)
+        vals.append(float(deg))
+    A = sp.csr_matrix((vals, (rows, cols)), shape=(rhs.size, rhs.size))
+    out = h.copy()
+    out[miss] = np.atleast_1d(spsolve(A, rhs))
+    return out
+
+
+def detrend(h: np.ndarray, mode: str) -> np.ndarray:
+    """Subtract the least-squares mean, plane or quadric fitted to the finite points."""
+    if mode == "none":
+        return h
+    ny, nx = h.shape
+    y, x = np.mgrid[0:ny, 0:nx].astype(float)
+    y, x = y - (ny - 1) / 2, x - (nx - 1) / 2
+    terms = [np.ones_like(x)]
+    if mode in ("tilt", "curvature"):
+        terms += [x, y]
+    if mode == "curvature":
+        terms += [x * x, x * y, y * y]
+    if mode not in ("mean", "tilt", "curvature"):
+        raise InputError(f"detrend = {mode!r}: must be none, mean, tilt or curvature")
+    ok = np.isfinite(h)
+    A = np.stack([t[ok] for t in terms], axis=1)
+    coef, *_ = np.linalg.lstsq(A, h[ok], rcond=None)
+    return h - sum(c * t for c, t in zip(coef, terms, strict=True))
+
+
+# ----------------------------------------------------------------------------------------------
+# Statistics (`roughslip topography`)
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TopographyStats:
+    """What a user checks before a run."""
+
+    path: str
+    format: str
+    shape: tuple[int, int]
+    pixel_size: tuple[float, float] | None
+    unit: str | None
+    missing: int
+    rms_height: float
+    rms_slope: float
+    rms_curvature: float
+    hurst: float
+    hurst_range: tuple[float, float]  # wavenumbers of the fit (rad per length unit)
+    psd: tuple[np.ndarray, np.ndarray] = field(repr=False)
+
+    def as_dict(self) -> dict[str, Any]:
+        d = {k: getattr(self, k) for k in ("path", "format", "shape", "pixel_size", "unit",
+                                           "missing", "rms_height", "rms_slope",
+                                           "rms_curvature", "hurst", "hurst_range")}
+        d["shape"] = list(self.shape)
+        return d
+
+
+def statistics(h: np.ndarray, a: float = 1.0, *, path: str = "", fmt: str = "",
+               pixel_size: tuple[float, float] | None = None, unit: str | None = None
+               ) -> TopographyStats:
+    r"""rms height, slope (:func:`~roughslip.surfaces.rms_slope_of`), curvature
+    (:math:`\sqrt{\langle(\nabla^2 h/2)^2\rangle}` by central differences inside the grid) and
+    the Hurst exponent from the radially averaged PSD (Hann window; fit from 4 times the lowest
+    wavenumber to half the Nyquist wavenumber, :func:`~roughslip.surfaces.hurst_estimate`).
+    Missing points are filled harmonically first (and counted)."""
+    from .surfaces import hurst_estimate, radial_psd, rms_height_of, rms_slope_of
+
+    miss = int((~np.isfinite(h)).sum())
+    if miss == h.size:
+        raise InputError(f"{path}: every point is missing")
+    hh = harmonic_fill(h) if miss else h
+    lap = (hh[2:, 1:-1] + hh[:-2, 1:-1] + hh[1:-1, 2:] + hh[1:-1, :-2]
+           - 4 * hh[1:-1, 1:-1]) / a**2 if min(h.shape) >= 3 else np.zeros(1)
+    ny, nx = h.shape
+    qlo, qhi = 4 * 2 * np.pi / (max(ny, nx) * a), 0.5 * np.pi / a
+    try:
+        hurst = hurst_estimate(hh, a, window="hann")
+    except InputError:
+        hurst = math.nan
+    q, c, _ = radial_psd(hh, a, window="hann")
+    return TopographyStats(path, fmt, (ny, nx), pixel_size, unit, miss, rms_height_of(hh),
+                           rms_slope_of(hh, a), float(np.sqrt(np.mean((lap / 2) ** 2))), hurst,
+                           (qlo, qhi), (q, c))
+
+
+def describe(path: str | Path, *, key: str | None = None, unit: str | None = None,
+             sample: int | None = None) -> tuple[TopographyStats, np.ndarray]:
+    """Statistics of a topography file, or of a surface stored in a run file (``sample``:
+    its rigid surface; default the first complete sample). Returns the stats and heights."""
+    p = Path(path)
+    if p.suffix.lower() in HDF5_SUFFIXES and key is None and _is_run_file(p):
+        from .store import read_run
+
+        run = read_run(p)
+        done = run.sample_index[run.complete]
+        if done.size == 0:
+            raise InputError(f"{p}: has no complete sample")
+        s = int(done[0]) if sample is None else int(sample)
+        if s not in set(done.tolist()):
+            raise InputError(f"{p}: sample {s} is not complete")
+        h = run.surface(s)
+        cfg = run.config_dict()
+        a = float(run.attrs.get("pixel_size", cfg.get("grid", {}).get("pixel_size", 1.0)))
+        u = cfg.get("units", {}).get("length")
+        st = statistics(h, a, path=f"{p} (sample {s})", fmt="roughslip run",
+                        pixel_size=(a, a), unit=u)
+        return st, h
+    raw = read_raw(p, key)
+    u = raw.unit or unit
+    if raw.pixel_size is None:
+        a, ps = 1.0, None
+    else:
+        ps = raw.pixel_size
+        if not math.isclose(ps[0], ps[1], rel_tol=1e-9):
+            h2, sq = _square(raw.heights, ps)
+            return statistics(h2, sq[0], path=str(p), fmt=raw.format, pixel_size=ps,
+                              unit=u), h2
+        a = ps[0]
+    return statistics(raw.heights, a, path=str(p), fmt=raw.format, pixel_size=ps,
+                      unit=u), raw.heights
+
+
+def _is_run_file(p: Path) -> bool:
+    import h5py
+
+    try:
+        with h5py.File(p, "r") as f:
+            return f.attrs.get("format") == "roughslip-run"
+    except OSError:
+        return False
+
+
+def format_stats(st: TopographyStats) -> str:
+    """Plain-text report of :class:`TopographyStats`."""
+    u = st.unit or "(no unit)"
+    ps = ("not in the file (1 per pixel)" if st.pixel_size is None else
+          f"{st.pixel_size[1]:.6g} x {st.pixel_size[0]:.6g} {u} (x, y)")
+    lines = [
+        f"file:            {st.path}",
+        f"format:          {st.format}",
+        f"shape:           {st.shape[0]} x {st.shape[1]} (ny x nx)",
+        f"pixel size:      {ps}",
+        f"height unit:     {u}",
+        f"missing points:  {st.missing} of {st.shape[0] * st.shape[1]}",
+        f"rms height:      {st.rms_height:.6g} {st.unit or ''}".rstrip(),
+        f"rms slope:       {st.rms_slope:.6g}",
+        f"rms curvature:   {st.rms_curvature:.6g} per {st.unit or 'length unit'}",
+        f"Hurst exponent:  {st.hurst:.3f} (radially averaged PSD, Hann window, fit over "
+        f"q = {st.hurst_range[0]:.4g} .. {st.hurst_range[1]:.4g} rad per "
+        f"{st.unit or 'length unit'})",
+    ]
+    return "\n".join(lines)
+
+
+def plot_stats(st: TopographyStats, h: np.ndarray, out: str | Path) -> Path:
+    """Height map and PSD with the fitted power law ``C ~ q^(-2(1+H))``."""
+    from .plotting import pyplot
+
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    ax = axes[0]
+    im = ax.imshow(h, origin="lower", interpolation="nearest", cmap="viridis")
+    fig.colorbar(im, ax=ax, fraction=0.046, label=f"height ({st.unit or 'length unit'})")
+    ax.set_title(Path(st.path.split(" (")[0]).name, fontsize=9)
+    ax.set_xlabel("ix")
+    ax.set_ylabel("iy")
+    ax = axes[1]
+    q, c = st.psd
+    ax.loglog(q, c, "o", ms=3, label="radially averaged PSD")
+    if math.isfinite(st.hurst):
+        sel = (q >= st.hurst_range[0]) & (q <= st.hurst_range[1])
+        if sel.sum() >= 2:
+            slope = -2 * (1 + st.hurst)
+            c0 = np.exp(np.mean(np.log(c[sel]) - slope * np.log(q[sel])))
+            qq = q[sel]
+            ax.loglog(qq, c0 * qq**slope, "-", color="C3",
+                      label=f"fit: H = {st.hurst:.3f}")
+    ax.set_xlabel(f"wavenumber q (rad per {st.unit or 'length unit'})")
+    ax.set_ylabel("C(q)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return Path(out)

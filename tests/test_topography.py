@@ -1,0 +1,354 @@
+"""Measured topographies: instrument formats from independent writers, units, missing data,
+preparation, tiles, statistics, and bad files."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from roughslip.cli import cli
+from roughslip.config import dumps_toml, load_config
+from roughslip.ensemble import run
+from roughslip.errors import InputError
+from roughslip.store import journal_dir, read_run
+from roughslip.surfaces import sample_rng, self_affine, sphere
+from roughslip.testing import differences, write_sdf, write_x3p
+from roughslip.topography import detrend, harmonic_fill, metres_per, read_raw, statistics
+
+pytest.importorskip("SurfaceTopography", reason="the topography extra is not installed")
+
+# ------------------------------------------------------------------ independent writers
+
+
+def write_gwy(path: Path, h: np.ndarray, dx: float, dy: float,
+              mask: np.ndarray | None = None) -> None:
+    """Gwyddion's native format through gwyfile (an independent implementation)."""
+    from gwyfile.objects import GwyContainer, GwyDataField, GwySIUnit
+
+    ny, nx = h.shape
+    c = GwyContainer()
+    c["/0/data"] = GwyDataField(np.ascontiguousarray(h, dtype=float), xreal=nx * dx,
+                                yreal=ny * dy, si_unit_xy=GwySIUnit(unitstr="m"),
+                                si_unit_z=GwySIUnit(unitstr="m"))
+    c["/0/data/title"] = "Height"
+    if mask is not None:
+        c["/0/mask"] = GwyDataField(mask.astype(float), xreal=nx * dx, yreal=ny * dy)
+    c.tofile(str(path))
+
+
+WRITERS = {"x3p": write_x3p, "gwy": write_gwy, "sdf": write_sdf}
+
+
+@pytest.fixture(scope="module")
+def scan() -> np.ndarray:
+    """An asymmetric 48 x 56 map in metres (rms 0.1 um): orientation errors would show."""
+    return self_affine((48, 56), hurst=0.8, rms_height=1.0, rng=sample_rng(3, 0)) * 1e-7
+
+
+def rel(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+@pytest.mark.parametrize("fmt", sorted(WRITERS))
+def test_independent_writers_round_trip(tmp_path, scan, fmt):
+    p = tmp_path / f"scan.{fmt}"
+    WRITERS[fmt](p, scan, 5e-7, 7.5e-7)
+    raw = read_raw(p)
+    m = metres_per(raw.unit, str(p))
+    assert raw.heights.shape == scan.shape  # [iy, ix]
+    assert rel(raw.heights * m, scan) < 1e-12
+    assert raw.pixel_size is not None
+    assert np.allclose(np.array(raw.pixel_size) * m, [7.5e-7, 5e-7], rtol=1e-12, atol=0)
+
+
+def _cfg(tmp_path: Path, surface: dict, **extra) -> Path:
+    data = {"surface": {"kind": "file", **surface}, "squeeze": {"depths": [0.02, 0.05]},
+            **extra}
+    p = tmp_path / "run.toml"
+    p.write_text(dumps_toml(data))
+    return p
+
+
+@pytest.mark.parametrize("fmt", ["x3p", "gwy"])
+def test_run_stores_the_file_heights_in_the_run_unit(tmp_path, scan, fmt):
+    p = tmp_path / f"scan.{fmt}"
+    WRITERS[fmt](p, scan, 5e-7, 5e-7)
+    out = tmp_path / "out.h5"
+    r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, {"path": p.name},
+                                                 units={"length": "um"})),
+                                 "-o", str(out), "--quiet"])
+    assert r.exit_code == 0, r.output
+    with h5py.File(out, "r") as f:
+        stored = f["samples/s000000/rigid_surface"][()]
+        assert json.loads(f.attrs["units"])["length"] == "um"
+        assert f.attrs["pixel_size"] == pytest.approx(0.5, rel=1e-12)
+        prov = json.loads(f.attrs["topography"])["surface"]
+    assert rel(stored, scan * 1e6) < 1e-12
+    assert prov["format"] == fmt and prov["file_unit"] == "m" and prov["missing_points"] == 0
+    r = CliRunner().invoke(cli, ["topography", str(p)])
+    assert r.exit_code == 0, r.output
+    for word in ("format:", "48 x 56", "pixel size:", "missing points:  0", "rms height:",
+                 "rms slope:", "rms curvature:", "Hurst exponent:"):
+        assert word in r.output, word
+    r = CliRunner().invoke(cli, ["topography", str(out), "--json"])  # a run's surface
+    assert r.exit_code == 0 and json.loads(r.output)["unit"] == "um"
+
+
+def test_topography_plot_and_formats(tmp_path, scan):
+    p = tmp_path / "scan.x3p"
+    write_x3p(p, scan, 5e-7, 5e-7)
+    png = tmp_path / "t.png"
+    r = CliRunner().invoke(cli, ["topography", str(p), "--plot", str(png)])
+    assert r.exit_code == 0 and png.stat().st_size > 0
+    r = CliRunner().invoke(cli, ["topography", "--formats"])
+    assert r.exit_code == 0 and "X3P" in r.output and "Gwyddion" in r.output
+
+
+# ------------------------------------------------------------------ units and pixel size
+
+
+def test_unit_rules(tmp_path, scan):
+    write_x3p(tmp_path / "s.x3p", scan, 5e-7, 5e-7)
+    np.save(tmp_path / "s.npy", scan * 1e6)
+    cases = [  # (surface, extra sections, message)
+        ({"path": "s.x3p"}, {}, "set units.length"),
+        ({"path": "s.npy"}, {"units": {"length": "um"}}, "set surface.unit"),
+        ({"path": "s.x3p"}, {"units": {"length": "um"}, "grid": {"pixel_size": 0.4}},
+         "override_pixel_size"),
+        ({"path": "s.x3p", "unit": "nm"}, {"units": {"length": "um"}}, "contradicts"),
+    ]
+    for surface, extra, message in cases:
+        out = tmp_path / "o.h5"
+        r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, surface, **extra)), "-o",
+                                     str(out)])
+        assert r.exit_code == 2 and message in r.output, (surface, r.output)
+        assert len(r.output.strip().splitlines()) == 1 and not out.exists()
+    # the override, and a file without units given one
+    ok = load_config(_cfg(tmp_path, {"path": "s.x3p", "override_pixel_size": True},
+                          units={"length": "um"}, grid={"pixel_size": 0.4}))
+    run(ok, tmp_path / "a.h5")
+    assert read_run(tmp_path / "a.h5").attrs["pixel_size"] == 0.4
+    ok = load_config(_cfg(tmp_path, {"path": "s.npy", "unit": "nm"},
+                          units={"length": "um"}))
+    run(ok, tmp_path / "b.h5")
+    with h5py.File(tmp_path / "b.h5") as f:
+        assert rel(f["samples/s000000/rigid_surface"][()], scan * 1e3) < 1e-12
+
+
+def test_non_square_pixels_are_resampled_linearly(tmp_path):
+    h = np.random.default_rng(1).standard_normal((9, 12)) * 1e-6
+    p = tmp_path / "rect.x3p"
+    write_x3p(p, h, 1e-6, 2e-6)  # dy twice dx
+    cfg = load_config(_cfg(tmp_path, {"path": p.name}, units={"length": "um"}))
+    out = tmp_path / "r.h5"
+    run(cfg, out)
+    with h5py.File(out) as f:
+        g = f["samples/s000000/rigid_surface"][()]
+        assert f.attrs["pixel_size"] == pytest.approx(1.0)
+    assert g.shape == (17, 12)  # 8 intervals of 2 um -> 16 of 1 um
+    assert np.allclose(g[::2], h * 1e6, rtol=1e-12, atol=0)  # original rows kept
+    assert np.allclose(g[1::2], 0.5 * (h[:-1] + h[1:]) * 1e6, rtol=1e-12, atol=1e-18)
+    assert "resampled to square" in " ".join(json.loads(read_run(out).attrs["notes"]))
+
+
+# ------------------------------------------------------------------ missing data
+
+
+def test_missing_points_error_by_default(tmp_path):
+    h = sphere((24, 24), radius=40.0)
+    h[3:5, 7:10] = np.nan
+    np.save(tmp_path / "holes.npy", h)
+    out = tmp_path / "o.h5"
+    r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, {"path": "holes.npy"})), "-o",
+                                 str(out)])
+    assert r.exit_code == 2 and "holes.npy" in r.output and "6 missing point(s)" in r.output
+    assert not out.exists() and not journal_dir(out).exists()
+
+
+def test_interpolation_is_harmonic(tmp_path):
+    y, x = np.mgrid[0:20, 0:30].astype(float)
+    plane = 0.3 * x - 0.2 * y + 1.0  # harmonic: filled exactly
+    h = plane.copy()
+    h[5:9, 10:15] = np.nan
+    h[12, 13] = np.nan
+    assert np.allclose(harmonic_fill(h), plane, atol=1e-10)
+    h[0, 0] = np.nan  # at the edge the normal derivative is zero: mean of its neighbours
+    assert harmonic_fill(h)[0, 0] == pytest.approx((plane[0, 1] + plane[1, 0]) / 2)
+
+
+def test_voids_never_touch(tmp_path):
+    h = sphere((32, 32), radius=30.0)
+    apex = (slice(14, 18), slice(14, 18))
+    h[apex] = np.nan  # the highest points are missing: in the model a void is a void
+    np.save(tmp_path / "void.npy", h)
+    cfg = load_config(_cfg(tmp_path, {"path": "void.npy", "missing": "void"},
+                           output={"fields": ["contact", "fz"]}))
+    out = tmp_path / "v.h5"
+    run(cfg, out)
+    r = read_run(out)
+    assert r.complete.all() and np.all(r.scalars["normal_force"] > 0)
+    for k in range(2):
+        assert not r.field(0, k, "contact")[apex].any()
+        assert np.all(r.field(0, k, "fz")[apex] == 0)
+    stored = r.surface(0)
+    assert np.isnan(stored[apex]).all() and np.isfinite(stored[~np.isnan(h)]).all()
+    prov = json.loads(r.attrs["topography"])["surface"]
+    assert prov["missing"] == "void" and prov["missing_points"] == 16
+
+
+def test_masked_points_of_an_instrument_file(tmp_path, scan):
+    mask = np.zeros(scan.shape)
+    mask[10:12, 20:25] = 1.0
+    p = tmp_path / "masked.gwy"
+    write_gwy(p, scan, 5e-7, 5e-7, mask=mask)
+    raw = read_raw(p)
+    assert np.array_equal(np.isnan(raw.heights), mask > 0)  # Gwyddion's mask: undefined
+    out = tmp_path / "m.h5"
+    r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, {"path": p.name},
+                                                 units={"length": "um"})), "-o", str(out)])
+    assert r.exit_code == 2 and "masked.gwy: 10 missing point(s)" in r.output
+    cfg = load_config(_cfg(tmp_path, {"path": p.name, "missing": "interpolate"},
+                           units={"length": "um"}))
+    run(cfg, out)
+    stored = read_run(out).surface(0)
+    assert np.isfinite(stored).all()
+    assert rel(stored[mask == 0], scan[mask == 0] * 1e6) < 1e-12
+
+
+# ------------------------------------------------------------------ preparation and tiles
+
+
+def test_detrend_removes_exact_trends():
+    y, x = np.mgrid[0:16, 0:20].astype(float)
+    bumps = np.sin(x) * np.cos(y)
+    assert np.allclose(detrend(bumps + 0.5 * x - 0.1 * y + 3, "tilt"),
+                       detrend(bumps, "tilt"), atol=1e-12)
+    quad = 0.01 * x**2 - 0.02 * x * y + 0.03 * y**2
+    assert np.allclose(detrend(bumps + quad, "curvature"), detrend(bumps, "curvature"),
+                       atol=1e-12)
+    assert abs(detrend(bumps + 7, "mean").mean()) < 1e-12
+
+
+def test_tiles_are_an_ensemble(tmp_path):
+    big = self_affine((40, 60), hurst=0.8, rms_height=1.0, rng=sample_rng(5, 0))
+    np.save(tmp_path / "big.npy", big)
+    surface = {"path": "big.npy", "crop": [2, 40, 0, 60], "downsample": 1, "tiles": [2, 3],
+               "detrend": "tilt"}
+    cfg_path = _cfg(tmp_path, surface, pull={"enabled": True},
+                    output={"fields": ["contact", "pull_curve"]})
+    cfg = load_config(cfg_path)
+    assert cfg.n_samples == 6
+    one, two = tmp_path / "one.h5", tmp_path / "two.h5"
+    run(cfg, one)
+    run(cfg, two, workers=2)
+    assert differences(one, two) == []
+    r = read_run(one)
+    assert list(r.sample_index) == list(range(6)) and r.complete.all()
+    for i in range(6):
+        ty, tx = divmod(i, 3)
+        tile = big[2:40][ty * 19:(ty + 1) * 19, tx * 20:(tx + 1) * 20]
+        assert np.allclose(r.surface(i), detrend(tile, "tilt"), rtol=0, atol=1e-12)
+    # a resumed tiled run gives the same numbers
+    r2 = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(one), "--resume"])
+    assert r2.exit_code == 0 and differences(one, two) == []
+
+
+def test_downsampling_averages_blocks(tmp_path):
+    h = np.arange(36.0).reshape(6, 6)
+    h[0, 0] = np.nan
+    np.save(tmp_path / "d.npy", h)
+    cfg = load_config(_cfg(tmp_path, {"path": "d.npy", "downsample": 2, "missing": "void"},
+                           grid={"pixel_size": 0.5}))
+    out = tmp_path / "d.h5"
+    run(cfg, out)
+    g = read_run(out).surface(0)
+    assert g.shape == (3, 3) and g[0, 0] == pytest.approx((1 + 6 + 7) / 3)
+    assert g[1, 1] == pytest.approx(h[2:4, 2:4].mean())
+    assert read_run(out).attrs["pixel_size"] == 0.5 * 2
+
+
+# ------------------------------------------------------------------ bad files
+
+
+def _bad_files(tmp_path: Path, scan: np.ndarray) -> dict[str, str]:
+    good = tmp_path / "good.x3p"
+    write_x3p(good, scan, 5e-7, 5e-7)
+    raw = good.read_bytes()
+    (tmp_path / "truncated.x3p").write_bytes(raw[: len(raw) // 2])
+    (tmp_path / "corrupt.gwy").write_bytes(b"GWYP" + bytes(range(256)) * 4)
+    (tmp_path / "words.sur").write_text("this is not a Digital Surf file\n")
+    (tmp_path / "empty.x3p").write_bytes(b"")
+    np.save(tmp_path / "nans.npy", np.full((8, 8), np.nan))
+    write_gwy(tmp_path / "nanonly.gwy", np.full((8, 8), np.nan), 1e-6, 1e-6)
+    return {"truncated.x3p": "cannot read", "corrupt.gwy": "cannot read",
+            "words.sur": "cannot read", "empty.x3p": "empty", "nans.npy": "missing",
+            "nanonly.gwy": "missing"}
+
+
+def test_bad_files_exit_2_with_one_line_and_leave_nothing(tmp_path, scan):
+    for name, what in _bad_files(tmp_path, scan).items():
+        out = tmp_path / f"{name}.h5"
+        r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, {"path": name},
+                                                     units={"length": "um"})),
+                                     "-o", str(out)])
+        assert r.exit_code == 2, (name, r.output)
+        lines = r.output.strip().splitlines()
+        assert len(lines) == 1 and name in lines[0] and what in lines[0], (name, r.output)
+        assert "Traceback" not in r.output
+        assert not out.exists() and not journal_dir(out).exists()
+        r = CliRunner().invoke(cli, ["topography", str(tmp_path / name)])
+        assert r.exit_code == 2 and name in r.output, (name, r.output)
+
+
+def test_missing_extra_is_named(tmp_path, scan, monkeypatch):
+    p = tmp_path / "s.x3p"
+    write_x3p(p, scan, 5e-7, 5e-7)
+    monkeypatch.setitem(sys.modules, "SurfaceTopography", None)  # as if not installed
+    with pytest.raises(InputError, match=r"topography extra: pip install 'roughslip\["):
+        read_raw(p)
+    np.save(tmp_path / "s.npy", scan)
+    assert read_raw(tmp_path / "s.npy").heights.shape == scan.shape  # built in: no extra
+
+
+# ------------------------------------------------------------------ statistics
+
+
+@pytest.mark.parametrize("hurst", [0.3, 0.6, 0.8, 0.95])
+def test_hurst_estimate_recovers_h(hurst):
+    """Stated tolerance (measured bias -0.012..-0.018 for four 256^2 surfaces, cropped from
+    a twice larger periodic grid, Hann window): every surface within 0.07, the mean of four
+    within 0.03."""
+    est = [statistics(self_affine((256, 256), hurst=hurst, rms_height=1.0,
+                                  rng=sample_rng(s, 0), oversample=2)).hurst
+           for s in range(4)]
+    assert max(abs(e - hurst) for e in est) < 0.07, est
+    assert abs(np.mean(est) - hurst) < 0.03, est
+
+
+def test_statistics_of_a_plane_and_a_parabola():
+    y, x = np.mgrid[0:32, 0:32].astype(float)
+    st = statistics(0.25 * x, a=0.5)
+    assert st.rms_slope == pytest.approx(0.5, rel=1e-12)  # d/dx over spacing 0.5
+    assert st.rms_curvature == pytest.approx(0.0, abs=1e-12)
+    st = statistics(0.5 * (x**2 + y**2), a=1.0)  # Laplacian 2: curvature (mean) 1
+    assert st.rms_curvature == pytest.approx(1.0, rel=1e-12)
+
+
+def test_shipped_scan_example_runs(tmp_path):
+    root = Path(__file__).parents[1]
+    out = tmp_path / "tiles.h5"
+    r = CliRunner().invoke(cli, ["run", str(root / "configs" / "scan_tiles.toml"), "-o",
+                                 str(out), "--set", "squeeze.depths=[0.5]", "--quiet"])
+    assert r.exit_code == 0, r.output
+    run_data = read_run(out)
+    assert run_data.complete.all() and run_data.complete.size == 4
+    assert run_data.attrs["pixel_size"] == pytest.approx(0.25, rel=1e-12)
+    raw = read_raw(root / "configs" / "data" / "scan.x3p")
+    tile3 = raw.heights[64:, 64:] * 1e6  # metres -> um
+    assert np.allclose(run_data.surface(3), detrend(tile3, "tilt"), rtol=0, atol=1e-12)
