@@ -24,16 +24,28 @@ def pyplot():
     return plt
 
 
+def save(plt, fig, path: str | Path) -> Path:
+    """Lay out, write at 120 dpi and close a figure."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)
+
+
+def finish_axes(ax, xlabel: str, ylabel: str, fontsize: int = 8) -> None:
+    """Labels, a log-log grid and the legend."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=fontsize)
+
+
 def _loglog_png(plt, stem: Path, suffix: str, x, y, xlabel: str, ylabel: str,
                 label: str) -> Path:
     """One log-log figure with its fitted power law, written to ``<stem>_<suffix>.png``."""
     fig, ax = plt.subplots(figsize=(5, 4))
     _loglog_with_fit(ax, x, y, xlabel, ylabel, label)
-    fig.tight_layout()
-    p = stem.parent / f"{stem.name}_{suffix}.png"
-    fig.savefig(p, dpi=120)
-    plt.close(fig)
-    return p
+    return save(plt, fig, stem.parent / f"{stem.name}_{suffix}.png")
 
 
 def _loglog_with_fit(ax, x, y, xlabel, ylabel, title):
@@ -115,11 +127,7 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
             ax.set_xlabel("x (pull direction)")
             ax.set_ylabel("y")
         fig.suptitle(f"sample {s}, depth index {k}", fontsize=10)
-        fig.tight_layout()
-        p = stem.parent / f"{stem.name}_maps.png"
-        fig.savefig(p, dpi=120)
-        plt.close(fig)
-        written.append(p)
+        written.append(save(plt, fig, stem.parent / f"{stem.name}_maps.png"))
     if has_pull:
         try:
             dx, fx = run.field(s, k, "dx_lim"), run.field(s, k, "fx_lim")
@@ -165,11 +173,7 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
     ax.set_title(f"{title}: {where}", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    p = stem.parent / f"{stem.name}_pull.png"
-    fig.savefig(p, dpi=120)
-    plt.close(fig)
-    return p
+    return save(plt, fig, stem.parent / f"{stem.name}_pull.png")
 
 
 def plot_bursts(sample, fits, out: str | Path) -> Path:
@@ -200,15 +204,9 @@ def plot_bursts(sample, fits, out: str | Path) -> Path:
                 ax.loglog(xx, yy, "-", color=f"C{j}",
                           label=f"{bf.phase}: $\\alpha$ = {fit.alpha:.2f} ± {fit.sigma:.2f}")
         ref = {"size": "burst size (breaks)", "drop": "force drop"}[name]
-        ax.set_xlabel(ref)
-        ax.set_ylabel("probability density")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+        finish_axes(ax, ref, "probability density", fontsize=7)
     fig.suptitle(f"bursts of {sample.pulls} pulls (log bins; fits from x_min)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return Path(out)
+    return save(plt, fig, out)
 
 
 def plot_fits(paths: list[str], fits, x: str, y: str, out: str | Path) -> Path:
@@ -225,11 +223,5 @@ def plot_fits(paths: list[str], fits, x: str, y: str, out: str | Path) -> Path:
         xx = np.geomspace(*f.fit.x_range, 50)
         ax.loglog(xx, f.fit.prefactor * xx**f.fit.alpha, "-", color=f"C{i}",
                   label=f"{label}: {f.fit.alpha:.3f}")
-    ax.set_xlabel(x)
-    ax.set_ylabel(y)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return Path(out)
+    finish_axes(ax, x, y)
+    return save(plt, fig, out)

@@ -492,7 +492,7 @@ def format_stats(st: TopographyStats) -> str:
 
 def plot_stats(st: TopographyStats, h: np.ndarray, out: str | Path) -> Path:
     """Height map and PSD with the fitted power law ``C ~ q^(-2(1+H))``."""
-    from .plotting import pyplot
+    from .plotting import finish_axes, pyplot, save
 
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
@@ -513,11 +513,5 @@ def plot_stats(st: TopographyStats, h: np.ndarray, out: str | Path) -> Path:
             qq = q[sel]
             ax.loglog(qq, c0 * qq**slope, "-", color="C3",
                       label=f"fit: H = {st.hurst:.3f}")
-    ax.set_xlabel(f"wavenumber q (rad per {st.unit or 'length unit'})")
-    ax.set_ylabel("C(q)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return Path(out)
+    finish_axes(ax, f"wavenumber q (rad per {st.unit or 'length unit'})", "C(q)")
+    return save(plt, fig, out)

@@ -198,7 +198,7 @@ def to_json(rows: list[Row]) -> str:
 
 def plot(rows: list[Row], path: str) -> None:
     """Log-log error against run time, one panel per scene."""
-    from .plotting import pyplot
+    from .plotting import finish_axes, pyplot, save
 
     plt = pyplot()
     scenes = list(dict.fromkeys(r.scene for r in rows))
@@ -212,10 +212,5 @@ def plot(rows: list[Row], path: str) -> None:
                 x, y = np.array(pts).T
                 ax.loglog(x, y, "o-", ms=4, label=f"{q}, {m}")
         ax.set_title(sc)
-        ax.set_xlabel("run time [s]")
-        ax.set_ylabel("|relative error|")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+        finish_axes(ax, "run time [s]", "|relative error|", fontsize=6)
+    save(plt, fig, path)
