@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-dev
 PYTEST_ARGS ?=
 
-.PHONY: venv test demo bench lint clean
+.PHONY: venv test demo bench lint docs clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -20,11 +20,19 @@ $(STAMP): pyproject.toml | $(PY)
 
 venv: $(STAMP)
 
-# pytest exits with 5 when it collects no tests; that is reported, not counted as a failure.
+# The test suite, then the documentation (warnings are errors). pytest exits with 5 when it
+# collects no tests; that is reported, not counted as a failure.
 test: $(STAMP)
 	@$(PY) -m pytest $(PYTEST_ARGS); rc=$$?; \
-	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests"; exit 0; fi; \
-	exit $$rc
+	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests"; rc=0; fi; \
+	if [ $$rc -ne 0 ]; then exit $$rc; fi
+	@$(MAKE) --no-print-directory docs
+
+# The documentation site: docs/_build/html/index.html. Offline: math is typeset by a local
+# MathJax copy; nothing is loaded from the network.
+docs: $(STAMP)
+	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	@echo "docs: docs/_build/html/index.html"
 
 # The main job on a shipped config, then its summary.
 demo: $(STAMP)
@@ -41,4 +49,4 @@ bench: $(STAMP)
 	$(PY) scripts/bench_run.py
 
 clean:
-	rm -rf $(VENV) .pytest_cache build *.egg-info
+	rm -rf $(VENV) .pytest_cache build *.egg-info docs/_build docs/_generated

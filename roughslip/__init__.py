@@ -1,8 +1,8 @@
 """roughslip: static friction of rough elastic surfaces.
 
 A rigid rough surface is squeezed into an elastic half-space (:func:`squeeze`), then pulled
-sideways until its contact bonds break (:func:`pull`). See ``MODEL.md`` in the documentation
-for the model and ``roughslip --help`` for the command line.
+sideways until its contact bonds break (:func:`pull`). The documentation in ``docs/``
+(``make docs``) derives the model; ``roughslip --help`` lists the commands.
 """
 
 from ._version import __version__

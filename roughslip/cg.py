@@ -1,9 +1,9 @@
 r"""Conjugate gradients on a principal sub-block of an SPD convolution operator.
 
 For a mask :math:`K` (contact or stick set) the reduced system :math:`G_{KK} x_K = b_K` is SPD
-whenever :math:`G` is (Cauchy interlacing, GREEN §3), so plain CG converges; the iterations grow
-like :math:`\sqrt{\mathrm{cond}} \sim \sqrt N`. Fields live on the full grid with zeros off
-:math:`K`; one FFT convolution per iteration.
+whenever :math:`G` is (Cauchy interlacing, docs/theory/halfspace.rst#matrix-properties), so plain CG
+converges; the iterations grow like :math:`\sqrt{\mathrm{cond}} \sim \sqrt N`. Fields live on the
+full grid with zeros off :math:`K`; one FFT convolution per iteration.
 """
 
 from __future__ import annotations

@@ -43,6 +43,12 @@ def _f(default: Any = None, doc: str = "", check: Check | None = None, choices=N
     return field(default=default, metadata=meta, **kw)
 
 
+def _ruled(text: str, check: Check) -> Check:
+    """Attach the rule's wording (shown in the configuration reference) to a check."""
+    check.rule = text  # type: ignore[attr-defined]
+    return check
+
+
 def _positive(v):
     return None if v > 0 else "must be > 0"
 
@@ -52,7 +58,7 @@ def _nonnegative(v):
 
 
 def _at_least(n):
-    return lambda v: None if v >= n else f"must be >= {n}"
+    return _ruled(f">= {n}", lambda v: None if v >= n else f"must be >= {n}")
 
 
 def _nu_rule(v):
@@ -79,6 +85,11 @@ def _crop_rule(v):
         return "must satisfy 0 <= y0 < y1 and 0 <= x0 < x1"
     return None
 
+
+for _check, _text in ((_positive, "> 0"), (_nonnegative, ">= 0"), (_nu_rule, "-1 < nu <= 0.5"),
+                     (_hurst_rule, "0 < H < 1"), (_tol_rule, "0 < tol < 1"),
+                     (_pair, "two values"), (_crop_rule, "0 <= y0 < y1, 0 <= x0 < x1")):
+    _ruled(_text, _check)
 
 #: length units a run and a file can be in, in metres
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "nm": 1e-9, "pm": 1e-12}
@@ -114,8 +125,9 @@ class GridConfig:
 
     n: int | None = _f(None, "grid side for a square n x n grid", _at_least(1))
     shape: list[int] | None = _f(
-        None, "[ny, nx] for a rectangular grid", lambda v: _pair(v) or
-        (None if min(v) >= 1 else "both lengths must be >= 1"))
+        None, "[ny, nx] for a rectangular grid",
+        _ruled("two integers >= 1", lambda v: _pair(v) or
+               (None if min(v) >= 1 else "both lengths must be >= 1")))
     pixel_size: float = _f(1.0, "pixel side a (length)", _positive)
     boundary: str = _f("open", "open: finite patch on a half-space; periodic: repeating grid",
                        choices=("open", "periodic"))
@@ -145,7 +157,7 @@ class SurfaceConfig:
     """``[surface]`` / ``[elastic_surface]``: a topography.
 
     Heights protrude toward the other body: the rigid surface's toward the elastic body, the
-    elastic body's own roughness toward the rigid surface (MODEL §1).
+    elastic body's own roughness toward the rigid surface (docs/theory/squeeze.rst#squeeze-problem).
     """
 
     kind: str = _f(None, "shape", choices=SURFACE_KINDS)
@@ -187,12 +199,12 @@ class SurfaceConfig:
     detrend: str = _f("none", "remove the mean, a tilt (plane) or a curvature (quadric) fitted "
                       "to the heights, per tile", choices=("none", "mean", "tilt", "curvature"))
     crop: list[int] | None = _f(None, "[y0, y1, x0, x1]: keep rows y0..y1-1 and columns "
-                                "x0..x1-1 of the file's grid", lambda v: _crop_rule(v))
+                                "x0..x1-1 of the file's grid", _crop_rule)
     downsample: int = _f(1, "average blocks of k x k pixels (after cropping)", _at_least(1))
     tiles: list[int] | None = _f(None, "[ny, nx]: cut the (cropped) scan into ny x nx tiles, "
                                  "one sample each (sample i is tile i, row-major)",
-                                 lambda v: _pair(v) or (None if min(v) >= 1 else
-                                                        "both counts must be >= 1"))
+                                 _ruled("two integers >= 1", lambda v: _pair(v) or (
+                                     None if min(v) >= 1 else "both counts must be >= 1")))
 
     @property
     def is_random(self) -> bool:
@@ -207,7 +219,7 @@ class SurfaceConfig:
 
 @dataclass(frozen=True)
 class SqueezeConfig:
-    """``[squeeze]``: the vertical squeeze (MODEL §2)."""
+    """``[squeeze]``: the vertical squeeze (docs/theory/squeeze.rst#squeeze-problem)."""
 
     depths: list[float] | None = _f(
         None, "penetration depths D_z measured from first touch, or a table "
@@ -227,7 +239,7 @@ class SqueezeConfig:
 
 @dataclass(frozen=True)
 class PullConfig:
-    """``[pull]``: horizontal pull and slip (MODEL §3)."""
+    """``[pull]``: horizontal pull and slip (docs/theory/pull.rst#break-law)."""
 
     enabled: bool = _f(False, "run the pull stage")
     lam: float = _f(0.2, "local friction coefficient lambda", _positive)
@@ -249,7 +261,7 @@ class PullConfig:
 
 @dataclass(frozen=True)
 class CouplingConfig:
-    """``[coupling]``: the coupled normal-tangential model (MODEL §4)."""
+    """``[coupling]``: the coupled normal-tangential model (docs/theory/coupled.rst#coupled)."""
 
     enabled: bool = _f(False, "solve squeeze and pull with the full (z, x) block operator")
 
@@ -268,10 +280,11 @@ class OutputConfig:
     """``[output]``: what is stored per sample and depth."""
 
     fields: list[str] = _f(["contact", "fz"], f"per-depth fields to store, from {FIELD_NAMES}",
-                           lambda v: _fields_rule(v))
+                           _ruled("names from the list, each once",
+                                  lambda v: _fields_rule(v)))
     compression: str = _f("gzip", "HDF5 compression of fields", choices=("gzip", "lzf", "none"))
-    compression_level: int = _f(4, "gzip level", lambda v: None if 0 <= v <= 9 else
-                                "must be in 0..9")
+    compression_level: int = _f(4, "gzip level", _ruled("0..9", lambda v: None if 0 <= v <= 9
+                                                         else "must be in 0..9"))
 
 
 @dataclass(frozen=True)

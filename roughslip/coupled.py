@@ -1,4 +1,4 @@
-r"""The coupled normal–tangential model with exact event tracking (MODEL §4, GREEN §6).
+r"""The coupled normal–tangential model with exact event tracking (docs/theory/coupled.rst#coupled).
 
 For a contact set :math:`C` (:math:`u_z = \bar u_z` imposed, :math:`f_z` unknown) and a stick
 set :math:`S \subseteq C` (:math:`u_x = D_x` imposed, :math:`f_x` unknown; other sites carry
@@ -11,21 +11,22 @@ set :math:`S \subseteq C` (:math:`u_x = D_x` imposed, :math:`f_x` unknown; other
     = \begin{bmatrix} \bar u_z(C) \\ 0 \end{bmatrix}
     + D_x \begin{bmatrix} 0 \\ 1(S) \end{bmatrix},
 
-an SPD principal block of the full operator (GREEN §3). Between events every force, displacement
-and gap is exactly affine in :math:`D_x`: :math:`f = f^0 + D_x f^1`, :math:`g = g^0 + D_x g^1`.
-The next event is the smallest root beyond the current :math:`D_x` of: a bond reaching
-:math:`f_x = \pm\lambda f_z` (stick to slip, either direction), a contact force reaching zero
-(contact lost), a gap closing (contact gained; the new contact is not bonded). After an event the
-state is re-solved at the same :math:`D_x` and any violations are resolved one at a time
-(contact lost, then penetration, then the most overloaded bond; ties to the lowest flat
-index) before the pull continues: an avalanche.
+an SPD principal block of the full operator (docs/theory/halfspace.rst#matrix-properties). Between
+events every force, displacement and gap is exactly affine in :math:`D_x`: :math:`f = f^0 + D_x
+f^1`, :math:`g = g^0 + D_x g^1`. The next event is the smallest root beyond the current :math:`D_x`
+of: a bond reaching :math:`f_x = \pm\lambda f_z` (stick to slip, either direction), a contact force
+reaching zero (contact lost), a gap closing (contact gained; the new contact is not bonded). After
+an event the state is re-solved at the same :math:`D_x` and any violations are resolved one at a
+time (contact lost, then penetration, then the most overloaded bond; ties to the lowest flat index)
+before the pull continues: an avalanche.
 
-The squeeze at :math:`D_x = 0` keeps every contact bonded (:math:`u_x = 0`), as the report
-proposes; under coupling this already needs tangential forces, and bonds that violate
-:math:`|f_x| \le \lambda f_z` there are released, most violated first, before pulling (the
-report misses this, T25). The friction force is the largest :math:`F_x` on the path, reported
-with :math:`F_z` at the same :math:`D_x` (T26). At :math:`\nu = 1/2`, :math:`G_{zx} = 0` and
-the model reduces exactly to the decoupled one.
+The squeeze at :math:`D_x = 0` keeps every contact bonded (:math:`u_x = 0`), as the report proposes;
+under coupling this already needs tangential forces, and bonds that violate :math:`|f_x| \le \lambda
+f_z` there are released, most violated first, before pulling (the report misses this, erratum T25
+(docs/theory/errata.rst#erratum-t25)). The friction force is the largest :math:`F_x` on the path,
+reported with :math:`F_z` at the same :math:`D_x` (erratum T26
+(docs/theory/errata.rst#erratum-t26)). At :math:`\nu = 1/2`, :math:`G_{zx} = 0` and the model
+reduces exactly to the decoupled one.
 
 Solvers: ``"dense"`` assembles the reduced block from the closed-form kernels and factorises it
 (for up to a few thousand contact sites); ``"cg"`` runs conjugate gradients on the masked FFT
@@ -371,7 +372,8 @@ class _State:
         (kind, flat index) that ends it at ``hi``.
 
         Every constraint is affine, :math:`a + bD \ge 0`: :math:`f_z \ge 0` on C,
-        :math:`g \ge 0` off C, :math:`\lambda f_z \mp f_x \ge 0` on S (GREEN §6 table).
+        :math:`g \ge 0` off C, :math:`\lambda f_z \mp f_x \ge 0` on S
+        (docs/theory/coupled.rst#coupled).
         Ties at ``hi`` go to the lowest flat index, then to the kinds in that order.
         """
         (fz0, fx0), (fz1, fx1) = self.f0, self.f1

@@ -1,4 +1,4 @@
-r"""Power-law fits :math:`y = c\,x^\alpha` over ensemble means (MODEL §6).
+r"""Power-law fits :math:`y = c\,x^\alpha` over ensemble means (docs/guide/quickstart.rst).
 
 The means over samples at each depth are fitted in log-log by least squares. Two
 uncertainties are reported: the regression standard error of :math:`\alpha` (scatter of the

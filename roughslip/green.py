@@ -1,21 +1,21 @@
 r"""Discrete Green functions of the elastic half-space for square pixels.
 
-Conventions (GREEN §0): the body fills :math:`z \ge 0`, forces act on the body, :math:`u_z > 0`
-is indentation. Offsets are *target minus source* in pixels, ``l`` along x and ``m`` along y.
-A component name ``"ab"`` is the displacement :math:`u_a` caused by a unit pixel force
-:math:`f_b`; e.g. ``"zx"`` is the vertical displacement caused by a tangential x force.
+Conventions (docs/theory/halfspace.rst#conventions): the body fills :math:`z \ge 0`, forces act on
+the body, :math:`u_z > 0` is indentation. Offsets are *target minus source* in pixels, ``l`` along x
+and ``m`` along y. A component name ``"ab"`` is the displacement :math:`u_a` caused by a unit pixel
+force :math:`f_b`; e.g. ``"zx"`` is the vertical displacement caused by a tangential x force.
 
-Real-space pixel kernels (GREEN §2)
+Real-space pixel kernels (docs/theory/halfspace.rst#pixel-kernels)
     .. math::
 
         G_{ab}(l, m) = \frac{1}{a^2}\iint_{|x-la|<a/2,\;|y-ma|<a/2} G_{ab}(x, y)\,dx\,dy,
 
     the displacement at the centre of the target pixel caused by a unit force spread uniformly
-    over the source pixel (Love's solution; the report's §3.3 closed forms). They are evaluated
-    in the numerically stable corner sums of GREEN §2.2, accurate to a few 1e-13 relative at
-    offsets of thousands of pixels.
+    over the source pixel (Love's solution; [Report2003] §3.3 closed forms). They are evaluated
+    in the numerically stable corner sums of docs/theory/halfspace.rst#stable-forms, accurate to a
+    few 1e-13 relative at offsets of thousands of pixels.
 
-Periodic symbols (GREEN §4.2)
+Periodic symbols (docs/theory/boundaries.rst#periodic-boundary)
     ``kind="continuous"`` (P1) samples the continuous symbol, :math:`\hat K_k=\hat G(q_k)/a^2`.
     ``kind="pixel"`` (P2) is the exact periodisation of the pixel kernel,
     :math:`\hat K_k = \sum_n G_{\rm pix}(n)\,e^{-i q_k\cdot n a}`, evaluated by Ewald
@@ -68,7 +68,8 @@ def _check_component(component: str) -> None:
 
 
 def _coefficients(component: str, E: float, nu: float) -> dict[str, float]:
-    r"""Coefficients of the base integrands in a component (GREEN §1, continuous kernels).
+    r"""Coefficients of the base integrands in a component
+    (docs/theory/halfspace.rst#point-solutions, continuous kernels).
 
     Base integrands: ``"1"`` :math:`1/r`, ``"xx"`` :math:`x^2/r^3`, ``"yy"`` :math:`y^2/r^3`,
     ``"xy"`` :math:`xy/r^3`, ``"x"`` :math:`x/r^2`, ``"y"`` :math:`y/r^2`.
@@ -90,7 +91,7 @@ def _coefficients(component: str, E: float, nu: float) -> dict[str, float]:
 
 
 # --------------------------------------------------------------------------------------------
-# Stable corner sums (GREEN §2.2)
+# Stable corner sums (docs/theory/halfspace.rst#stable-forms)
 # --------------------------------------------------------------------------------------------
 
 
@@ -130,7 +131,7 @@ def _int_inv_r_parts(X: np.ndarray, Y: np.ndarray, a: float) -> tuple[np.ndarray
 
 
 def _int_xy_r3(X: np.ndarray, Y: np.ndarray, a: float) -> np.ndarray:
-    r""":math:`\iint xy/r^3 = -[r]`, in the stable form of GREEN §2.2:
+    r""":math:`\iint xy/r^3 = -[r]`, in the stable form of docs/theory/halfspace.rst#stable-forms:
 
     :math:`4a^2XY[1/(r_{21}+r_{22})+1/(r_{11}+r_{12})]/((r_{22}+r_{12})(r_{21}+r_{11}))`.
     """
@@ -151,7 +152,7 @@ def _int_xy_r3(X: np.ndarray, Y: np.ndarray, a: float) -> np.ndarray:
 
 
 def _int_x_r2(X: np.ndarray, Y: np.ndarray, a: float) -> np.ndarray:
-    r""":math:`\iint x/r^2` in the stable form of GREEN §2.2."""
+    r""":math:`\iint x/r^2` in the stable form of docs/theory/halfspace.rst#stable-forms."""
     x1, x2, y1, y2 = _corners(X, Y, a)
     r12s = x1 * x1 + y2 * y2
     r11s = x1 * x1 + y1 * y1
@@ -193,7 +194,8 @@ def pixel_kernel(
     E: float = 1.0,
     nu: float = 0.3,
 ) -> np.ndarray:
-    r"""Pixel Green function :math:`G_{ab}(l, m)` at integer offsets (GREEN §2.2).
+    r"""Pixel Green function :math:`G_{ab}(l, m)` at integer offsets
+    (docs/theory/halfspace.rst#pixel-kernels).
 
     Parameters
     ----------
@@ -255,7 +257,8 @@ def kernel_table(component: str, nx: int, ny: int, *, a: float = 1.0, E: float =
 
 def open_kernel_padded(component: str, nx: int, ny: int, mx: int, my: int, *, a: float = 1.0,
                        E: float = 1.0, nu: float = 0.3) -> np.ndarray:
-    """Kernel in wrap-around order on an ``my x mx`` array for linear convolution (GREEN §4.1).
+    """Kernel in wrap-around order on an ``my x mx`` array for linear convolution
+    (docs/theory/boundaries.rst#open-boundary).
 
     ``K[m mod my, l mod mx] = G(l, m)`` for ``|l| <= nx-1``, ``|m| <= ny-1`` and zero elsewhere;
     requires ``mx >= 2 nx - 1`` and ``my >= 2 ny - 1``. Odd kernels keep their true signs at
@@ -277,13 +280,15 @@ def open_kernel_padded(component: str, nx: int, ny: int, mx: int, my: int, *, a:
 
 
 # --------------------------------------------------------------------------------------------
-# Continuous point-force kernels (GREEN §1), used for quadrature checks and the Ewald split
+# Continuous point-force kernels (docs/theory/halfspace.rst#point-solutions), used for quadrature
+# checks and the Ewald split
 # --------------------------------------------------------------------------------------------
 
 
 def point_kernel(component: str, x: np.ndarray, y: np.ndarray, *, E: float = 1.0,
                  nu: float = 0.3) -> np.ndarray:
-    r"""Continuous Green function :math:`G_{ab}(x, y)` of a point force (GREEN §1 table)."""
+    r"""Continuous Green function :math:`G_{ab}(x, y)` of a point force
+    (docs/theory/halfspace.rst#point-solutions)."""
     _check_component(component)
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -305,7 +310,8 @@ def point_kernel(component: str, x: np.ndarray, y: np.ndarray, *, E: float = 1.0
 
 def continuous_symbol(component: str, qx: np.ndarray, qy: np.ndarray, *, E: float = 1.0,
                       nu: float = 0.3) -> np.ndarray:
-    r"""Fourier symbol :math:`\hat G(q)=\int G(x)e^{-iq\cdot x}d^2x` (GREEN §4.2), q ≠ 0.
+    r"""Fourier symbol :math:`\hat G(q)=\int G(x)e^{-iq\cdot x}d^2x`
+    (docs/theory/boundaries.rst#periodic-boundary), q ≠ 0.
 
     :math:`\hat G_{zz}=2/(E^*q)`, :math:`\hat G_{xx}=(1-\nu q_x^2/q^2)/(\mu q)`,
     :math:`\hat G_{xy}=-\nu q_xq_y/(\mu q^3)`, :math:`\hat G_{zx}=-i(1-2\nu)q_x/(2\mu q^2)`.
@@ -437,7 +443,8 @@ def periodic_symbol(
         ``"pixel"`` (P2): the exact lattice sum
         :math:`\hat K_k=\sum_n G_{\rm pix}(n)e^{-iq_k\cdot na}
         =a^{-2}\sum_m \hat G(q_k+2\pi m/a)\,S(q_k+2\pi m/a)`,
-        :math:`S(q)=\mathrm{sinc}(q_xa/2)\,\mathrm{sinc}(q_ya/2)` (GREEN §4.2), evaluated by an
+        :math:`S(q)=\mathrm{sinc}(q_xa/2)\,\mathrm{sinc}(q_ya/2)`
+        (docs/theory/boundaries.rst#periodic-boundary), evaluated by an
         Ewald split: the short-range part as a direct lattice sum of exact pixel integrals, the
         long-range part as a rapidly convergent image sum. Accurate to ~1e-15 relative.
     alpha, images, window :
@@ -448,7 +455,8 @@ def periodic_symbol(
     -------
     numpy.ndarray
         Shape ``(ny, nx//2 + 1)``; real for even components and ``xy``, complex for the odd
-        ``zx, xz, zy, yz``. The zero mode is 0 (mean displacement set by the solver, GREEN §4.2);
+        ``zx, xz, zy, yz``. The zero mode is 0 (mean displacement set by the solver,
+        docs/theory/boundaries.rst#periodic-boundary);
         odd kernels are zero at the Nyquist frequency of their odd axis.
     """
     _check_component(component)

@@ -1,4 +1,5 @@
-r"""Vertical squeeze: frictionless normal contact of a rigid rough surface (MODEL §2).
+r"""Vertical squeeze: frictionless normal contact of a rigid rough surface
+(docs/theory/squeeze.rst#squeeze-problem).
 
 The rigid surface with heights :math:`h` (positive toward the elastic body) is pushed down by
 :math:`D_z`, measured from first touch of its highest point. The imposed overlap is
@@ -16,7 +17,7 @@ Methods
     Polonsky & Keer (1999), *Wear* 231:206: conjugate gradients that add and remove contact
     sites inside one run, on the FFT operator.
 ``"active-set"``
-    The report's loop (§4.5.3): start from the geometric overlap, solve
+    The report's loop ([Report2003] §4.5.3): start from the geometric overlap, solve
     :math:`G_{KK} f_K = \bar u_K` by CG, drop the sites with :math:`f < 0`, repeat. Kept as a
     reference. It can only remove sites, so it checks for penetration off contact at the end.
 
@@ -30,10 +31,10 @@ Residual (dimensionless, reported as ``residual``)
     under load control :math:`\sum f = F_n` holds to round-off (reported as ``force_error``).
 
 Periodic grids
-    The symbol has :math:`\hat K(0)=0` (GREEN §4.2): a uniform pressure produces no
-    displacement, and :math:`D_z` is measured against the mean plane of the deformed elastic
-    surface. Then :math:`F_n \to \infty` as :math:`D_z \to \max h - \bar h`, and displacement
-    control needs :math:`D_z < \max h - \bar h`; load control has no such limit.
+    The symbol has :math:`\hat K(0)=0` (docs/theory/boundaries.rst#periodic-boundary): a uniform
+    pressure produces no displacement, and :math:`D_z` is measured against the mean plane of the
+    deformed elastic surface. Then :math:`F_n \to \infty` as :math:`D_z \to \max h - \bar h`, and
+    displacement control needs :math:`D_z < \max h - \bar h`; load control has no such limit.
 """
 
 from __future__ import annotations
@@ -413,7 +414,7 @@ class NormalSolver:
 
     # ------------------------------------------------------------------------------ active set
     def _active_set(self, depth: float, x0: np.ndarray | None, budget: int | None = None):
-        """The report's removal-only loop (§4.5.3) at a fixed depth."""
+        """The report's removal-only loop ([Report2003] §4.5.3) at a fixed depth."""
         ubar = self._base + depth
         K = ubar > 0  # the geometric overlap: a superset of the contact set
         f = None if x0 is None else np.where(K, x0, 0.0)
@@ -500,7 +501,8 @@ def squeeze(
     threads: int = 1,
     strict: bool = False,
 ) -> NormalResult:
-    r"""Squeeze a rigid surface into an elastic half-space (MODEL §2).
+    r"""Squeeze a rigid surface into an elastic half-space
+    (docs/theory/squeeze.rst#squeeze-problem).
 
     Parameters
     ----------

@@ -1,15 +1,17 @@
 r"""Convolution operators :math:`u_a = \sum_b G_{ab} * f_b` on a pixel grid.
 
-Two boundaries (MODEL §1):
+Two boundaries (docs/theory/boundaries.rst#boundaries):
 
 ``"open"``
     A finite ``ny x nx`` patch on an infinite half-space. Linear convolution by zero padding to
-    fast FFT lengths ``>= 2N - 1`` per axis (DC-FFT, GREEN §4.1); exact to round-off.
+    fast FFT lengths ``>= 2N - 1`` per axis (DC-FFT, docs/theory/boundaries.rst#open-boundary);
+    exact to round-off.
 ``"periodic"``
     The grid repeats. Circular convolution with the symbol of
     :func:`roughslip.green.periodic_symbol`, either ``"pixel"`` (exact periodic images of the
     pixel kernel) or ``"continuous"``.
-    The zero mode is zero: the mean displacement is not produced by the operator (GREEN §4.2).
+    The zero mode is zero: the mean displacement is not produced by the operator
+    (docs/theory/boundaries.rst#periodic-boundary).
 
 An operator computes the spectra of the components it is asked for, once, at construction;
 nothing else. Applying it allocates nothing when an ``out`` array is given (pyfftw backend).
@@ -152,7 +154,7 @@ class ElasticOperator:
     Notes
     -----
     ``apply("zz", f)`` returns :math:`u_z(i) = \sum_j G_{zz}(i-j) f_z(j)`, exact linear (open)
-    or circular (periodic) convolution; see GREEN §4.
+    or circular (periodic) convolution; see docs/theory/boundaries.rst#boundaries.
     """
 
     def __init__(
@@ -225,7 +227,8 @@ class ElasticOperator:
             buf[...] = K
             spec = self._kernel_fft.spectrum_buffer()
             self._kernel_fft.forward(buf, spec)
-            # Even (odd) padded kernels have purely real (imaginary) spectra (GREEN §4.1);
+            # Even (odd) padded kernels have purely real (imaginary) spectra
+            # (docs/theory/boundaries.rst#open-boundary);
             # drop the round-off in the other part. Stored complex: numpy multiplies
             # complex by complex ~2.7x faster than complex by real (no casting loop).
             if c == "xy" or not odd:
@@ -333,7 +336,8 @@ class ElasticOperator:
         out_x: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         r"""The coupled (z, x) block: :math:`u_z = G_{zz}f_z + G_{zx}f_x`,
-        :math:`u_x = G_{xz}f_z + G_{xx}f_x` (report eq. 3.5 corrected, T14).
+        :math:`u_x = G_{xz}f_z + G_{xx}f_x` ([Report2003] eq. 3.5, corrected: erratum T14
+        (docs/theory/errata.rst#erratum-t14)).
 
         Two forward and two backward FFTs.
         """

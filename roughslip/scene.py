@@ -36,8 +36,9 @@ class SampleSurfaces:
 
     rigid: np.ndarray  # NaN at voids
     elastic: np.ndarray | None
-    composite: np.ndarray  # rigid + elastic: what the contact problem sees (MODEL §1), voids
-    # filled with a depth no contact reaches
+    # rigid + elastic: what the contact problem sees (docs/theory/squeeze.rst#squeeze-problem),
+    # voids filled with a depth no contact reaches
+    composite: np.ndarray
     valid: np.ndarray | None = None  # False at voids; None: no voids
 
 

@@ -1,4 +1,5 @@
-r"""Horizontal pull and slip of a squeezed contact, decoupled model (MODEL §3, report §4.6–4.7).
+r"""Horizontal pull and slip of a squeezed contact, decoupled model (docs/theory/pull.rst#break-law;
+[Report2003] §4.6-4.7).
 
 After the squeeze every contact site (``f_z > 0``) is a bond. The rigid surface is pulled by
 :math:`D_x`: bonded (stick) sites have :math:`u_x = D_x`, other sites carry no tangential force,
@@ -6,7 +7,9 @@ so on the stick set :math:`S`
 
 .. math:: G_{xx}[S,S]\,\varphi = 1_S, \qquad f_x = D_x\,\varphi, \qquad F_x = D_x \sum_S \varphi.
 
-Break law (the report's model, with GREEN §8 corrections T17, T18)
+Break law
+    The report's model, corrected by erratum T17 (docs/theory/errata.rst#erratum-t17) and
+    erratum T18 (docs/theory/errata.rst#erratum-t18).
     The bond with the largest :math:`|f_x|/(\lambda f_z)` breaks next; it breaks at
     :math:`D_{x,\rm lim} = 1/\max_i |\varphi_i|/(\lambda f_{z,i})` and pull force
     :math:`F_{x,\rm lim} = D_{x,\rm lim} \sum_S\varphi`; its force drops to zero and the stick set
@@ -18,7 +21,8 @@ Break law (the report's model, with GREEN §8 corrections T17, T18)
 Coulomb law
     A slipping site carries :math:`f_x = \pm\lambda f_z` instead of 0. Between events all forces
     are affine in :math:`D_x`; the next stick site to reach its bound slips (see
-    :func:`pull`). For a Hertz contact this is Cattaneo–Mindlin (GREEN §5d).
+    :func:`pull`). For a Hertz contact this is Cattaneo–Mindlin
+    (docs/methods.rst#cattaneo-mindlin).
 
 Methods (all exact except ``"batch"``)
     ``"literal"``: the report's algorithm done literally, one CG solve from zero per break, all
@@ -695,7 +699,7 @@ def pull(
     operator: ElasticOperator | None = None,
     estimate_error: bool = False,
 ) -> SlipResult:
-    r"""Pull a squeezed contact sideways until it slides (MODEL §3).
+    r"""Pull a squeezed contact sideways until it slides (docs/theory/pull.rst#break-law).
 
     Parameters
     ----------

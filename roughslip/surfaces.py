@@ -1,9 +1,9 @@
 r"""Topographies: self-affine random surfaces, analytic shapes, measured files, statistics.
 
 Heights are 2-D arrays indexed ``[iy, ix]``; pixel centres sit at ``x = ix a``, ``y = iy a``.
-Positive heights protrude toward the other body (MODEL §1).
+Positive heights protrude toward the other body (docs/theory/squeeze.rst#squeeze-problem).
 
-Self-affine surfaces (report §4.3, MODEL §5)
+Self-affine surfaces ([Report2003] §4.3)
     White noise is Fourier filtered by :math:`|k|^{-(H+1)}` (signed frequencies, :math:`k=0`
     term zero), so that the isotropic power spectrum is :math:`C(q)\propto q^{-2(1+H)}`. Below an
     optional roll-off wavenumber the filter is flat; above an optional cut-off it is zero. The
@@ -60,7 +60,7 @@ def self_affine(
     cutoff_wavelength: float | None = None,
     oversample: int = 1,
 ) -> np.ndarray:
-    r"""Random self-affine surface by Fourier filtering (report §4.3).
+    r"""Random self-affine surface by Fourier filtering ([Report2003] §4.3).
 
     Parameters
     ----------

@@ -1,6 +1,7 @@
 r"""Exact solutions, and the error-against-run-time study (``roughslip verify``).
 
-Each scene compares a computed quantity with a closed form (GREEN §5) at several resolutions,
+Each scene compares a computed quantity with a closed form (docs/methods.rst#exact-solutions) at
+several resolutions,
 solver tolerances and methods, and records the error and the run time:
 
 ``hertz``
@@ -60,8 +61,8 @@ def hertz_scene(a_over_h: int, R: float = 1.0, d: float = 1 / 16
 
     Returns ``(heights, h, depth, a_c)``: the depth from first touch that gives the Hertz
     approach ``d`` of the apex (the apex sits on a pixel corner, ``-max(heights)`` above the
-    highest pixel centre, so the depth is ``d + max(heights)``; GREEN §5a), and the Hertz
-    contact radius :math:`a_c = \sqrt{R d}`.
+    highest pixel centre, so the depth is ``d + max(heights)``; docs/methods.rst#hertz), and the
+    Hertz contact radius :math:`a_c = \sqrt{R d}`.
     """
     ac = math.sqrt(R * d)
     h = ac / a_over_h

@@ -2,12 +2,12 @@
 
     python scripts/coupling_effect.py [--n 64] [--samples 10] [--out runs/coupling]
 
-The report's own open question (§6.1). For nu = 0, 0.25 and 0.45 it runs the decoupled model
-(the report's) and the coupled model with exact event tracking on rough surfaces (H = 0.8,
-``--samples`` samples, 8 depths 0.3-2 rms) and on the Hertz sphere (configs/hertz.toml), and
-prints the friction exponent alpha of F_friction ~ F_n^alpha for both, the mean ratio of the
-friction forces, and the fraction of bonds released already at D_x = 0 under coupling.
-Prints Markdown (docs/results.md holds the output of a run).
+The report's own open question ([Report2003] §6.1). For nu = 0, 0.25 and 0.45 it runs the decoupled
+model (the report's) and the coupled model with exact event tracking on rough surfaces (H = 0.8,
+``--samples`` samples, 8 depths 0.3-2 rms) and on the Hertz sphere (configs/hertz.toml), and prints
+the friction exponent alpha of F_friction ~ F_n^alpha for both, the mean ratio of the friction
+forces, and the fraction of bonds released already at D_x = 0 under coupling. Prints Markdown
+(docs/results.md holds the output of a run).
 """
 
 from __future__ import annotations

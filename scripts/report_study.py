@@ -1,4 +1,4 @@
-"""The report's study (§5.1-5.4), reproduced at its sizes and extended to larger ones.
+"""The report's study ([Report2003] §5.1-5.4), reproduced at its sizes and extended to larger ones.
 
     python scripts/report_study.py [--out runs/study] [--workers 2] [--quick]
 

@@ -32,5 +32,5 @@ def _restore_memory_cap():
 
 @pytest.fixture(scope="session")
 def green_values() -> dict:
-    """The verified kernel test vectors (GREEN §2.3)."""
+    """The verified kernel test vectors (docs/theory/halfspace.rst#kernel-verification)."""
     return json.loads((DATA / "green_values.json").read_text())

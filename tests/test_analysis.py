@@ -138,7 +138,7 @@ def test_verify_quick_is_within_tolerances(quick_rows):
     by = {}
     for r in rows:
         by.setdefault((r.scene, r.quantity), []).append(r)
-    # GREEN §7 tolerances
+    # tolerances from docs/methods.rst#exact-solutions
     for r in by["hertz", "normal force"]:
         assert abs(r.error) < 2e-3, r
     for r in by["hertz", "contact radius"]:

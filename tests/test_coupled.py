@@ -79,8 +79,9 @@ def test_every_recorded_state_is_admissible(nu):
 
 
 def test_coupling_is_felt_at_zero_pull():
-    """GREEN §6: under coupling the bonded squeeze already needs tangential forces; bonds are
-    released at D_x = 0 and F_x(0) != 0 for a non-symmetric surface."""
+    """Under coupling the bonded squeeze already needs tangential forces; bonds are
+    released at D_x = 0 and F_x(0) != 0 for a non-symmetric surface
+    (docs/theory/coupled.rst#coupled)."""
     h = rough(14, seed=9)
     res = squeeze_pull_coupled(h, depth=1.3, lam=0.2, nu=0.0)
     assert res.released > 0

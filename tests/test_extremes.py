@@ -48,7 +48,7 @@ def test_normal_force_scales_with_the_contact_modulus(rough, nu):
 
 @pytest.mark.parametrize("nu", [0.5, 0.4999, 0.0, -0.5, -0.99])
 def test_tangential_punch_stiffness_at_extreme_nu(nu):
-    """Bonded punch: K = 8 G a / (2 - nu) (GREEN §5e) within the staircase error."""
+    """Bonded punch: K = 8 G a / (2 - nu) (docs/methods.rst#mindlin) within the staircase error."""
     ah = 12
     h = 1.0 / ah
     normal = squeeze(punch((2 * ah + 2, 2 * ah + 2), radius=1.0, a=h), depth=1e-3, a=h, nu=nu)

@@ -41,7 +41,8 @@ def test_self_terms_closed_form(green_values):
      ("zz", 2, 1), ("xx", -1, 2), ("zx", -2, 1), ("xy", 2, -1), ("yy", 0, 3), ("zy", 1, -3)],
 )
 def test_matches_quadrature_of_point_force(comp, l, m):
-    """The pixel kernel is the pixel average of the point-force solution (GREEN §2.1)."""
+    """The pixel kernel is the pixel average of the point-force solution
+    (docs/theory/halfspace.rst#pixel-kernels)."""
     a, E, nu = 0.5, 3.0, 0.27
 
     def f(y, x):
@@ -59,12 +60,14 @@ def test_scaling_with_a_and_E():
 
 
 def test_layout_odd_kernel_changes_sign_along_axis_1():
-    """zx is odd in l (x offset), which runs along axis 1 of a table (GREEN §0)."""
+    """zx is odd in l (x offset), which runs along axis 1 of a table
+    (docs/theory/halfspace.rst#conventions)."""
     t = green.kernel_table("zx", 4, 3, nu=0.3)  # shape (2*3-1, 2*4-1), centre (2, 3)
     assert t.shape == (5, 7)
     assert t[2, 4] > 0 and t[2, 2] == -t[2, 4]  # l = +1 / -1 at m = 0
     assert t[3, 4] == t[1, 4]  # even in m
-    assert t[2, 4] == pytest.approx(0.08148377806714294, rel=1e-14)  # GREEN §2.3 G_zx(1, 0)
+    # G_zx(1, 0), docs/theory/halfspace.rst#kernel-verification
+    assert t[2, 4] == pytest.approx(0.08148377806714294, rel=1e-14)
 
 
 def test_table_matches_direct_evaluation():
@@ -128,7 +131,8 @@ def _brute_periodic(comp, f, images, nu=0.3):
 
 @pytest.mark.parametrize("comp", ["zz", "xx", "xy", "zx"])
 def test_periodic_pixel_symbol_equals_image_sum(comp):
-    """P2 equals the lattice sum of the pixel kernel (GREEN §4.2 check, zero-moment pattern)."""
+    """P2 equals the lattice sum of the pixel kernel (docs/theory/boundaries.rst#periodic-boundary,
+    zero-moment pattern)."""
     n = 12
     f = np.zeros((n, n))
     st = np.array([1, -4, 6, -4, 1.0])
@@ -148,7 +152,8 @@ def test_periodic_pixel_symbol_independent_of_ewald_parameter(comp):
 
 
 def test_pixel_over_continuous_ratios():
-    """GREEN §4.2: K_P2/K_P1 for zz at k = 1, 2, 4, 8 along the axis and the diagonal (N = 16)."""
+    """docs/theory/boundaries.rst#periodic-boundary: K_P2/K_P1 for zz at k = 1, 2, 4, 8 along the
+    axis and the diagonal (N = 16)."""
     p2 = green.periodic_symbol("zz", (16, 16), kind="pixel")
     p1 = green.periodic_symbol("zz", (16, 16), kind="continuous")
     axis = [p2[0, k] / p1[0, k] for k in (1, 2, 4, 8)]

@@ -1,4 +1,4 @@
-"""The squeeze against closed-form solutions (GREEN §5, §7) and invariances."""
+"""The squeeze against closed-form solutions (docs/methods.rst#exact-solutions) and invariances."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ E_STAR = E / (1 - NU**2)
 
 
 def hertz_run(a_over_h: int, corner: bool, method: str = "pk"):
-    """Hertz sphere R = 1 at true approach d = 1/16 (GREEN §5a)."""
+    """Hertz sphere R = 1 at true approach d = 1/16 (docs/methods.rst#hertz)."""
     R, d = 1.0, 1 / 16
     ac = math.sqrt(R * d)
     h = ac / a_over_h
@@ -45,14 +45,15 @@ def test_hertz_force_and_pressure_converge_at_second_order(corner):
         a_eq = math.sqrt(r.n_contact * h * h / math.pi)
         assert abs(a_eq - ac) < h, f"Hertz contact radius {a_eq:.4f} vs {ac:.4f}"
         errs.append((ferr, perr))
-    # second order: halving h divides the errors by ~4 (GREEN §5a: 4.7, 4.1 and 3.3, 4.1)
+    # second order: halving h divides the errors by ~4 (docs/methods.rst#hertz: 4.7, 4.1 and 3.3,
+    # 4.1)
     assert 2.5 < errs[0][0] / errs[1][0] < 6.0
     if corner:
         assert 3.0 < errs[0][1] / errs[1][1] < 5.5
 
 
 def test_hertz_reference_numbers_of_green():
-    """GREEN §5a, apex at a pixel corner: +1.6e-3 (a/h = 8) and +3.4e-4 (a/h = 16)."""
+    """docs/methods.rst#hertz, apex at a pixel corner: +1.6e-3 (a/h = 8) and +3.4e-4 (a/h = 16)."""
     r8, F, *_ = hertz_run(8, True)
     r16, *_ = hertz_run(16, True)
     assert (r8.normal_force - F) / F == pytest.approx(1.6e-3, rel=0.05)
@@ -62,7 +63,8 @@ def test_hertz_reference_numbers_of_green():
 @pytest.mark.parametrize("method", ["pk", "active-set"])
 @pytest.mark.parametrize("a_over_h", [8, 16])
 def test_flat_punch_stiffness(method, a_over_h):
-    """Boussinesq punch: F = 2 a E* d, error ~ -0.12 h/a against a_eq (GREEN §5b)."""
+    """Boussinesq punch: F = 2 a E* d, error ~ -0.12 h/a against a_eq
+    (docs/methods.rst#flat-punch)."""
     radius, d = 1.0, 1e-3
     h = radius / a_over_h
     n = 2 * a_over_h + 2
@@ -79,7 +81,7 @@ def test_flat_punch_stiffness(method, a_over_h):
 @pytest.mark.parametrize("kind", ["pixel", "continuous"])
 @pytest.mark.parametrize("ratio", [0.2, 0.6])
 def test_westergaard_wavy_surface_periodic(kind, ratio):
-    """Periodic 1-D wavy surface under load control (GREEN §5c)."""
+    """Periodic 1-D wavy surface under load control (docs/methods.rst#westergaard)."""
     n, lam, amp = 64, 1.0, 0.01
     a = lam / n
     heights = sinusoid((4, n), amplitude=amp, wavelength=lam, a=a)

@@ -190,7 +190,8 @@ def test_no_contact_gives_zero():
 
 
 def test_bonded_punch_follows_mindlin_before_the_first_break():
-    """Q = 8 G a delta / (2 - nu) (GREEN §5e), with the punch's -0.12 h/a staircase error."""
+    """Q = 8 G a delta / (2 - nu) (docs/methods.rst#mindlin), with the punch's -0.12 h/a staircase
+    error."""
     nu, ah = 0.3, 16
     h = 1.0 / ah
     normal = squeeze(punch((2 * ah + 2, 2 * ah + 2), radius=1.0, a=h), depth=1e-3, a=h, nu=nu)
@@ -203,7 +204,7 @@ def test_bonded_punch_follows_mindlin_before_the_first_break():
 
 @pytest.mark.parametrize("a_over_h", [8, 16])
 def test_coulomb_matches_cattaneo_mindlin(a_over_h):
-    """GREEN §5d at nu = 0.3, lambda = 0.3, delta/delta_s = 0.3 and 0.7."""
+    """docs/methods.rst#cattaneo-mindlin at nu = 0.3, lambda = 0.3, delta/delta_s = 0.3 and 0.7."""
     nu, lam, R, d = 0.3, 0.3, 1.0, 1 / 16
     G = 1 / (2 * (1 + nu))
     heights, h, depth, ac = hertz_scene(a_over_h, R, d)

@@ -1,0 +1,129 @@
+"""Sphinx extension of the roughslip docs: references generated from the code.
+
+``.. roughslip-config::`` renders every section and key of the run configuration from the
+schema in :mod:`roughslip.config` (type, default, rule, description), so the reference cannot
+drift from what ``load_config`` accepts. At build start the error-against-run-time figure and
+table of ``roughslip verify --quick`` are made into ``docs/_generated/``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import subprocess
+import sys
+import typing
+from pathlib import Path
+
+from docutils import nodes
+from docutils.statemachine import StringList
+from sphinx.util.docutils import SphinxDirective
+from sphinx.util.nodes import nested_parse_with_titles
+
+GENERATED = Path(__file__).resolve().parents[1] / "_generated"
+
+
+def _type_name(tp) -> str:
+    origin = typing.get_origin(tp)
+    args = [a for a in typing.get_args(tp) if a is not type(None)]
+    if origin is list:
+        return f"list of {_type_name(args[0])}"
+    if args and origin is not None:  # Optional[X]
+        return _type_name(args[0])
+    return {float: "number", int: "integer", bool: "boolean", str: "string"}.get(tp, str(tp))
+
+
+def _rule(meta) -> str:
+    if meta.get("choices"):
+        return "one of " + ", ".join(f"``{c}``" for c in meta["choices"])
+    check = meta.get("check")
+    return getattr(check, "rule", "") if check is not None else ""
+
+
+def _default(f: dataclasses.Field) -> str:
+    if f.default is not dataclasses.MISSING:
+        v = f.default
+    elif f.default_factory is not dataclasses.MISSING:
+        v = f.default_factory()
+    else:
+        return ""
+    if v is None:
+        return "(unset)"
+    if isinstance(v, bool):
+        return f"``{str(v).lower()}``"
+    if isinstance(v, str):
+        return f'``"{v}"``'
+    return f"``{v!r}``"
+
+
+def config_reference() -> list[str]:
+    """reStructuredText of every section and key."""
+    from roughslip import config as C
+
+    lines: list[str] = []
+    for name, cls in C.SECTIONS.items():
+        hints = typing.get_type_hints(cls)
+        doc = (cls.__doc__ or "").strip().splitlines()[0]
+        title = f"[{name}]"
+        lines += [f".. _config-{name}:", "", title, "-" * len(title), "", doc, "",
+                  ".. list-table::", "   :header-rows: 1", "   :widths: 18 12 12 22 36", "",
+                  "   * - key", "     - type", "     - default", "     - rule",
+                  "     - meaning"]
+        for f in dataclasses.fields(cls):
+            meta = f.metadata
+            text = meta.get("doc", "").replace("|", "\\|")
+            if name in ("surface", "elastic_surface"):
+                kinds = [k for k, (allowed, _) in C.SURFACE_KEYS.items() if f.name in allowed]
+                if f.name != "kind" and kinds:
+                    text += f" (kind {', '.join(kinds)})"
+            lines += [f"   * - ``{f.name}``", f"     - {_type_name(hints[f.name])}",
+                      f"     - {_default(f)}", f"     - {_rule(meta)}", f"     - {text}"]
+        lines.append("")
+    renamed = ", ".join(f"``{s}.{old}`` (now ``{new}``)" for (s, old), new in
+                        C._RENAMED.items())
+    lines += ["Keys read under a former name: " + renamed + ".", ""]
+    return lines
+
+
+class ConfigReference(SphinxDirective):
+    has_content = False
+
+    def run(self) -> list[nodes.Node]:
+        container = nodes.section()
+        nested_parse_with_titles(self.state, StringList(config_reference(), "roughslip-config"),
+                                 container)
+        return container.children
+
+
+def make_verify_figure(app) -> None:
+    """``roughslip verify --quick --plot``: the figure and table the methods page shows."""
+    GENERATED.mkdir(exist_ok=True)
+    png, table = GENERATED / "verify_quick.png", GENERATED / "verify_quick.txt"
+    out = subprocess.run([sys.executable, "-m", "roughslip", "verify", "--quick", "--quiet",
+                          "--plot", str(png)], capture_output=True, text=True, check=False)
+    if out.returncode != 0:
+        raise RuntimeError(f"roughslip verify --quick failed: {out.stderr.strip()}")
+    table.write_text(out.stdout)
+
+
+_PAGE_LABEL = re.compile(r"docs/([\w/]+)\.(?:rst|md)#([\w-]+)")
+_PAGE = re.compile(r"docs/([\w/]+)\.(?:rst|md)\b")
+_LITERATURE = re.compile(r"\[(\w+)\] §")
+
+
+def link_references(app, what, name, obj, options, lines: list[str]) -> None:
+    """Turn the code's references to pages (``docs/page.rst#label``) and to the literature
+    (``[Key] §``) into links in the rendered docstrings."""
+    for i, line in enumerate(lines):
+        line = _PAGE_LABEL.sub(lambda m: f":ref:`{m.group(2).replace('-', ' ')} <{m.group(2)}>`",
+                               line)
+        line = _PAGE.sub(lambda m: f":doc:`/{m.group(1)}`", line)
+        lines[i] = _LITERATURE.sub(lambda m: f":ref:`[{m.group(1)}] <ref-{m.group(1).lower()}>` §",
+                                   line)
+
+
+def setup(app):
+    app.add_directive("roughslip-config", ConfigReference)
+    app.connect("autodoc-process-docstring", link_references)
+    app.connect("builder-inited", make_verify_figure)
+    return {"parallel_read_safe": True, "parallel_write_safe": True}

@@ -1,0 +1,45 @@
+"""Sphinx configuration of the roughslip documentation (``make docs``).
+
+Math is typeset by a MathJax copy installed with the docs extra (sphinx-mathjax-offline) and
+served from ``_static``: no page loads anything from the network. The configuration and CLI
+references are generated from the code (docs/_ext/roughslip_docs.py, sphinx-click), and
+the error-against-run-time figure is made at build time by ``roughslip verify --quick --plot``.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE / "_ext"))
+
+from roughslip import __version__  # noqa: E402
+
+project = "roughslip"
+author = "the roughslip developers"
+copyright = "2026, the roughslip developers"
+version = release = __version__
+
+extensions = [
+    "sphinx.ext.autodoc",
+    "sphinx.ext.mathjax",
+    "sphinx-mathjax-offline",
+    "numpydoc",
+    "sphinx_click",
+    "myst_parser",
+    "roughslip_docs",
+]
+source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
+exclude_patterns = ["_build", "_generated/*.txt"]
+myst_heading_anchors = 3
+numpydoc_show_class_members = False
+numpydoc_class_members_toctree = False
+autodoc_member_order = "bysource"
+autodoc_typehints = "none"  # numpydoc sections carry the types
+html_theme = "alabaster"
+html_static_path = ["_static"]
+html_theme_options = {"description": "static friction of rough elastic surfaces",
+                      "fixed_sidebar": True}
+html_sidebars = {"**": ["about.html", "navigation.html", "searchbox.html"]}
+suppress_warnings = ["myst.header"]

@@ -1,0 +1,119 @@
+"""The documentation: every reference in the code resolves inside the project, and every
+command the guide shows runs.
+
+References in code, tests and scripts take three forms, all checked here:
+
+* ``docs/<page>.rst#<label>`` (or a page alone): the page exists and defines ``.. _label:``;
+* ``erratum T<n>``: the errata page defines ``.. _erratum-t<n>:``;
+* ``[Key] §...``: a literature reference listed on the references page (``.. _ref-key:``).
+
+Notes kept outside the repository are never cited. Commands in ``.. code-block:: console``
+blocks of the guide (lines starting with ``$``) are run in a scratch folder with the shipped
+configurations; ``sh`` and ``python`` blocks are illustrations (a cluster, a file path) and
+are not run.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+SOURCES = [p for d in ("roughslip", "tests", "scripts") for p in (ROOT / d).rglob("*.py")]
+PAGE_REF = re.compile(r"docs/([\w/]+\.(?:rst|md))(?:#([\w-]+))?")
+ERRATUM = re.compile(r"errat(?:um|a) T(\d+)")
+LITERATURE = re.compile(r"\[(\w+)\] §")
+OUTSIDE = re.compile(r"\b(?:MODEL|GREEN)(?:\.md| ?§)|\.\./shared|reference/GREEN")
+
+
+def _labels(page: Path) -> set[str]:
+    return set(re.findall(r"\.\. _([\w-]+):", page.read_text()))
+
+
+def test_every_reference_in_the_code_resolves():
+    errata = _labels(DOCS / "theory" / "errata.rst")
+    refs = _labels(DOCS / "theory" / "references.rst")
+    problems = []
+    counts = {"page": 0, "erratum": 0, "literature": 0}
+    for src in SOURCES:
+        if src == Path(__file__).resolve():
+            continue
+        for n, line in enumerate(src.read_text().splitlines(), 1):
+            where = f"{src.relative_to(ROOT)}:{n}"
+            if OUTSIDE.search(line):
+                problems.append(f"{where}: cites notes outside the project: {line.strip()}")
+            for page, label in PAGE_REF.findall(line):
+                counts["page"] += 1
+                target = DOCS / page
+                if not target.is_file():
+                    problems.append(f"{where}: no page docs/{page}")
+                elif label and label not in _labels(target):
+                    problems.append(f"{where}: docs/{page} has no label {label!r}")
+            for t in ERRATUM.findall(line):
+                counts["erratum"] += 1
+                if f"erratum-t{t}" not in errata:
+                    problems.append(f"{where}: no erratum T{t}")
+            for key in LITERATURE.findall(line):
+                counts["literature"] += 1
+                if f"ref-{key.lower()}" not in refs:
+                    problems.append(f"{where}: [{key}] is not on the references page")
+            if "§" in line and not LITERATURE.search(line):
+                problems.append(f"{where}: a section sign without a literature key")
+    assert problems == []
+    assert min(counts.values()) > 0, counts  # the checks saw references of every form
+
+
+def test_the_checker_catches_dangling_references(tmp_path):
+    bad = ["see docs/theory/pull.rst#no-such-label", "see docs/theory/nope.rst",
+           "erratum T99", "[Nobody1900] §3", "MODEL §2", "GREEN §4.1"]
+    errata = _labels(DOCS / "theory" / "errata.rst")
+    refs = _labels(DOCS / "theory" / "references.rst")
+    for line in bad:
+        caught = bool(OUTSIDE.search(line))
+        for page, label in PAGE_REF.findall(line):
+            t = DOCS / page
+            caught |= not t.is_file() or (bool(label) and label not in _labels(t))
+        caught |= any(f"erratum-t{t}" not in errata for t in ERRATUM.findall(line))
+        caught |= any(f"ref-{k.lower()}" not in refs for k in LITERATURE.findall(line))
+        assert caught, line
+
+
+def _console_commands() -> list[tuple[str, str]]:
+    out = []
+    for page in sorted((DOCS / "guide").glob("*.rst")):
+        lines = page.read_text().splitlines()
+        inside = False
+        for line in lines:
+            if line.startswith(".. code-block::"):
+                inside = line.split("::", 1)[1].strip() == "console"
+                continue
+            if inside and line and not line.startswith(" "):
+                inside = False
+            if inside and line.strip().startswith("$ "):
+                out.append((page.name, line.strip()[2:]))
+    return out
+
+
+def test_guide_commands_are_found():
+    pages = {p for p, _ in _console_commands()}
+    assert {"quickstart.rst", "hurst_loop.rst", "topographies.rst", "resume.rst"} <= pages
+
+
+@pytest.mark.slow
+def test_every_command_in_the_guide_runs(tmp_path):
+    pytest.importorskip("SurfaceTopography", reason="the topography extra is not installed")
+    shutil.copytree(ROOT / "configs", tmp_path / "configs")
+    (tmp_path / "runs").mkdir()
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}"
+           f"{os.environ.get('PATH', '')}", "MPLBACKEND": "Agg"}
+    for page, cmd in _console_commands():
+        r = subprocess.run(["bash", "-c", cmd], cwd=tmp_path, env=env, capture_output=True,
+                           text=True, timeout=600)
+        assert r.returncode == 0, f"{page}: {cmd}\n{r.stdout}\n{r.stderr}"
