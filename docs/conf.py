@@ -39,6 +39,7 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "none"  # numpydoc sections carry the types
 html_theme = "alabaster"
 html_static_path = ["_static"]
+html_show_sphinx = False  # no footer links to outside sites
 html_theme_options = {"description": "static friction of rough elastic surfaces",
                       "fixed_sidebar": True}
 html_sidebars = {"**": ["about.html", "navigation.html", "searchbox.html"]}
