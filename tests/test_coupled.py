@@ -123,3 +123,25 @@ def test_reciprocity_of_the_coupled_block():
     A = d._entries(keys, keys)
     assert np.array_equal(A, A.T)
     assert np.linalg.eigvalsh(A).min() > 0
+
+
+def test_dense_solver_checks_its_memory_first():
+    """The dense path estimates its memory before it allocates: explicit ``dense`` refuses with
+    the need, the budget and the alternatives; ``auto`` falls back to the matrix-free solver
+    and says so (same events)."""
+    from roughslip import memory
+    from roughslip.coupled import dense_memory_bytes
+    from roughslip.errors import MemoryLimitError
+
+    h = rough(14, seed=5)
+    sites = int(((2.5 - (h.max() - h)) > 0).sum())
+    need = dense_memory_bytes(sites)
+    free = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=0.25)
+    assert free.method == "dense" and "auto chose" not in free.message
+    with memory.limited(0.5 * need / 2**30):
+        with pytest.raises(MemoryLimitError, match=r"method 'dense'.*GiB.*method 'cg'"):
+            squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=0.25, method="dense")
+        tight = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=0.25, tol=1e-13)
+    assert tight.method == "cg" and tight.message.startswith("auto chose cg")
+    assert [(e.kind, e.site) for e in tight.events] == [(e.kind, e.site) for e in free.events]
+    assert tight.friction_force == pytest.approx(free.friction_force, rel=1e-8)
