@@ -185,7 +185,7 @@ def _coupled_sample(cfg: RunConfig, scene: Scene, sample: int, surf, targets, sc
                 tol=min(cfg.pull.tol, 1e-10), fft=cfg.execution.fft,
                 threads=cfg.execution.threads, operator=op)
         except NumericalError as exc:
-            raise NumericalError(f"{where}: coupled model: {exc}") from None
+            raise NumericalError(f"{where}: {exc}") from None
         if cfg.execution.strict and not r.converged:
             raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
         _check_voids(r.contact0, surf.valid, where)
