@@ -38,7 +38,7 @@ numpydoc_class_members_toctree = False
 autodoc_member_order = "bysource"
 autodoc_typehints = "none"  # numpydoc sections carry the types
 html_theme = "alabaster"
-html_static_path = ["_static"]
+html_static_path: list[str] = []  # the theme's files and the MathJax copy only
 html_show_sphinx = False  # no footer links to outside sites
 html_theme_options = {"description": "static friction of rough elastic surfaces",
                       "fixed_sidebar": True}
