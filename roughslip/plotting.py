@@ -150,7 +150,8 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
     coupled = bool(cfg.get("coupling", {}).get("enabled"))
     law = "coupled" if coupled else pull.get("slip_law", "break")
     fig, ax = plt.subplots(figsize=(6, 4.2))
-    ax.plot(dx, fx, ".", color="0.6", ms=2.5, label="break sequence $(D_{x,lim}, F_{x,lim})$")
+    what = {"break": "break sequence", "coulomb": "slip events"}.get(law, "events")
+    ax.plot(dx, fx, ".", color="0.6", ms=2.5, label=f"{what} $(D_{{x,lim}}, F_{{x,lim}})$")
     i = int(np.argmax(fx))
     if law == "break" and pull.get("method") != "batch":
         exhausted = pull.get("method") == "literal" or not pull.get("early_stop", True)
