@@ -407,7 +407,6 @@ def _worker_init(budget: int, q, parent: int) -> None:
     memory.set_limit(budget / 2**30)
     global _QUEUE
     _QUEUE = q
-    q.put(("pid", os.getpid()))  # so that the main process can end this worker on failure
 
 
 def die_with_parent(parent: int) -> None:
@@ -457,59 +456,68 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
               workers: int) -> None:
     ctx = mp.get_context("spawn")  # no fork: OpenBLAS and FFTW threads do not survive it
     budget = memory.available_bytes() // workers
-    # a plain queue, not a Manager's: no server process that could outlive this one
+    # progress (sample, depth index) from the workers; a plain queue, no server process that
+    # could outlive this one
     q = ctx.Queue()
-    pids: set[int] = set()
+    before = {p.pid for p in mp.active_children()}
     pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
                                   initializer=_worker_init,
                                   initargs=(budget, q, os.getpid()))
-    with pool:
-        futures = {pool.submit(_pool_task, config, s): s for s in pending}
-        try:
-            while futures:
-                finished, _ = cf.wait(futures, timeout=0.25, return_when=cf.FIRST_COMPLETED)
-                _drain(q, emit, pids)
-                broken = []
-                for fut in sorted(finished, key=futures.get):
-                    s = futures.pop(fut)
-                    try:
-                        res = fut.result()
-                    except cf.process.BrokenProcessPool:
-                        broken.append(s)
-                        continue
-                    writer.write_sample(res)  # keep every sample that did finish
-                    emit({"kind": "sample", "sample": s})
-                if broken:
-                    raise WorkerError(
-                        f"a worker process died (out of memory or killed) while sample(s) "
-                        f"{broken} were running; completed samples are kept: run again with "
-                        "--resume")
-        except BaseException:
-            # stop now: cancel what has not started and end the running workers (their
-            # samples are recomputed on --resume)
-            _drain(q, None, pids)  # no progress output while stopping: only the pids
-            # the pool's workers: live children of this process that reported their pid
-            procs = [p for p in mp.active_children() if p.pid in pids]
-            pool.shutdown(wait=False, cancel_futures=True)
-            for proc in procs:
-                proc.terminate()
-            raise
-    _drain(q, emit, pids)
+    futures: dict[cf.Future, int] = {}
+    try:
+        for s in pending:
+            futures[pool.submit(_pool_task, config, s)] = s
+        while futures:
+            finished, _ = cf.wait(futures, timeout=0.25, return_when=cf.FIRST_COMPLETED)
+            _drain(q, emit)
+            broken = []
+            for fut in sorted(finished, key=futures.get):
+                s = futures.pop(fut)
+                try:
+                    res = fut.result()
+                except cf.process.BrokenProcessPool:
+                    broken.append(s)
+                    continue
+                writer.write_sample(res)  # keep every sample that did finish
+                emit({"kind": "sample", "sample": s})
+            if broken:
+                raise WorkerError(
+                    f"a worker process died (out of memory or killed) while sample(s) "
+                    f"{broken} were running; completed samples are kept: run again with "
+                    "--resume")
+    except BaseException:
+        # Stop now: cancel what has not started and end every process this pool started,
+        # whether it is computing or still starting up (one left running could wait forever
+        # on a queue lock held by a worker that was ended, and this process with it). Their
+        # samples are recomputed on --resume.
+        procs = [p for p in mp.active_children() if p.pid not in before]
+        results = getattr(pool, "_result_queue", None)  # shutdown() drops the reference
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            proc.terminate()
+        for proc in procs:
+            proc.join(timeout=10)
+        # A worker ended while it sent a result leaves half a message in the result pipe, and
+        # the executor's thread would wait for the rest forever (and this process with it, at
+        # exit). With every worker gone, closing this process's write end turns that wait into
+        # an end of file, which the executor handles as a broken pool.
+        end = getattr(results, "_writer", None)
+        if end is not None:
+            end.close()
+        raise
+    pool.shutdown(wait=True)
+    _drain(q, emit)
     q.close()
 
 
-def _drain(q, emit: Progress | None, pids: set[int]) -> None:
-    """Forward the workers' progress messages to ``emit`` (dropped if None); collect the pids
-    the workers announce."""
+def _drain(q, emit: Progress) -> None:
+    """Forward the workers' progress messages to ``emit``."""
     while True:
         try:
-            a, b = q.get_nowait()
+            sample, k = q.get_nowait()
         except (queue_mod.Empty, EOFError, OSError):
             return
-        if a == "pid":
-            pids.add(b)
-        elif emit is not None:
-            emit({"kind": "depth", "sample": a, "depth_index": b})
+        emit({"kind": "depth", "sample": sample, "depth_index": k})
 
 
 def _run_dask(config: RunConfig, pending: list[int], writer: RunWriter, emit: Progress,
