@@ -32,6 +32,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from . import analytic
 from .normal import squeeze
 from .slip import coulomb_force_at, pull
 from .surfaces import punch as punch_shape
@@ -78,7 +79,7 @@ def _hertz(ah: int, method: str, tol: float) -> list[Row]:
     t0 = time.perf_counter()
     r = squeeze(heights, depth=depth, a=h, E=E, nu=nu, method=method, tol=tol)
     dt = time.perf_counter() - t0
-    F = 4 / 3 * E / (1 - nu**2) * math.sqrt(R) * d**1.5
+    F = analytic.hertz(R, d, E, nu).force
     a_eq = math.sqrt(r.n_contact * h * h / math.pi)
     res = f"a/h={ah}"
     return [Row("hertz", "normal force", method, res, tol, (r.normal_force - F) / F, dt,
@@ -95,7 +96,7 @@ def _punch(ah: int, method: str, tol: float) -> list[Row]:
                 method=method, tol=tol)
     dt = time.perf_counter() - t0
     a_eq = math.sqrt(r.n_contact * h * h / math.pi)
-    F = 2 * a_eq * d
+    F = analytic.flat_punch_force(a_eq, d, E=1.0, nu=0.0)
     return [Row("punch", "normal force", method, f"a/h={ah}", tol, (r.normal_force - F) / F, dt,
                 r.converged)]
 
@@ -104,15 +105,16 @@ def _wavy(n: int, kind: str, tol: float) -> list[Row]:
     amp, lam, ratio = 0.01, 1.0, 0.6
     a = lam / n
     heights = sinusoid((4, n), amplitude=amp, wavelength=lam, a=a)
-    p_star = math.pi * amp / lam  # E* = 1
+    p_star = analytic.westergaard(0.0, amp, lam, E=1.0, nu=0.0).p_star
     pbar = ratio * p_star
+    exact = analytic.westergaard(pbar, amp, lam, E=1.0, nu=0.0)
     t0 = time.perf_counter()
     r = squeeze(heights, force=pbar * 4 * n * a * a, a=a, E=1.0, nu=0.0, boundary="periodic",
                 periodic_kernel=kind, tol=tol)
     dt = time.perf_counter() - t0
-    crest = 2 * pbar / math.sqrt(ratio)
+    crest = exact.crest_pressure
     got = r.fz[:, 0].mean() / a**2
-    frac = 2 / math.pi * math.asin(math.sqrt(ratio))
+    frac = exact.contact_fraction
     res = f"lambda/h={n}"
     return [Row("wavy", "crest pressure", f"pk/{kind}", res, tol, (got - crest) / crest, dt,
                 r.converged),
@@ -122,16 +124,15 @@ def _wavy(n: int, kind: str, tol: float) -> list[Row]:
 
 def _cattaneo(ah: int, tol: float) -> list[Row]:
     nu, lam, R, d = 0.3, 0.3, 1.0, 1 / 16
-    G = 1 / (2 * (1 + nu))
     heights, h, depth, ac = hertz_scene(ah, R, d)
     t0 = time.perf_counter()
     normal = squeeze(heights, depth=depth, a=h, nu=nu, tol=tol)
     res = pull(normal, lam=lam, slip_law="coulomb", tol=max(tol, 1e-12))
     dt = time.perf_counter() - t0
     P = normal.normal_force
-    delta_s = 3 * lam * P * (2 - nu) / (16 * G * ac)
-    q = float(coulomb_force_at(res, 0.5 * delta_s))
-    q_exact = lam * P * (1 - 0.5**1.5)
+    cm = analytic.cattaneo_mindlin(P, ac, lam, nu=nu)
+    q = float(coulomb_force_at(res, 0.5 * cm.delta_s))
+    q_exact = cm.force(0.5 * cm.delta_s)
     return [Row("cattaneo", "tangential force", "coulomb/inverse", f"a/h={ah}", tol,
                 (q - q_exact) / (lam * P), dt, normal.converged and res.converged)]
 

@@ -18,6 +18,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from roughslip.analytic import hertz, mindlin_bonded_punch_stiffness
 from roughslip.errors import InputError, NumericalError
 from roughslip.normal import squeeze
 from roughslip.operators import ElasticOperator
@@ -78,7 +79,7 @@ def main() -> None:
             n = squeeze(punch((2 * ah + 2,) * 2, radius=1.0, a=h), depth=1e-3, a=h, nu=nu)
             p = pull(n, lam=0.3)
             a_eq = math.sqrt(n.n_contact * h * h / math.pi)
-            k = 8 * a_eq / (2 * (1 + nu) * (2 - nu))
+            k = mindlin_bonded_punch_stiffness(a_eq, nu=nu)
             err = (p.fx_lim[0] / p.dx_lim[0] - k) / k
             return n, f"bonded punch K = 8Ga/(2-nu): err {err:+.4f} (staircase ~ -0.12 h/a)", \
                 -0.2 * h < err < 0
@@ -110,7 +111,7 @@ def main() -> None:
         h = 2.4 * ac / n
         hs = sphere((n, n), radius=R, a=h)
         r = squeeze(hs, depth=d + hs.max(), a=h, nu=0.0, tol=1e-8)
-        F = 4 / 3 * math.sqrt(R) * d**1.5
+        F = hertz(R, d, nu=0.0).force
         err = (r.normal_force - F) / F
         return r, f"Hertz force at a/h = {ac / h:.0f}: rel. err {err:.1e} (< 2e-3)", \
             abs(err) < 2e-3

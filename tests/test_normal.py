@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
+from roughslip.analytic import flat_punch_force, hertz, westergaard
 from roughslip.errors import ConvergenceError, InputError
 from roughslip.normal import NormalSolver, squeeze
 from roughslip.operators import Grid, Material
 from roughslip.surfaces import punch, sample_rng, self_affine, sinusoid, sphere
 
 E, NU = 1.0, 0.0
-E_STAR = E / (1 - NU**2)
 
 
 def hertz_run(a_over_h: int, corner: bool, method: str = "pk"):
@@ -26,9 +26,8 @@ def hertz_run(a_over_h: int, corner: bool, method: str = "pk"):
     heights = sphere((n, n), radius=R, a=h)
     # depth is measured from the highest pixel, which sits below the apex when it is a corner
     r = squeeze(heights, depth=d + heights.max(), a=h, E=E, nu=NU, method=method, tol=1e-10)
-    F = 4 / 3 * E_STAR * math.sqrt(R) * d**1.5
-    p0 = 2 * E_STAR * ac / (math.pi * R)
-    return r, F, p0, ac, h
+    exact = hertz(R, d, E, NU)
+    return r, exact.force, exact.p0, exact.radius, h
 
 
 @pytest.mark.parametrize("corner", [True, False])
@@ -72,7 +71,8 @@ def test_flat_punch_stiffness(method, a_over_h):
     r = squeeze(heights, depth=d, a=h, E=E, nu=NU, method=method, tol=1e-10)
     assert r.converged, r.message
     a_eq = math.sqrt(r.n_contact * h * h / math.pi)
-    err = (r.normal_force - 2 * a_eq * E_STAR * d) / (2 * a_eq * E_STAR * d)
+    F = flat_punch_force(a_eq, d, E, NU)
+    err = (r.normal_force - F) / F
     assert abs(err) < 0.2 * h / radius, f"punch stiffness off by {err:.2e}"
     assert err < 0  # the staircase edge is softer than the disc
     assert r.n_contact == np.count_nonzero(heights == 0)  # the whole face touches
@@ -85,17 +85,16 @@ def test_westergaard_wavy_surface_periodic(kind, ratio):
     n, lam, amp = 64, 1.0, 0.01
     a = lam / n
     heights = sinusoid((4, n), amplitude=amp, wavelength=lam, a=a)
-    p_star = math.pi * E_STAR * amp / lam
-    pbar = ratio * p_star
+    pbar = ratio * westergaard(0.0, amp, lam, E, NU).p_star
+    exact = westergaard(pbar, amp, lam, E, NU)
     F = pbar * (4 * n) * a * a
     r = squeeze(heights, force=F, a=a, E=E, nu=NU, boundary="periodic", periodic_kernel=kind,
                 tol=1e-10)
     assert r.converged and r.force_error < 1e-12
-    s = math.sqrt(ratio)
-    crest = 2 * pbar / s
+    crest = exact.crest_pressure
     got = r.fz[:, 0].mean() / a**2
     assert abs(got - crest) / crest < 5e-3, f"crest pressure {got} vs Westergaard {crest}"
-    frac = 2 / math.pi * math.asin(s)
+    frac = exact.contact_fraction
     assert abs(r.contact_area - frac) <= 2.5 / n, "contact fraction beyond +-1 pixel per edge"
 
 
@@ -103,8 +102,9 @@ def test_westergaard_full_contact():
     n, amp = 32, 0.01
     a = 1.0 / n
     heights = sinusoid((2, n), amplitude=amp, wavelength=1.0, a=a)
-    p_star = math.pi * E_STAR * amp
+    p_star = westergaard(0.0, amp, 1.0, E, NU).p_star
     pbar = 1.5 * p_star
+    assert westergaard(pbar, amp, 1.0, E, NU).contact_fraction == 1.0
     r = squeeze(heights, force=pbar * 2 * n * a * a, a=a, E=E, nu=NU, boundary="periodic")
     assert r.contact_area == 1.0
     x = np.arange(n) * a

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from roughslip import memory
+from roughslip.analytic import cattaneo_mindlin, mindlin_bonded_punch_stiffness
 from roughslip.errors import InputError, MemoryLimitError
 from roughslip.normal import squeeze
 from roughslip.slip import _Bonds, bond_spectrum, choose_method, coulomb_force_at, pull
@@ -197,7 +198,7 @@ def test_bonded_punch_follows_mindlin_before_the_first_break():
     normal = squeeze(punch((2 * ah + 2, 2 * ah + 2), radius=1.0, a=h), depth=1e-3, a=h, nu=nu)
     res = pull(normal, lam=0.3)
     a_eq = math.sqrt(normal.n_contact * h * h / math.pi)
-    k_exact = 8 * (1 / (2 * (1 + nu))) * a_eq / (2 - nu)
+    k_exact = mindlin_bonded_punch_stiffness(a_eq, nu=nu)
     err = (res.fx_lim[0] / res.dx_lim[0] - k_exact) / k_exact
     assert -0.2 * h < err < 0, f"bonded punch stiffness off by {err:.3e}"
 
@@ -206,21 +207,20 @@ def test_bonded_punch_follows_mindlin_before_the_first_break():
 def test_coulomb_matches_cattaneo_mindlin(a_over_h):
     """docs/methods.rst#cattaneo-mindlin at nu = 0.3, lambda = 0.3, delta/delta_s = 0.3 and 0.7."""
     nu, lam, R, d = 0.3, 0.3, 1.0, 1 / 16
-    G = 1 / (2 * (1 + nu))
     heights, h, depth, ac = hertz_scene(a_over_h, R, d)
     normal = squeeze(heights, depth=depth, a=h, nu=nu, tol=1e-12)
     res = pull(normal, lam=lam, slip_law="coulomb", block=64)
     P = normal.normal_force
     assert res.converged and res.friction_force == pytest.approx(lam * P, rel=1e-12)
     assert np.all(np.diff(res.fx_lim) >= -1e-12 * lam * P)  # Q(delta) never decreases
-    delta_s = 3 * lam * P * (2 - nu) / (16 * G * ac)
+    cm = cattaneo_mindlin(P, ac, lam, nu=nu)
     for frac in (0.3, 0.7):
-        q = float(coulomb_force_at(res, frac * delta_s))
-        q_exact = lam * P * (1 - (1 - frac) ** 1.5)
+        q = float(coulomb_force_at(res, frac * cm.delta_s))
+        q_exact = cm.force(frac * cm.delta_s)
         assert abs(q - q_exact) / (lam * P) < 3e-3, "Cattaneo-Mindlin tangential force"
-        stick = int(np.count_nonzero(res.dx_lim > frac * delta_s))
+        stick = int(np.count_nonzero(res.dx_lim > frac * cm.delta_s))
         c_eq = math.sqrt(stick * h * h / math.pi)
-        c = ac * (1 - q_exact / (lam * P)) ** (1 / 3)
+        c = cm.stick_radius(q_exact)
         assert abs(c_eq - c) < 1.5 * h, "Cattaneo-Mindlin stick radius"
 
 

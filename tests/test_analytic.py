@@ -1,0 +1,42 @@
+"""The exact solutions module: identities between the forms the literature states."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from roughslip import analytic as A
+
+
+def test_hertz_identities():
+    R, d, E, nu = 2.0, 0.01, 3.0, 0.25
+    h = A.hertz(R, d, E, nu)
+    es = E / (1 - nu * nu)
+    assert h.force == pytest.approx(4 * es * h.radius**3 / (3 * R), rel=1e-14)
+    assert h.p0 == pytest.approx(3 * h.force / (2 * math.pi * h.radius**2), rel=1e-14)
+    assert h.radius**2 / R == pytest.approx(d, rel=1e-14)
+
+
+def test_westergaard_limits():
+    amp, lam = 0.01, 2.0
+    p_star = A.westergaard(0.0, amp, lam).p_star
+    assert p_star == pytest.approx(math.pi * A.e_star() * amp / lam)
+    near = A.westergaard(p_star * (1 - 1e-12), amp, lam)
+    full = A.westergaard(p_star, amp, lam)
+    assert near.contact_fraction == pytest.approx(1.0, abs=1e-5)
+    assert near.crest_pressure == pytest.approx(full.crest_pressure, rel=1e-5)  # continuous
+    assert A.westergaard(0.0, amp, lam).contact_fraction == 0.0
+
+
+def test_cattaneo_mindlin_limits_and_the_mindlin_stiffness():
+    P, a, lam, E, nu = 2.0, 0.5, 0.3, 1.0, 0.3
+    cm = A.cattaneo_mindlin(P, a, lam, E, nu)
+    assert cm.force(0.0) == 0.0 and cm.force(cm.delta_s) == pytest.approx(lam * P)
+    assert cm.force(2 * cm.delta_s) == pytest.approx(lam * P)  # gross sliding
+    assert cm.stick_radius(0.0) == a and cm.stick_radius(lam * P) == 0.0
+    # initial slope dQ/ddelta = 3 lam P / (2 delta_s) = 8 mu a / (2 - nu): Mindlin's stiffness
+    slope = 1.5 * lam * P / cm.delta_s
+    assert slope == pytest.approx(A.mindlin_bonded_punch_stiffness(a, E, nu), rel=1e-14)
+    G = A.shear_modulus(E, 0.5)
+    assert A.mindlin_bonded_punch_stiffness(a, E, 0.5) == pytest.approx(16 / 3 * G * a)
