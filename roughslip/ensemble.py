@@ -491,7 +491,9 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
         # on a queue lock held by a worker that was ended, and this process with it). Their
         # samples are recomputed on --resume.
         procs = [p for p in mp.active_children() if p.pid not in before]
-        results = getattr(pool, "_result_queue", None)  # shutdown() drops the reference
+        # shutdown() drops these references
+        results = getattr(pool, "_result_queue", None)
+        thread = getattr(pool, "_executor_manager_thread", None)
         pool.shutdown(wait=False, cancel_futures=True)
         for proc in procs:
             proc.terminate()
@@ -500,10 +502,13 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
         # A worker ended while it sent a result leaves half a message in the result pipe, and
         # the executor's thread would wait for the rest forever (and this process with it, at
         # exit). With every worker gone, closing this process's write end turns that wait into
-        # an end of file, which the executor handles as a broken pool.
+        # an end of file, which the executor handles as a broken pool; its thread then cleans
+        # up, which must be over before the interpreter's exit handlers wake it.
         end = getattr(results, "_writer", None)
         if end is not None:
             end.close()
+        if thread is not None:
+            thread.join(timeout=10)
         raise
     pool.shutdown(wait=True)
     _drain(q, emit)
