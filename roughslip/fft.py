@@ -86,7 +86,8 @@ class RealFFT2:
         Real-space shape; the half spectrum has shape ``(m0, m1 // 2 + 1)``.
     backend : {"auto", "pyfftw", "scipy"}
     threads : int
-        FFT threads (default 1; see DESIGN: oversubscription is catastrophic).
+        FFT threads (default 1: FFT and BLAS thread pools competing for the same cores
+        were measured up to 60x slower; see :mod:`roughslip.threads`).
     rows : int, optional
         Pruning for zero-padded data: inputs are zero beyond row ``rows`` and only the first
         ``rows`` output rows are wanted. The transforms along axis 1 then run on ``rows`` rows
