@@ -371,6 +371,12 @@ def radial_psd(h: np.ndarray, a: float = 1.0, window: str | None = None, nbins: 
     return np.array(qc), np.array(cc), np.array(nc)
 
 
+def hurst_fit_range(shape: tuple[int, int], a: float = 1.0) -> tuple[float, float]:
+    """Default wavenumbers of the Hurst fit: from 4 times the lowest wavenumber to half the
+    Nyquist wavenumber (where discretisation bends the spectrum)."""
+    return 4 * 2 * np.pi / (max(shape) * a), 0.5 * np.pi / a
+
+
 def hurst_estimate(h: np.ndarray, a: float = 1.0, *, qmin: float | None = None,
                    qmax: float | None = None, window: str | None = None) -> float:
     r"""Hurst exponent from the slope of the radial PSD, :math:`C \propto q^{-2(1+H)}`.
@@ -382,8 +388,9 @@ def hurst_estimate(h: np.ndarray, a: float = 1.0, *, qmin: float | None = None,
     """
     q, c, count = radial_psd(h, a, window=window)
     ny, nx = h.shape
-    qlo = qmin if qmin is not None else 4 * 2 * np.pi / (max(ny, nx) * a)
-    qhi = qmax if qmax is not None else 0.5 * np.pi / a
+    lo, hi = hurst_fit_range((ny, nx), a)
+    qlo = qmin if qmin is not None else lo
+    qhi = qmax if qmax is not None else hi
     sel = (q >= qlo) & (q <= qhi) & (c > 0)
     if sel.sum() < 3:
         raise InputError("too few wavenumbers in the fitting range to estimate H")

@@ -401,7 +401,7 @@ def statistics(h: np.ndarray, a: float = 1.0, *, path: str = "", fmt: str = "",
     the Hurst exponent from the radially averaged PSD (Hann window; fit from 4 times the lowest
     wavenumber to half the Nyquist wavenumber, :func:`~roughslip.surfaces.hurst_estimate`).
     Missing points are filled harmonically first (and counted)."""
-    from .surfaces import hurst_estimate, radial_psd, rms_height_of, rms_slope_of
+    from .surfaces import hurst_estimate, hurst_fit_range, radial_psd, rms_height_of, rms_slope_of
 
     miss = int((~np.isfinite(h)).sum())
     if miss == h.size:
@@ -410,7 +410,7 @@ def statistics(h: np.ndarray, a: float = 1.0, *, path: str = "", fmt: str = "",
     lap = (hh[2:, 1:-1] + hh[:-2, 1:-1] + hh[1:-1, 2:] + hh[1:-1, :-2]
            - 4 * hh[1:-1, 1:-1]) / a**2 if min(h.shape) >= 3 else np.zeros(1)
     ny, nx = h.shape
-    qlo, qhi = 4 * 2 * np.pi / (max(ny, nx) * a), 0.5 * np.pi / a
+    qlo, qhi = hurst_fit_range((ny, nx), a)
     try:
         hurst = hurst_estimate(hh, a, window="hann")
     except InputError:
