@@ -5,10 +5,12 @@ sideways until its contact bonds break (:func:`pull`). The documentation in ``do
 (``make docs``) derives the model; ``roughslip --help`` lists the commands.
 """
 
-from ._version import __version__
-from .config import RunConfig, load_config
-from .coupled import CoupledResult, squeeze_pull_coupled
-from .errors import (
+from roughslip._version import __version__
+from roughslip.contact.coupled import CoupledResult, squeeze_pull_coupled
+from roughslip.contact.pull import SlipResult, pull
+from roughslip.contact.squeeze import NormalResult, NormalSolver, squeeze
+from roughslip.elastic.operators import ElasticOperator, Grid, Material
+from roughslip.errors import (
     ConfigError,
     ConvergenceError,
     InputError,
@@ -17,9 +19,7 @@ from .errors import (
     OutputError,
     RoughslipError,
 )
-from .normal import NormalResult, NormalSolver, squeeze
-from .operators import ElasticOperator, Grid, Material
-from .slip import SlipResult, pull
+from roughslip.run.config import RunConfig, load_config
 
 __all__ = [
     "ConfigError",

@@ -1,6 +1,6 @@
 """``python -m roughslip`` runs the command line."""
 
-from .cli import main
+from roughslip.cli import main
 
 if __name__ == "__main__":
     main()

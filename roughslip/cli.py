@@ -17,8 +17,8 @@ from typing import Any
 
 import click
 
-from ._version import __version__
-from .errors import RoughslipError
+from roughslip._version import __version__
+from roughslip.errors import RoughslipError
 
 
 def _fail(message: str, code: int) -> None:
@@ -64,7 +64,7 @@ def cli() -> None:
 @handle_errors
 def show_config(config: str, overrides: tuple[str, ...]) -> None:
     """Print CONFIG, with overrides merged and defaults filled, as TOML."""
-    from .config import load_config
+    from roughslip.run.config import load_config
 
     click.echo(load_config(config, overrides).to_toml(), nl=False)
 
@@ -173,8 +173,8 @@ def _interruptible(progress: Callable[[dict[str, Any]], None]):
 @handle_errors
 def run_cmd(config, out, overrides, workers, resume, overwrite, scheduler, strict, quiet):
     """Squeeze (and pull) every sample at every depth of CONFIG; write an HDF5 file."""
-    from .config import load_config
-    from .ensemble import run
+    from roughslip.run.config import load_config
+    from roughslip.run.executor import run
 
     extra = ["execution.strict=true"] if strict else []
     cfg = load_config(config, [*overrides, *extra])
@@ -196,7 +196,7 @@ def run_cmd(config, out, overrides, workers, resume, overwrite, scheduler, stric
 @handle_errors
 def inspect_cmd(path: str) -> None:
     """Summarise a run file: config, samples done, per-depth means, convergence."""
-    from .summary import summarize
+    from roughslip.analysis.summary import summarize
 
     click.echo(summarize(path))
 
@@ -216,7 +216,7 @@ def fit_cmd(files, xname, yname, xrange, as_json, plot_path):
     """Fit y = c x^alpha over the ensemble means of each run file (one row per file)."""
     import json
 
-    from .fit import fit_files, format_table
+    from roughslip.analysis.fit import fit_files, format_table
 
     lo, hi = xrange or (None, None)
     fits = fit_files(list(files), xname, yname, xmin=lo, xmax=hi)
@@ -226,7 +226,7 @@ def fit_cmd(files, xname, yname, xrange, as_json, plot_path):
     else:
         click.echo(format_table(fits, xname, yname))
     if plot_path:
-        from .plotting import plot_fits
+        from roughslip.analysis.plotting import plot_fits
 
         plot_fits(list(files), fits, xname, yname, plot_path)
 
@@ -248,7 +248,8 @@ def topography_cmd(path, key, unit, sample, as_json, plot_path, list_formats):
     pixel size and unit, missing points, rms height, slope and curvature, Hurst exponent."""
     import json
 
-    from .topography import describe, format_stats, formats, plot_stats
+    from roughslip.analysis.topography_report import describe, format_stats, plot_stats
+    from roughslip.surfaces.topography import formats
 
     if list_formats:
         for name, exts in formats() or [("(instrument formats need the topography extra: "
@@ -275,7 +276,7 @@ def bursts_cmd(files, min_tail, as_json, plot_path):
     """Burst sizes and force drops of the pulls in FILES: distributions and power laws."""
     import json
 
-    from .bursts import burst_report, format_table
+    from roughslip.analysis.bursts import burst_report, format_table
 
     sample, fits = burst_report(list(files), min_tail=min_tail)
     if as_json:
@@ -284,7 +285,7 @@ def bursts_cmd(files, min_tail, as_json, plot_path):
     else:
         click.echo(format_table(sample, fits))
     if plot_path:
-        from .plotting import plot_bursts
+        from roughslip.analysis.plotting import plot_bursts
 
         click.echo(str(plot_bursts(sample, fits, plot_path)))
 
@@ -298,7 +299,7 @@ def bursts_cmd(files, min_tail, as_json, plot_path):
 @handle_errors
 def verify_cmd(quick, as_json, plot_path, quiet):
     """Errors against exact solutions and run times, per scene, resolution and method."""
-    from . import verify
+    from roughslip.analysis import verify
 
     def say(msg: str) -> None:
         if not quiet:
@@ -318,7 +319,7 @@ def verify_cmd(quick, as_json, plot_path, quiet):
 @handle_errors
 def plot_cmd(path, out, sample, depth_index):
     """Friction law, F_n(D_z), contact/stick maps and a pull curve as PNG files."""
-    from .plotting import plot_run
+    from roughslip.analysis.plotting import plot_run
 
     for p in plot_run(path, out, sample, depth_index):
         click.echo(str(p))

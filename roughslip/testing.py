@@ -46,7 +46,7 @@ TIMINGS = ("seconds", "pull_seconds")
 def arm(point: str, count: int = 1, sig: int = signal.SIGKILL) -> None:
     """Make this process send itself ``sig`` the ``count``-th time the run reaches
     ``point``."""
-    from . import store
+    from roughslip.run import store
 
     if point not in KILL_POINTS:
         raise ValueError(f"unknown kill point {point!r}; choose from {sorted(KILL_POINTS)}")
@@ -203,7 +203,7 @@ def main(argv: list[str]) -> None:
         sys.exit("usage: python -m roughslip.testing [--signal NAME] POINT COUNT "
                  "roughslip-args...")
     arm(argv[0], int(argv[1]), sig)
-    from .cli import cli
+    from roughslip.cli import cli
 
     cli.main(argv[2:], prog_name="roughslip")
 

@@ -18,7 +18,7 @@ import time
 import numpy as np
 import scipy.fft
 
-from roughslip.operators import ElasticOperator
+from roughslip.elastic.operators import ElasticOperator
 
 
 def median_times(fns, repeat: int) -> list[float]:

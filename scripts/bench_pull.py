@@ -26,10 +26,10 @@ import time
 
 from bench_squeeze import depth_for_area
 
-from roughslip.normal import NormalSolver
-from roughslip.operators import Grid, Material
-from roughslip.slip import bond_spectrum, pull
-from roughslip.surfaces import sample_rng, self_affine
+from roughslip.contact.pull import bond_spectrum, pull
+from roughslip.contact.squeeze import NormalSolver
+from roughslip.elastic.operators import Grid, Material
+from roughslip.surfaces.synthetic import sample_rng, self_affine
 
 
 def contact(n: int, area: float):

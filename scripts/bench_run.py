@@ -15,8 +15,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from roughslip.config import load_config
-from roughslip.ensemble import run
+from roughslip.run.config import load_config
+from roughslip.run.executor import run
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -20,9 +20,9 @@ import time
 
 import numpy as np
 
-from roughslip.normal import NormalSolver
-from roughslip.operators import Grid, Material
-from roughslip.surfaces import sample_rng, self_affine, sphere
+from roughslip.contact.squeeze import NormalSolver
+from roughslip.elastic.operators import Grid, Material
+from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
 
 
 def floor_seconds(shape, repeat=9) -> float:

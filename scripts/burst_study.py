@@ -18,10 +18,10 @@ import os
 import time
 from pathlib import Path
 
-from roughslip.bursts import burst_report
-from roughslip.config import load_config
-from roughslip.ensemble import run
-from roughslip.plotting import plot_bursts
+from roughslip.analysis.bursts import burst_report
+from roughslip.analysis.plotting import plot_bursts
+from roughslip.run.config import load_config
+from roughslip.run.executor import run
 
 ROOT = Path(__file__).resolve().parents[1]
 

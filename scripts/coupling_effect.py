@@ -21,10 +21,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from roughslip.config import load_config
-from roughslip.ensemble import run
-from roughslip.fit import fit_files
-from roughslip.store import read_run
+from roughslip.analysis.fit import fit_files
+from roughslip.run.config import load_config
+from roughslip.run.executor import run
+from roughslip.run.store import read_run
 
 ROOT = Path(__file__).resolve().parents[1]
 

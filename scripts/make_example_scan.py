@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from roughslip.surfaces import sample_rng, self_affine
+from roughslip.surfaces.synthetic import sample_rng, self_affine
 from roughslip.testing import write_x3p
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -22,9 +22,9 @@ import os
 import time
 from pathlib import Path
 
-from roughslip.config import load_config
-from roughslip.ensemble import run
-from roughslip.fit import fit_files
+from roughslip.analysis.fit import fit_files
+from roughslip.run.config import load_config
+from roughslip.run.executor import run
 
 ROOT = Path(__file__).resolve().parents[1]
 

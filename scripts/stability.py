@@ -18,12 +18,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from roughslip.analytic import hertz, mindlin_bonded_punch_stiffness
+from roughslip.contact.analytic import hertz, mindlin_bonded_punch_stiffness
+from roughslip.contact.pull import pull
+from roughslip.contact.squeeze import squeeze
+from roughslip.elastic.operators import ElasticOperator
 from roughslip.errors import InputError, NumericalError
-from roughslip.normal import squeeze
-from roughslip.operators import ElasticOperator
-from roughslip.slip import pull
-from roughslip.surfaces import punch, sample_rng, self_affine, sphere
+from roughslip.surfaces.synthetic import punch, sample_rng, self_affine, sphere
 
 ROWS: list[tuple[str, str, str, str, str, str]] = []
 

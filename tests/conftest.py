@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
-from roughslip import memory
+from roughslip.linalg import memory
 
 DATA = Path(__file__).parent / "data"
 

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from roughslip import verify
+from roughslip.analysis import verify
+from roughslip.analysis.fit import fit_files, fit_power_law
 from roughslip.cli import cli
-from roughslip.config import load_config
 from roughslip.errors import InputError
-from roughslip.fit import fit_files, fit_power_law
-from roughslip.store import RunWriter, SampleResult
+from roughslip.run.config import load_config
+from roughslip.run.store import RunWriter, SampleResult
 
 # ------------------------------------------------------------------------------ fitting
 
@@ -184,8 +184,8 @@ def _png_ok(p) -> bool:
 
 def test_plot_run_and_fit_and_verify(tmp_path, quick_rows):
     pytest.importorskip("matplotlib", reason="the plot extra is not installed")
-    from roughslip.config import dumps_toml
-    from roughslip.ensemble import run
+    from roughslip.run.config import dumps_toml
+    from roughslip.run.executor import run
 
     cfg_path = tmp_path / "r.toml"
     cfg_path.write_text(dumps_toml({

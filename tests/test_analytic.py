@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from roughslip import analytic as A
+from roughslip.contact import analytic as A
 
 
 def test_hertz_identities():

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from roughslip.bursts import fit_power_law, log_binned, pull_curve
+from roughslip.analysis.bursts import fit_power_law, log_binned, pull_curve
 from roughslip.cli import cli
-from roughslip.config import dumps_toml, load_config
-from roughslip.ensemble import run
+from roughslip.contact.pull import pull
+from roughslip.contact.squeeze import squeeze
 from roughslip.errors import InputError
-from roughslip.normal import squeeze
-from roughslip.slip import pull
-from roughslip.surfaces import sample_rng, self_affine
+from roughslip.run.config import dumps_toml, load_config
+from roughslip.run.executor import run
+from roughslip.surfaces.synthetic import sample_rng, self_affine
 
 
 def test_sawtooth_of_a_hand_made_sequence():

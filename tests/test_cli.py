@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from roughslip import __version__
 from roughslip.cli import cli
-from roughslip.config import dumps_toml
+from roughslip.run.config import dumps_toml
 
 BASE = {
     "grid": {"n": 16},

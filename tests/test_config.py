@@ -9,8 +9,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from roughslip.config import dumps_toml, load_config, parse_override
 from roughslip.errors import ConfigError
+from roughslip.run.config import dumps_toml, load_config, parse_override
 
 BASE = {
     "grid": {"n": 32, "pixel_size": 0.5},

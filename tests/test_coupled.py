@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from roughslip.coupled import squeeze_pull_coupled
+from roughslip.contact.coupled import squeeze_pull_coupled
+from roughslip.contact.pull import pull
+from roughslip.contact.squeeze import squeeze
 from roughslip.errors import InputError
-from roughslip.normal import squeeze
-from roughslip.slip import pull
-from roughslip.surfaces import sample_rng, self_affine, sphere
+from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
 
 
 def rough(n=14, seed=3):
@@ -102,8 +102,8 @@ def test_no_contact_and_bad_input():
 def test_reciprocity_of_the_coupled_block():
     """Maxwell-Betti: u_z at i from a unit f_x at j equals u_x at j from a unit f_z at i, and
     the reduced block the solver factorises is symmetric."""
-    from roughslip.coupled import _Dense
-    from roughslip.operators import Grid, Material
+    from roughslip.contact.coupled import _Dense
+    from roughslip.elastic.operators import Grid, Material
 
     grid, mat = Grid((9, 11)), Material(1.0, 0.1)
     op = grid.operator(mat, ("zz", "zx", "xx"))
@@ -129,9 +129,9 @@ def test_dense_solver_checks_its_memory_first():
     """The dense path estimates its memory before it allocates: explicit ``dense`` refuses with
     the need, the budget and the alternatives; ``auto`` falls back to the matrix-free solver
     and says so (same events)."""
-    from roughslip import memory
-    from roughslip.coupled import dense_memory_bytes
+    from roughslip.contact.coupled import dense_memory_bytes
     from roughslip.errors import MemoryLimitError
+    from roughslip.linalg import memory
 
     h = rough(14, seed=5)
     sites = int(((2.5 - (h.max() - h)) > 0).sum())
@@ -153,7 +153,7 @@ def test_matrix_free_solver_takes_states_admissible_within_tolerance(seed, depth
     admissible displacement)": a gap closing slowly with D_x put its root far from D for a
     violation far below the CG residual. The state is admissible within the value tolerances;
     the CG path now reproduces the dense reference event for event."""
-    from roughslip.surfaces import rms_height_of
+    from roughslip.surfaces.synthetic import rms_height_of
 
     h = self_affine((24, 24), hurst=0.8, rms_height=1.0, rng=sample_rng(seed, 0), oversample=2)
     depth = depth_rms * rms_height_of(h)

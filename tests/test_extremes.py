@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from roughslip import memory
-from roughslip.analytic import mindlin_bonded_punch_stiffness
 from roughslip.cli import cli
-from roughslip.config import dumps_toml, load_config
-from roughslip.ensemble import estimate_memory, run
+from roughslip.contact.analytic import mindlin_bonded_punch_stiffness
+from roughslip.contact.pull import pull
+from roughslip.contact.squeeze import squeeze
+from roughslip.elastic.operators import ElasticOperator
 from roughslip.errors import (
     InputError,
     MemoryLimitError,
@@ -22,12 +22,12 @@ from roughslip.errors import (
     OutputError,
     WorkerError,
 )
-from roughslip.normal import squeeze
-from roughslip.operators import ElasticOperator
-from roughslip.scene import Scene
-from roughslip.slip import pull
-from roughslip.store import read_run
-from roughslip.surfaces import punch, sample_rng, self_affine, sphere
+from roughslip.linalg import memory
+from roughslip.run.config import dumps_toml, load_config
+from roughslip.run.executor import estimate_memory, run
+from roughslip.run.scene import Scene
+from roughslip.run.store import read_run
+from roughslip.surfaces.synthetic import punch, sample_rng, self_affine, sphere
 
 
 @pytest.fixture(scope="module")
@@ -274,7 +274,7 @@ def test_corrupt_files_for_resume_fit_inspect(tmp_path):
 
 
 def test_full_disk_keeps_completed_samples_and_resume_finishes(tmp_path, monkeypatch):
-    from roughslip import store
+    from roughslip.run import store
 
     cfg = load_config(_cfg_file(tmp_path, GOOD))
     out = tmp_path / "disk.h5"
@@ -306,7 +306,7 @@ def test_worker_crash_keeps_completed_samples(tmp_path, monkeypatch):
     (hook / "sitecustomize.py").write_text(
         "import os\n"
         "if os.environ.get('ROUGHSLIP_CRASH_SAMPLE'):\n"
-        "    import roughslip.ensemble as e\n"
+        "    import roughslip.run.executor as e\n"
         "    real = e._pool_task\n"
         "    def task(config, sample):\n"
         "        if sample == int(os.environ['ROUGHSLIP_CRASH_SAMPLE']):\n"

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from roughslip import green
+from roughslip.elastic import green
 from roughslip.errors import InputError
 
 

@@ -18,9 +18,9 @@ import pytest
 from click.testing import CliRunner
 
 from roughslip.cli import cli
-from roughslip.config import dumps_toml, load_config
-from roughslip.ensemble import run
-from roughslip.store import journal_dir, read_run
+from roughslip.run.config import dumps_toml, load_config
+from roughslip.run.executor import run
+from roughslip.run.store import journal_dir, read_run
 from roughslip.testing import KILL_POINTS, differences, session_processes, wait_gone
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),

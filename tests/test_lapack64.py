@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy import linalg
 
-from roughslip import lapack64
 from roughslip.errors import MemoryLimitError, NumericalError
+from roughslip.linalg import lapack64
 
 
 def spd(n, seed=0):

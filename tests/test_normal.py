@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from roughslip.analytic import flat_punch_force, hertz, westergaard
+from roughslip.contact.analytic import flat_punch_force, hertz, westergaard
+from roughslip.contact.squeeze import NormalSolver, squeeze
+from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import ConvergenceError, InputError
-from roughslip.normal import NormalSolver, squeeze
-from roughslip.operators import Grid, Material
-from roughslip.surfaces import punch, sample_rng, self_affine, sinusoid, sphere
+from roughslip.surfaces.synthetic import punch, sample_rng, self_affine, sinusoid, sphere
 
 E, NU = 1.0, 0.0
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from roughslip.elastic.operators import ElasticOperator, Material
 from roughslip.errors import InputError
-from roughslip.operators import ElasticOperator, Material
 
 BACKENDS = ["pyfftw", "scipy"]
 SHAPES = [(7, 5), (8, 8), (1, 9), (6, 11), (2, 2), (1, 1), (9, 9)]
@@ -113,7 +113,7 @@ def test_bad_arguments():
 
 
 def test_auto_falls_back_to_scipy_with_one_warning(monkeypatch):
-    from roughslip import fft
+    from roughslip.elastic import fft
 
     monkeypatch.setattr(fft, "_PYFFTW", None)
     monkeypatch.setattr(fft, "_PYFFTW_ERROR", "ImportError: no pyfftw here")

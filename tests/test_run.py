@@ -15,11 +15,11 @@ import pytest
 from click.testing import CliRunner
 
 from roughslip.cli import cli
-from roughslip.config import dumps_toml, load_config
-from roughslip.ensemble import run, run_sample
+from roughslip.elastic.operators import ElasticOperator, Material
 from roughslip.errors import InputError
-from roughslip.operators import ElasticOperator, Material
-from roughslip.store import journal_dir, read_run
+from roughslip.run.config import dumps_toml, load_config
+from roughslip.run.executor import run, run_sample
+from roughslip.run.store import journal_dir, read_run
 from roughslip.testing import differences
 
 CFG = {
@@ -294,7 +294,7 @@ def test_runs_started_before_keys_were_renamed_or_added_resume(tmp_path):
     became `pull.error_estimate` and `pull.early_stop` was added resumes as the same run."""
     import hashlib
 
-    from roughslip.config import dumps_toml as dump
+    from roughslip.run.config import dumps_toml as dump
 
     cfg = load_config(write_cfg(tmp_path))
     old = cfg.to_dict()

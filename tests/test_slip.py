@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from roughslip import memory
-from roughslip.analytic import cattaneo_mindlin, mindlin_bonded_punch_stiffness
+from roughslip.analysis.verify import hertz_scene
+from roughslip.contact.analytic import cattaneo_mindlin, mindlin_bonded_punch_stiffness
+from roughslip.contact.pull import _Bonds, bond_spectrum, choose_method, coulomb_force_at, pull
+from roughslip.contact.squeeze import squeeze
 from roughslip.errors import InputError, MemoryLimitError
-from roughslip.normal import squeeze
-from roughslip.slip import _Bonds, bond_spectrum, choose_method, coulomb_force_at, pull
-from roughslip.surfaces import punch, sample_rng, self_affine, sphere
-from roughslip.verify import hertz_scene
+from roughslip.linalg import memory
+from roughslip.surfaces.synthetic import punch, sample_rng, self_affine, sphere
 
 
 @pytest.fixture(scope="module")

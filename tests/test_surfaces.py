@@ -6,10 +6,10 @@ import h5py
 import numpy as np
 import pytest
 
-from roughslip import surfaces as S
-from roughslip.config import dumps_toml, load_config
 from roughslip.errors import InputError
-from roughslip.scene import Scene
+from roughslip.run.config import dumps_toml, load_config
+from roughslip.run.scene import Scene
+from roughslip.surfaces import synthetic as S
 
 # ------------------------------------------------------------------------------ self-affine
 

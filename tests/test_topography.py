@@ -13,13 +13,13 @@ import pytest
 from click.testing import CliRunner
 
 from roughslip.cli import cli
-from roughslip.config import dumps_toml, load_config
-from roughslip.ensemble import run
 from roughslip.errors import InputError
-from roughslip.store import journal_dir, read_run
-from roughslip.surfaces import sample_rng, self_affine, sphere
+from roughslip.run.config import dumps_toml, load_config
+from roughslip.run.executor import run
+from roughslip.run.store import journal_dir, read_run
+from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
+from roughslip.surfaces.topography import detrend, harmonic_fill, metres_per, read_raw, statistics
 from roughslip.testing import differences, write_sdf, write_x3p
-from roughslip.topography import detrend, harmonic_fill, metres_per, read_raw, statistics
 
 pytest.importorskip("SurfaceTopography", reason="the topography extra is not installed")
 

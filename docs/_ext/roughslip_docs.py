@@ -1,7 +1,7 @@
 """Sphinx extension of the roughslip docs: references generated from the code.
 
 ``.. roughslip-config::`` renders every section and key of the run configuration from the
-schema in :mod:`roughslip.config` (type, default, rule, description), so the reference cannot
+schema in :mod:`roughslip.run.config` (type, default, rule, description), so the reference cannot
 drift from what ``load_config`` accepts. At build start the error-against-run-time figure and
 table of ``roughslip verify --quick`` are made into ``docs/_generated/``.
 """
@@ -58,7 +58,7 @@ def _default(f: dataclasses.Field) -> str:
 
 def config_reference() -> list[str]:
     """reStructuredText of every section and key."""
-    from roughslip import config as C
+    from roughslip.run import config as C
 
     lines: list[str] = []
     for name, cls in C.SECTIONS.items():

@@ -32,11 +32,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from . import analytic
-from .normal import squeeze
-from .slip import coulomb_force_at, pull
-from .surfaces import punch as punch_shape
-from .surfaces import sample_rng, self_affine, sinusoid, sphere
+from roughslip.contact import analytic
+from roughslip.contact.pull import coulomb_force_at, pull
+from roughslip.contact.squeeze import squeeze
+from roughslip.surfaces.synthetic import punch as punch_shape
+from roughslip.surfaces.synthetic import sample_rng, self_affine, sinusoid, sphere
 
 
 @dataclass(frozen=True)
@@ -200,7 +200,7 @@ def to_json(rows: list[Row]) -> str:
 
 def plot(rows: list[Row], path: str) -> None:
     """Log-log error against run time, one panel per scene."""
-    from .plotting import finish_axes, pyplot, save
+    from roughslip.analysis.plotting import finish_axes, pyplot, save
 
     plt = pyplot()
     scenes = list(dict.fromkeys(r.scene for r in rows))

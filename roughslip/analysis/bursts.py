@@ -1,6 +1,6 @@
 r"""The pull as an experiment sees it: the curve under monotone :math:`D_x`, and its bursts.
 
-The break law's pull (:mod:`roughslip.slip`) yields the break sequence
+The break law's pull (:mod:`roughslip.contact.pull`) yields the break sequence
 :math:`(D_{x,{\rm lim},i}, F_{x,{\rm lim},i})`, :math:`i = 0, 1, \dots`: break :math:`i` would
 happen at :math:`D_{x,{\rm lim},i}` with the stick set :math:`S_i` it finds, whose stiffness is
 :math:`K_i = \mathbf 1^T G_{xx}[S_i,S_i]^{-1}\mathbf 1 = F_{x,{\rm lim},i}/D_{x,{\rm lim},i}`
@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError
+from roughslip.errors import InputError
 
 PHASES = ("all", "before", "after")
 
@@ -290,7 +290,7 @@ def collect_bursts(paths: list[str | Path]) -> BurstSample:
     peak and those that follow. Needs runs of the decoupled break law with ``pull_curve`` in
     ``output.fields``.
     """
-    from .store import open_file, read_run
+    from roughslip.run.store import open_file, read_run
 
     out = BurstSample({p: [] for p in PHASES}, {p: [] for p in PHASES}, 0,
                       [str(p) for p in paths])

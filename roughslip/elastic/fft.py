@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import scipy.fft
 
-from .errors import InputError
+from roughslip.errors import InputError
 
 _PYFFTW: Any = None
 _PYFFTW_ERROR: str | None = None
@@ -87,7 +87,7 @@ class RealFFT2:
     backend : {"auto", "pyfftw", "scipy"}
     threads : int
         FFT threads (default 1: FFT and BLAS thread pools competing for the same cores
-        were measured up to 60x slower; see :mod:`roughslip.threads`).
+        were measured up to 60x slower; see :mod:`roughslip.linalg.threads`).
     rows : int, optional
         Pruning for zero-padded data: inputs are zero beyond row ``rows`` and only the first
         ``rows`` output rows are wanted. The transforms along axis 1 then run on ``rows`` rows

@@ -59,8 +59,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .config import RunConfig
-from .errors import InputError, OutputError
+from roughslip.errors import InputError, OutputError
+from roughslip.run.config import RunConfig
 
 FORMAT = "roughslip-run"
 FORMAT_VERSION = 1

@@ -48,13 +48,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import lapack64
-from .cg import masked_cg
-from .errors import InputError, MemoryLimitError, NumericalError
-from .memory import available_bytes
-from .normal import NormalResult
-from .operators import ElasticOperator
-from .threads import blas_threads
+from roughslip.contact.squeeze import NormalResult
+from roughslip.elastic.operators import ElasticOperator
+from roughslip.errors import InputError, MemoryLimitError, NumericalError
+from roughslip.linalg import lapack64
+from roughslip.linalg.cg import masked_cg
+from roughslip.linalg.memory import available_bytes
+from roughslip.linalg.threads import blas_threads
 
 METHODS = ("auto", "literal", "inverse", "cg", "batch")
 SLIP_LAWS = ("break", "coulomb")

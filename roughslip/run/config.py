@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .errors import ConfigError
+from roughslip.errors import ConfigError
+from roughslip.surfaces.topography import LENGTH_UNITS
 
 # --------------------------------------------------------------------------------------------
 # Field helpers
@@ -91,8 +92,6 @@ for _check, _text in ((_positive, "> 0"), (_nonnegative, ">= 0"), (_nu_rule, "-1
                      (_pair, "two values"), (_crop_rule, "0 <= y0 < y1, 0 <= x0 < x1")):
     _ruled(_text, _check)
 
-#: length units a run and a file can be in, in metres
-LENGTH_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "nm": 1e-9, "pm": 1e-12}
 
 
 # --------------------------------------------------------------------------------------------

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .fit import fit_power_law, quantity
-from .store import read_run
-from .summary import length_unit
+from roughslip.analysis.fit import fit_power_law, quantity
+from roughslip.analysis.summary import length_unit
+from roughslip.errors import InputError
+from roughslip.run.store import read_run
 
 
 def pyplot():
@@ -144,7 +144,7 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
                  where: str, unit: str | None = None) -> Path:
     """The pull curve under monotone D_x (a sawtooth for the break law, with its bursts),
     over the break sequence's points."""
-    from .bursts import pull_curve
+    from roughslip.analysis.bursts import pull_curve
 
     pull = cfg.get("pull", {})
     coupled = bool(cfg.get("coupling", {}).get("enabled"))
@@ -180,7 +180,7 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
 def plot_bursts(sample, fits, out: str | Path) -> Path:
     """Burst-size and force-drop distributions (log bins) with their power-law fits, per
     phase."""
-    from .bursts import log_binned
+    from roughslip.analysis.bursts import log_binned
 
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))

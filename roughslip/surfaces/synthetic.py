@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from roughslip.errors import InputError
 
 
 def sample_rng(seed: int, index: int) -> np.random.Generator:
@@ -204,7 +204,7 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
     text matrices (``.txt``, ``.dat``, ``.asc`` whitespace- and ``.csv`` comma-separated), HDF5
     (dataset ``key``, or the only dataset). Empty, 1-D, ragged or non-numeric input, infinite
     values, and NaN (missing points) unless ``allow_missing``, are rejected with an
-    :class:`InputError` naming the file. Instrument formats: :mod:`roughslip.topography`.
+    :class:`InputError` naming the file. Instrument formats: :mod:`roughslip.surfaces.topography`.
     """
     p = Path(path)
     name = str(p)
@@ -232,7 +232,7 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
             raise InputError(
                 f"{name}: unknown topography format {suffix!r} (built in: .npy, .npz, "
                 f"{', '.join(TEXT_SUFFIXES)}, {', '.join(HDF5_SUFFIXES)}; instrument formats "
-                "through roughslip.topography)"
+                "through roughslip.surfaces.topography)"
             )
     except InputError:
         raise

@@ -45,10 +45,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .cg import masked_cg
-from .errors import ConvergenceError, InputError, NumericalError
-from .operators import ElasticOperator, Grid, Material
-from .threads import blas_threads
+from roughslip.elastic.operators import ElasticOperator, Grid, Material
+from roughslip.errors import ConvergenceError, InputError, NumericalError
+from roughslip.linalg.cg import masked_cg
+from roughslip.linalg.threads import blas_threads
 
 METHODS = ("pk", "active-set")
 _SYNC = 64  # PK: recompute u = G p from scratch at least this often

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .store import read_run
+from roughslip.run.store import read_run
 
 
 def mean_sem(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

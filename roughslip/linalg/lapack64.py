@@ -21,7 +21,7 @@ from types import SimpleNamespace
 import numpy as np
 from scipy.linalg import blas, lapack
 
-from .errors import MemoryLimitError, NumericalError
+from roughslip.errors import MemoryLimitError, NumericalError
 
 #: largest n for which an n x n matrix has fewer than 2^31 entries (32-bit LAPACK is safe)
 LP64_MAX_N = 46340

@@ -44,11 +44,11 @@ import numpy as np
 from scipy import linalg
 from scipy.linalg import blas
 
-from .errors import InputError, MemoryLimitError, NumericalError
-from .memory import available_bytes
-from .normal import check_heights
-from .operators import ElasticOperator, Grid, Material
-from .threads import blas_threads
+from roughslip.contact.squeeze import check_heights
+from roughslip.elastic.operators import ElasticOperator, Grid, Material
+from roughslip.errors import InputError, MemoryLimitError, NumericalError
+from roughslip.linalg.memory import available_bytes
+from roughslip.linalg.threads import blas_threads
 
 TIE = 1e-9
 

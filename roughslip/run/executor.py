@@ -3,7 +3,7 @@
 :func:`run_sample` is a pure function of ``(config, sample)``: its numbers do not depend on
 where or alongside what it runs (FFT and BLAS use ``execution.threads`` threads; all randomness
 comes from the sample's seed). :func:`run` sends pending samples to an executor and writes each
-finished one through the single writer of :mod:`roughslip.store`.
+finished one through the single writer of :mod:`roughslip.run.store`.
 """
 
 from __future__ import annotations
@@ -23,23 +23,23 @@ from typing import Any
 
 import numpy as np
 
-from . import memory
-from ._version import __version__
-from .config import RunConfig
-from .coupled import squeeze_pull_coupled
-from .errors import (
+from roughslip._version import __version__
+from roughslip.contact.coupled import squeeze_pull_coupled
+from roughslip.contact.pull import SlipResult, pull
+from roughslip.contact.squeeze import NormalResult, NormalSolver
+from roughslip.elastic.fft import library_versions, resolve_backend
+from roughslip.elastic.operators import ElasticOperator
+from roughslip.errors import (
     ConvergenceError,
     InputError,
     MemoryLimitError,
     NumericalError,
     WorkerError,
 )
-from .fft import library_versions, resolve_backend
-from .normal import NormalResult, NormalSolver
-from .operators import ElasticOperator
-from .scene import Scene
-from .slip import SlipResult, pull
-from .store import RunWriter, SampleResult, scalar_specs
+from roughslip.linalg import memory
+from roughslip.run.config import RunConfig
+from roughslip.run.scene import Scene
+from roughslip.run.store import RunWriter, SampleResult, scalar_specs
 
 Progress = Callable[[dict[str, Any]], None]
 
@@ -329,7 +329,7 @@ def run(
     ----------
     config : RunConfig
     out : path
-        The HDF5 run file (see :mod:`roughslip.store`).
+        The HDF5 run file (see :mod:`roughslip.run.store`).
     workers : int, optional
         Worker processes (default ``execution.workers``); 1 runs in this process.
     resume : bool

@@ -7,10 +7,10 @@ needs ``G_zz``; the pull adds ``G_xx``; only the coupled model builds ``G_zx``, 
 sample whatever ``ensemble.samples`` says.
 
 Measured topographies (``kind = "file"``) are read and prepared by
-:mod:`roughslip.topography`: units, pixel size, missing points, crop, down-sampling, detrending
-and tiles; with tiles, sample ``i`` is tile ``i``. Missing points kept as voids are NaN in the
-stored surfaces; the solvers see them far below every other point (so they never touch, and a
-solve in which one did is an error).
+:mod:`roughslip.surfaces.topography`: units, pixel size, missing points, crop,
+down-sampling, detrending and tiles; with tiles, sample ``i`` is tile ``i``. Missing points
+kept as voids are NaN in the stored surfaces; the solvers see them far below every other
+point (so they never touch, and a solve in which one did is an error).
 
 Randomness: sample ``i`` of a run with seed ``s`` draws its rigid surface from
 ``SeedSequence(s, spawn_key=(i,))`` (child ``i`` of ``SeedSequence(s).spawn``) and the elastic
@@ -24,10 +24,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import surfaces as S
-from .config import RunConfig, SurfaceConfig
-from .errors import InputError
-from .operators import Grid, Material
+from roughslip.elastic.operators import Grid, Material
+from roughslip.errors import InputError
+from roughslip.run.config import RunConfig, SurfaceConfig
+from roughslip.surfaces import synthetic as S
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class Scene:
         Raises :class:`InputError` naming the file for unreadable or invalid topographies, and
         for grid shapes that disagree between the config and the files.
         """
-        from .topography import prepare, read_raw
+        from roughslip.surfaces.topography import prepare, read_raw
 
         fixed: dict[str, np.ndarray] = {}
         tiles: dict[str, list[np.ndarray]] = {}

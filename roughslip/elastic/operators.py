@@ -8,8 +8,8 @@ Two boundaries (docs/theory/boundaries.rst#boundaries):
     exact to round-off.
 ``"periodic"``
     The grid repeats. Circular convolution with the symbol of
-    :func:`roughslip.green.periodic_symbol`, either ``"pixel"`` (exact periodic images of the
-    pixel kernel) or ``"continuous"``.
+    :func:`~roughslip.elastic.green.periodic_symbol`, either ``"pixel"`` (exact periodic
+    images of the pixel kernel) or ``"continuous"``.
     The zero mode is zero: the mean displacement is not produced by the operator
     (docs/theory/boundaries.rst#periodic-boundary).
 
@@ -28,9 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
-from . import green
-from .errors import InputError
-from .fft import RealFFT2, fast_len
+from roughslip.elastic import green
+from roughslip.elastic.fft import RealFFT2, fast_len
+from roughslip.errors import InputError
 
 BOUNDARIES = ("open", "periodic")
 PERIODIC_KERNELS = ("pixel", "continuous")

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import NumericalError
+from roughslip.errors import NumericalError
 
 
 @dataclass(frozen=True)

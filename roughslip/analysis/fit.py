@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError
-from .store import RunData, read_run
+from roughslip.errors import InputError
+from roughslip.run.store import RunData, read_run
 
 QUANTITIES = ("depth", "depth_length", "normal_force", "contact_area", "friction_force",
               "friction_normal_force")

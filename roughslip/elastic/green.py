@@ -33,7 +33,7 @@ from collections.abc import Iterable
 import numpy as np
 from scipy import special
 
-from .errors import InputError
+from roughslip.errors import InputError
 
 #: Component names understood here; ``"xz" = -"zx"`` and ``"yz" = -"zy"``, ``"yx" = "xy"``.
 COMPONENTS = ("zz", "xx", "yy", "xy", "yx", "zx", "xz", "zy", "yz")
