@@ -6,7 +6,8 @@ sideways until its contact bonds break (:func:`pull`). The documentation in ``do
 """
 
 from roughslip._version import __version__
-from roughslip.contact.coupled import CoupledResult, squeeze_pull_coupled
+from roughslip.contact.coupled import CoupledResult, couple, squeeze_pull_coupled
+from roughslip.contact.problem import Problem
 from roughslip.contact.pull import SlipResult, pull
 from roughslip.contact.squeeze import NormalResult, NormalSolver, squeeze
 from roughslip.elastic.operators import ElasticOperator, Grid, Material
@@ -34,10 +35,12 @@ __all__ = [
     "NormalSolver",
     "NumericalError",
     "OutputError",
+    "Problem",
     "RoughslipError",
     "RunConfig",
     "SlipResult",
     "__version__",
+    "couple",
     "load_config",
     "pull",
     "squeeze",

@@ -26,6 +26,7 @@ import time
 
 from bench_squeeze import depth_for_area
 
+from roughslip.contact.problem import Problem
 from roughslip.contact.pull import bond_spectrum, pull
 from roughslip.contact.squeeze import NormalSolver
 from roughslip.elastic.operators import Grid, Material
@@ -35,7 +36,7 @@ from roughslip.surfaces.synthetic import sample_rng, self_affine
 def contact(n: int, area: float):
     """The squeezed rough contact of size n whose contact fraction is close to ``area``."""
     h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(2024, 0), oversample=2)
-    s = NormalSolver(h, Grid((n, n)), Material(1.0, 0.3), tol=1e-11, fft="pyfftw")
+    s = NormalSolver(Problem(h, Grid((n, n)), Material(1.0, 0.3), fft="pyfftw"), tol=1e-11)
     return s.solve(depth=depth_for_area(s, area, float(h.max() - h.min())))
 
 

@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 
+from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import NormalSolver
 from roughslip.elastic.operators import Grid, Material
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
@@ -87,7 +88,8 @@ def main() -> None:
     mat = Material(1.0, 0.3)
     for n in args.sizes:
         for name, boundary, h, areas in scenes(n):
-            solver = NormalSolver(h, Grid((n, n), 1.0, boundary), mat, tol=args.tol, fft="pyfftw")
+            solver = NormalSolver(Problem(h, Grid((n, n), 1.0, boundary), mat, fft="pyfftw"),
+                                  tol=args.tol)
             floor = floor_seconds(solver.op.padded_shape)
             hi = (h.max() - h.min()) if boundary == "open" else 0.999 * (h.max() - h.mean())
             for area in areas:
@@ -114,7 +116,8 @@ def main() -> None:
     depths = np.geomspace(0.2, 2.6, 10)
     print(f"\n# depth sweep, N = {n}, open, 10 depths 0.2..2.6 from first touch")
     for method in ("pk", "active-set"):
-        solver = NormalSolver(h, Grid((n, n)), mat, tol=args.tol, fft="pyfftw", method=method)
+        solver = NormalSolver(Problem(h, Grid((n, n)), mat, fft="pyfftw"), tol=args.tol,
+                              method=method)
         for warm in (False, True):
             x0, its, conv, t0 = None, 0, 0, time.perf_counter()
             for d in depths:

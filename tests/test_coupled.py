@@ -103,10 +103,12 @@ def test_reciprocity_of_the_coupled_block():
     """Maxwell-Betti: u_z at i from a unit f_x at j equals u_x at j from a unit f_z at i, and
     the reduced block the solver factorises is symmetric."""
     from roughslip.contact.coupled import _Dense
+    from roughslip.contact.problem import Problem
     from roughslip.elastic.operators import Grid, Material
 
     grid, mat = Grid((9, 11)), Material(1.0, 0.1)
-    op = grid.operator(mat, ("zz", "zx", "xx"))
+    problem = Problem(np.zeros(grid.shape), grid, mat)
+    op = problem.operator("zz", "zx", "xx")
     rng = np.random.default_rng(4)
     for _ in range(5):
         i, j = rng.integers(0, 99, 2)
@@ -117,7 +119,7 @@ def test_reciprocity_of_the_coupled_block():
         fz.flat[i] = 1.0
         ux = op.apply_block(fz, np.zeros(grid.shape))[1].flat[j]
         assert uz == pytest.approx(ux, rel=1e-12, abs=1e-15)
-    d = _Dense(op, reference=True)
+    d = _Dense(problem, reference=True)
     keys = [("z", int(k)) for k in rng.choice(99, 20, replace=False)] + \
         [("x", int(k)) for k in rng.choice(99, 15, replace=False)]
     A = d._entries(keys, keys)

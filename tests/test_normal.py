@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from roughslip.contact.analytic import flat_punch_force, hertz, westergaard
+from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import NormalSolver, squeeze
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import ConvergenceError, InputError
@@ -240,7 +241,7 @@ def test_bad_input():
 
 def test_solver_reuse_records_work():
     h = sphere((32, 32), radius=20.0)
-    s = NormalSolver(h, Grid((32, 32)), Material(1.0, 0.3))
+    s = NormalSolver(Problem(h, Grid((32, 32)), Material(1.0, 0.3)))
     r = s.solve(depth=0.5)
     assert r.convolutions >= r.iterations > 0 and r.fft_seconds > 0 and r.seconds > 0
     assert r.grid.shape == (32, 32) and r.material.nu == 0.3

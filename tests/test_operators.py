@@ -136,16 +136,29 @@ def test_auto_falls_back_to_scipy_with_one_warning(monkeypatch):
 
 @pytest.mark.parametrize("backend", ["pyfftw", "scipy"])
 @pytest.mark.parametrize("boundary", ["open", "periodic"])
-def test_fft_threads_block_gives_the_same_field_and_restores(backend, boundary):
+def test_thread_view_gives_the_same_field_and_leaves_the_operator_alone(backend, boundary):
     op = ElasticOperator((20, 24), material=Material(1.0, 0.3), boundary=boundary,
                          components=("xx",), fft=backend, threads=2)
     f = np.random.default_rng(1).standard_normal((20, 24))
     ref = op.apply("xx", f)
     before = op.fft
-    with op.fft_threads(1) as one:
-        assert one is op and op.fft.threads == 1 and op.fft.pruned == before.pruned
-        single = op.apply("xx", f)
+    one = op.with_threads(1)
+    assert one is not op and one.fft.threads == 1 and one.fft.pruned == before.pruned
+    single = one.apply("xx", f)
     assert op.fft is before and op.fft.threads == 2
     np.testing.assert_allclose(single, ref, rtol=1e-13, atol=1e-13 * np.abs(ref).max())
-    with op.fft_threads(1):  # the one-thread transform is built once and reused
-        assert op.fft is op._fft_by_threads[1]
+    assert op.with_threads(1) is one  # built once and reused
+    assert op.with_threads(2) is op
+    # spectra added later through either are seen by both
+    one.require(("zz",))
+    np.testing.assert_allclose(op.apply("zz", f), one.apply("zz", f), rtol=1e-12, atol=1e-14)
+
+
+def test_require_builds_only_missing_spectra():
+    op = ElasticOperator((8, 8), components=("zz",))
+    assert op.components == ("zz",)
+    k = op.spectrum("zz")
+    op.require(("zz", "xz"))
+    assert op.components == ("zz", "zx") and op.spectrum("zz") is k
+    with pytest.raises(InputError, match="unknown component"):
+        op.require(("qq",))

@@ -57,7 +57,7 @@ def lanczos_contact():
     """A squeeze with enough bonds (> 500) for the matrix-free Lanczos path."""
     h = self_affine((48, 48), hurst=0.8, rms_height=1.0, rng=sample_rng(4, 0), oversample=2)
     normal = squeeze(h, depth=4.0, tol=1e-12)
-    b = _Bonds(normal, 1.0, None, "auto", 1)
+    b = _Bonds(normal, 1.0)
     assert b.n > 500
     return normal, b, np.linalg.eigvalsh(b.dense())
 

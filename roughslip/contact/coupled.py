@@ -28,25 +28,28 @@ reported with :math:`F_z` at the same :math:`D_x` (erratum T26
 (docs/theory/errata.rst#erratum-t26)). At :math:`\nu = 1/2`, :math:`G_{zx} = 0` and the model
 reduces exactly to the decoupled one.
 
-Solvers: ``"dense"`` assembles the reduced block from the closed-form kernels and factorises it
-(for up to a few thousand contact sites); ``"cg"`` runs conjugate gradients on the masked FFT
-block operator. Both follow the same event logic.
+Solvers (registered in :data:`SOLVERS`): ``"dense"`` assembles the reduced block from the
+closed-form kernels and keeps its inverse up to date (for up to a few thousand contact sites);
+``"cg"`` runs conjugate gradients (:func:`roughslip.linalg.cg.cg`) on the restricted FFT block
+operator (:meth:`roughslip.contact.problem.Problem.restricted_block`). Both follow the same
+event logic.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from contextlib import nullcontext
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from scipy import linalg
 from scipy.linalg import blas
 
-from roughslip.contact.squeeze import check_heights
-from roughslip.elastic.operators import ElasticOperator, Grid, Material
+from roughslip.contact.methods import Registry
+from roughslip.contact.problem import Problem, finite
 from roughslip.errors import InputError, MemoryLimitError, NumericalError
+from roughslip.linalg.cg import cg
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.threads import blas_threads
 
@@ -88,6 +91,8 @@ class CoupledResult:
     solves: int
     method: str
     message: str = ""
+    #: worst relative residual of the block solves (``cg``); NaN when not measured (``dense``)
+    residual: float = math.nan
     #: with ``record_states=True``: (D_x, f_z, f_x, gap, contact, stick) at every event
     states: list | None = None
 
@@ -109,6 +114,30 @@ class CoupledResult:
 # ------------------------------------------------------------------------------------------------
 
 
+class BlockSolver(Protocol):
+    """A linear solver for the reduced block on the contact set C and the stick set S."""
+
+    solves: int
+
+    def prepare(self, C: np.ndarray, S: np.ndarray) -> None:
+        """Set the unknowns: f_z on C, f_x on S."""
+
+    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str) -> tuple[np.ndarray, np.ndarray]:
+        """Grid fields (f_z, f_x) for right-hand sides on the grid; ``key`` names the
+        right-hand side, for warm starts."""
+
+    def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
+        """u_z on the whole grid."""
+
+    def residual(self) -> float:
+        """The worst relative residual of the solves so far (NaN when not measured)."""
+
+
+#: the coupled block solvers, by name (``method`` of :func:`couple`)
+SOLVERS: Registry[type] = Registry("coupled solver")
+
+
+@SOLVERS.register("dense", "the reduced block's inverse, updated at every event")
 class _Dense:
     """Reduced block assembled from the operator's kernel tables, solved directly.
 
@@ -122,7 +151,10 @@ class _Dense:
 
     refresh = 200
 
-    def __init__(self, op: ElasticOperator, reference: bool):
+    def __init__(self, problem: Problem, *, reference: bool = False, threads: int = 1,
+                 **_: object) -> None:
+        # dense solves get the BLAS threads; the FFTs beside them one thread
+        op = problem.operator("zz", "zx", "xx").with_threads(1)
         self.ny, self.nx = op.shape
         self.op = op
         self.tables = {c: op.pair_table(c) for c in ("zz", "zx", "xx")}
@@ -228,7 +260,11 @@ class _Dense:
             self.M = np.asfortranarray(self.M[np.ix_(keep, keep)])
             self._set_keys([self.keys[i] for i in keep])
 
-    def solve(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def residual(self) -> float:
+        return math.nan  # direct solves: not measured
+
+    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = "") -> tuple[np.ndarray,
+                                                                             np.ndarray]:
         """Grid fields (fz, fx) for right-hand sides given on the grid (used on C and S)."""
         self.solves += 1
         idx, isz = self.idx, self.isz
@@ -251,55 +287,33 @@ class _Dense:
         return self.op.apply_block(fz, fx)[0]
 
 
-class _FFT:
-    """Conjugate gradients on the masked FFT block operator."""
+@SOLVERS.register("cg", "matrix-free: warm-started CG on the restricted FFT block operator")
+class _CG:
+    """Conjugate gradients (:func:`roughslip.linalg.cg.cg`) on the restricted block operator,
+    warm-started from the previous solution of the same right-hand side."""
 
-    def __init__(self, op: ElasticOperator, tol: float, max_iter: int):
-        self.op, self.tol, self.max_iter = op, tol, max_iter
+    def __init__(self, problem: Problem, *, tol: float = 1e-12, max_iter: int = 20_000,
+                 **_: object) -> None:
+        self.problem, self.tol, self.max_iter = problem, tol, max_iter
+        self.op = problem.operator("zz", "zx", "xx")
         self.solves = 0
         self.worst = 0.0
-        self.prev: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self.prev: dict[str, np.ndarray] = {}
 
     def prepare(self, C: np.ndarray, S: np.ndarray) -> None:
-        self.mz, self.mx = C.astype(float), S.astype(float)
+        self.A = self.problem.restricted_block(C, S)
+
+    def residual(self) -> float:
+        return self.worst
 
     def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = "") -> tuple[np.ndarray,
                                                                              np.ndarray]:
         self.solves += 1
-        mz, mx = self.mz, self.mx
-        bz, bx = rz * mz, rx * mx
-        bnorm = math.sqrt(float((bz * bz).sum() + (bx * bx).sum()))
-        if bnorm == 0:
-            return np.zeros_like(rz), np.zeros_like(rz)
-        xz, xx = (self.prev[key][0] * mz, self.prev[key][1] * mx) if key in self.prev else \
-            (np.zeros_like(rz), np.zeros_like(rz))
-        uz, ux = self.op.apply_block(xz, xx)
-        r_z, r_x = bz - uz * mz, bx - ux * mx
-        pz, px = r_z.copy(), r_x.copy()
-        rr = float((r_z * r_z).sum() + (r_x * r_x).sum())
-        it = 0
-        while math.sqrt(rr) > self.tol * bnorm and it < self.max_iter:
-            it += 1
-            qz, qx = self.op.apply_block(pz, px)
-            qz *= mz
-            qx *= mx
-            pq = float((pz * qz).sum() + (px * qx).sum())
-            if not pq > 0:
-                break
-            al = rr / pq
-            xz += al * pz
-            xx += al * px
-            r_z -= al * qz
-            r_x -= al * qx
-            rr_new = float((r_z * r_z).sum() + (r_x * r_x).sum())
-            pz = r_z + (rr_new / rr) * pz
-            px = r_x + (rr_new / rr) * px
-            rr = rr_new
-        uz, ux = self.op.apply_block(xz, xx)
-        res = math.sqrt(float(((bz - uz * mz) ** 2).sum() + ((bx - ux * mx) ** 2).sum())) / bnorm
-        self.worst = max(self.worst, res)
-        self.prev[key] = (xz, xx)
-        return xz, xx
+        r = cg(self.A, np.stack([rz, rx]), x0=self.prev.get(key), tol=self.tol,
+               max_iter=self.max_iter)
+        self.worst = max(self.worst, r.residual)
+        self.prev[key] = r.x
+        return r.x[0], r.x[1]
 
     def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
         return self.op.apply_block(fz, fx)[0]
@@ -323,13 +337,8 @@ class _State:
     def solve(self) -> None:
         s = self.solver
         s.prepare(self.C, self.S)
-        if isinstance(s, _FFT):
-            self.f0 = s.solve(self.ubar, self.zero, "0")
-            self.f1 = s.solve(self.zero, self.ones, "1") if self.S.any() else (self.zero,
-                                                                               self.zero)
-        else:
-            self.f0 = s.solve(self.ubar, self.zero)
-            self.f1 = s.solve(self.zero, self.ones) if self.S.any() else (self.zero, self.zero)
+        self.f0 = s.solve(self.ubar, self.zero, "0")
+        self.f1 = s.solve(self.zero, self.ones, "1") if self.S.any() else (self.zero, self.zero)
         self.g0 = s.displacement_z(*self.f0) - self.ubar
         self.g1 = s.displacement_z(*self.f1)
 
@@ -435,8 +444,234 @@ def dense_memory_bytes(sites: int) -> int:
     return DENSE_BYTES_PER_UNKNOWN2 * m * m
 
 
+def _choose_solver(method: str, sites: int) -> tuple[str, str]:
+    """The solver for ``sites`` geometric-overlap sites, and a note when ``auto`` fell back;
+    :class:`MemoryLimitError` when ``dense`` is asked for and does not fit."""
+    if method != "auto":
+        SOLVERS.get(method)
+    need, have = dense_memory_bytes(sites), available_bytes()
+    if method == "auto":
+        if sites <= 4000 and need <= have:
+            return "dense", ""
+        note = ("" if sites > 4000 else
+                f"auto chose cg: the dense solver would need ~{need / 2**30:.2f} GiB, "
+                f"{have / 2**30:.2f} GiB available; ")
+        return "cg", note
+    if method == "dense" and need > have:
+        raise MemoryLimitError(
+            f"coupled model, method 'dense': needs ~{need / 2**30:.2f} GiB for "
+            f"{sites} overlap sites but {have / 2**30:.2f} GiB are available; use "
+            "method 'cg' (matrix-free) or 'auto', a smaller depth or grid, or raise "
+            "execution.memory_limit_gb")
+    return method, ""
+
+
+@dataclass
+class _Snapshot:
+    """The state at one displacement: totals and fields."""
+
+    fx_total: float
+    fz_total: float
+    dx: float
+    fz: np.ndarray
+    fx: np.ndarray
+    stick: np.ndarray
+    contact: np.ndarray
+
+    @classmethod
+    def of(cls, st: _State, D: float) -> _Snapshot:
+        fz, fx, _ = st.at(D)
+        F_x, F_z = st.totals(D)
+        return cls(F_x, F_z, D, fz.copy(), fx.copy(), st.S.copy(), st.C.copy())
+
+
+def _squeeze_bonded(st: _State) -> int:
+    """The squeeze at D_x = 0 with every contact bonded; returns the bonds released.
+
+    First the report's removal of all negative forces at once (the set only shrinks, so this
+    ends), then every remaining violation one at a time, most violated first: a lost contact
+    leaves, a penetrating site enters contact unbonded (bonded it may need a tensile force),
+    an overloaded bond is released.
+    """
+    while True:
+        st.solve()
+        fz, _, _ = st.at(0.0)
+        fscale = max(float(np.abs(fz).max()), np.finfo(float).tiny)
+        neg = st.C & (fz < -TIE * fscale)
+        if not neg.any():
+            break
+        st.C &= ~neg
+        st.S &= ~neg
+    seen: set[bytes] = set()
+    while (v := st.violation(0.0)) is not None:
+        st.apply(*v)
+        key = st.C.tobytes() + st.S.tobytes()
+        if key in seen:
+            raise NumericalError("coupled squeeze: the contact and stick sets cycle at "
+                                 "D_x = 0 (no admissible state reached)")
+        seen.add(key)
+        st.solve()
+    return int((st.C & ~st.S).sum())
+
+
+@dataclass
+class _Path:
+    """The pull path: events, the peak, and how the loop ended."""
+
+    events: list[Event]
+    states: list | None
+    peak: _Snapshot
+    transient: int = 0
+    message: str = ""
+
+
+def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
+    """Follow the events from D_x = 0 until no bond is left (module docstring)."""
+    path = _Path([], [] if record_states else None, _Snapshot.of(st, 0.0))
+
+    def record(D: float, kind: str, site: int) -> None:
+        F_x, F_z = st.totals(D)
+        path.events.append(Event(D, F_x, F_z, kind, site))
+        if path.states is not None:
+            fz, fx, g = st.at(D)
+            path.states.append((D, fz.copy(), fx.copy(), g.copy(), st.C.copy(), st.S.copy()))
+
+    record(0.0, "start", -1)
+    D = 0.0
+    first = True
+    while st.S.any():
+        if len(path.events) + path.transient > limit:
+            path.message = f"stopped after {limit} events"
+            break
+        lo, hi, kind, j = st.interval()
+        if first and math.isfinite(hi) and hi > 0:
+            st.Dscale = hi  # the first event sets the displacement scale
+            first = False
+        tol_d = TIE * max(st.Dscale, abs(D))
+        if (lo > D + tol_d or lo > hi + tol_d) and st.violation(D) is None:
+            # Admissible at D within the value tolerances of every constraint, which the
+            # test in D missed: a constraint that changes slowly with D (a gap closing at a
+            # small rate, say) puts its root far from D for a violation far below the
+            # solver's residual. Take the state as admissible from D on.
+            lo = min(lo, D, hi)
+        feasible = lo <= hi + tol_d
+        if feasible and lo <= D + tol_d and hi >= D - tol_d:
+            if not math.isfinite(hi):
+                path.message = "no further event: the remaining bonds never break"
+                break
+            D = max(D, hi)  # the next event of a stable state
+            at = D
+        elif feasible and hi < D:
+            at = hi  # an avalanche state, recorded at its own limit (below D)
+        else:
+            v = st.violation(D)  # transient: admissible at no D up to the current one
+            if v is None:
+                raise NumericalError("inconsistent state (no violation but no admissible "
+                                     "displacement)")
+            st.apply(*v)
+            st.solve()
+            path.transient += 1
+            continue
+        record(at, kind, j)
+        F_x, _ = st.totals(at)
+        if F_x > path.peak.fx_total:
+            path.peak = _Snapshot.of(st, at)
+        st.apply(kind, j)
+        st.solve()
+    return path
+
+
+def couple(
+    problem: Problem,
+    *,
+    depth: float,
+    lam: float = 0.2,
+    method: str = "auto",
+    tol: float = 1e-12,
+    max_iter: int = 20_000,
+    max_events: int | None = None,
+    reference: bool = False,
+    record_states: bool = False,
+) -> CoupledResult:
+    r"""Squeeze a problem to ``depth`` and pull it with the coupled model until every bond has
+    broken (module docstring; [Report2003] §6.1 with errata T25 and T26).
+
+    Parameters
+    ----------
+    problem : Problem
+        Heights, grid and material; its operator gets the ``zz``, ``zx`` and ``xx`` spectra.
+    depth : float
+        Penetration :math:`D_z` from first touch (displacement control, held during the pull).
+    lam : float
+        Local friction coefficient.
+    method : str
+        ``"auto"`` or a name from :data:`SOLVERS`: ``auto`` is ``dense`` up to 4000
+        geometric-overlap sites when its memory (:func:`dense_memory_bytes`) fits the budget,
+        ``cg`` otherwise. ``dense`` refuses with :class:`MemoryLimitError` when it does not
+        fit.
+    tol : float
+        Relative residual of the CG solves (``method="cg"``).
+    max_events : int, optional
+        Stop after this many events (default ``20 x overlap sites + 100``).
+    reference : bool
+        With ``dense``: also compute displacements by dense sums (no FFT at all).
+    record_states : bool
+        Keep the full state at every event (for checks on small grids).
+
+    Returns
+    -------
+    CoupledResult
+    """
+    t0 = time.perf_counter()
+    if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
+        raise InputError(f"lam = {lam!r}: must be a finite number > 0")
+    depth = finite(depth, "depth")
+    ubar = problem.overlap(depth)
+    geo = ubar > 0
+    method, note = _choose_solver(method, int(geo.sum()))
+    if not geo.any():
+        z = np.zeros(problem.shape)
+        return CoupledResult(
+            friction_force=0.0, normal_force_at_peak=0.0, peak_dx=0.0, events=[],
+            normal_force=0.0, contact_area=0.0, released=0, fz0=z, fx0=z, contact0=geo,
+            stick0=geo, fz_peak=z, fx_peak=z, stick_peak=geo, contact_peak=geo,
+            converged=True, seconds=time.perf_counter() - t0, solves=0, method=method,
+            message="no overlap: no contact")
+    solver = SOLVERS.get(method)(problem, reference=reference, tol=tol, max_iter=max_iter,
+                                 threads=problem.threads)
+    limit = max_events if max_events is not None else 20 * int(geo.sum()) + 100
+    with blas_threads(problem.threads if method == "dense" else 1):
+        st = _State(solver, ubar, float(lam), geo)
+        released = _squeeze_bonded(st)
+        start = _Snapshot.of(st, 0.0)
+        try:
+            path = _pull_events(st, limit, record_states)
+        except NumericalError as exc:
+            raise NumericalError(f"coupled model: {exc}") from None
+    residual = solver.residual()
+    message = path.message
+    if not message and residual > 10 * tol:
+        message = f"worst CG residual {residual:.2e}"
+    peak = path.peak
+    for name, arr in (("fz", start.fz), ("fx", start.fx), ("fz at peak", peak.fz)):
+        if not np.all(np.isfinite(arr)):
+            raise NumericalError(f"coupled model: non-finite {name}")
+    return CoupledResult(
+        friction_force=float(peak.fx_total), normal_force_at_peak=float(peak.fz_total),
+        peak_dx=float(peak.dx), events=path.events, normal_force=float(start.fz.sum()),
+        contact_area=float(start.contact.sum()) / start.contact.size, released=released,
+        fz0=start.fz, fx0=start.fx, contact0=start.contact, stick0=start.stick,
+        fz_peak=peak.fz, fx_peak=peak.fx, stick_peak=peak.stick, contact_peak=peak.contact,
+        converged=not message, seconds=time.perf_counter() - t0, solves=solver.solves,
+        method=method, residual=residual,
+        message=note + (message or f"{len(path.events)} events, {path.transient} transient "
+                        "state(s)"),
+        states=path.states,
+    )
+
+
 def squeeze_pull_coupled(
-    heights: np.ndarray,
+    heights: np.ndarray | Problem,
     *,
     depth: float,
     lam: float = 0.2,
@@ -453,170 +688,11 @@ def squeeze_pull_coupled(
     threads: int = 1,
     reference: bool = False,
     record_states: bool = False,
-    operator: ElasticOperator | None = None,
 ) -> CoupledResult:
-    r"""Squeeze to ``depth`` and pull with the coupled model until every bond has broken.
-
-    Parameters
-    ----------
-    heights : ndarray
-        Rigid (composite) heights, positive toward the elastic body.
-    depth : float
-        Penetration :math:`D_z` from first touch (displacement control, held during the pull).
-    lam : float
-        Local friction coefficient.
-    method : {"auto", "dense", "cg"}
-        Linear solver for the reduced block (see module docstring); ``auto`` is ``dense`` up to
-        4000 geometric-overlap sites when its memory (:func:`dense_memory_bytes`) fits the
-        budget, ``cg`` otherwise. ``dense`` refuses with :class:`MemoryLimitError` when it
-        does not fit.
-    tol : float
-        Relative residual of the CG solves (``method="cg"``).
-    reference : bool
-        With ``dense``: also compute displacements by dense sums (no FFT at all).
-    record_states : bool
-        Keep the full state at every event (for checks on small grids).
-    operator : ElasticOperator, optional
-        A prebuilt operator with the ``zz``, ``zx`` and ``xx`` components (reused across depths).
-
-    Returns
-    -------
-    CoupledResult
-    """
-    t0 = time.perf_counter()
-    h = check_heights(heights)
-    if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
-        raise InputError(f"lam = {lam!r}: must be a finite number > 0")
-    if not (isinstance(depth, int | float) and math.isfinite(depth)):
-        raise InputError(f"depth = {depth!r}: must be a finite number")
-    if method not in ("auto", "dense", "cg"):
-        raise InputError(f"method = {method!r}: must be auto, dense or cg")
-    grid = Grid(h.shape, a, boundary, periodic_kernel)
-    material = Material(E, nu)
-    ubar = depth - (h.max() - h)
-    geo = ubar > 0
-    need, have = dense_memory_bytes(int(geo.sum())), available_bytes()
-    note = ""
-    if method == "auto":
-        method = "dense" if int(geo.sum()) <= 4000 and need <= have else "cg"
-        if method == "cg" and int(geo.sum()) <= 4000:
-            note = (f"auto chose cg: the dense solver would need ~{need / 2**30:.2f} GiB, "
-                    f"{have / 2**30:.2f} GiB available; ")
-    elif method == "dense" and need > have:
-        raise MemoryLimitError(
-            f"coupled model, method 'dense': needs ~{need / 2**30:.2f} GiB for "
-            f"{int(geo.sum())} overlap sites but {have / 2**30:.2f} GiB are available; use "
-            "method 'cg' (matrix-free) or 'auto', a smaller depth or grid, or raise "
-            "execution.memory_limit_gb")
-    if operator is None:
-        operator = grid.operator(material, ("zz", "zx", "xx"), fft=fft, threads=threads)
-    solver = _Dense(operator, reference) if method == "dense" else _FFT(operator, tol, max_iter)
-    zero = np.zeros(h.shape)
-    if not geo.any():
-        return CoupledResult(0.0, 0.0, 0.0, [], 0.0, 0.0, 0, zero, zero, geo, geo, zero, zero,
-                             geo, geo, True, time.perf_counter() - t0, 0, method,
-                             "no overlap: no contact")
-    with blas_threads(threads if method == "dense" else 1), \
-            (operator.fft_threads(1) if method == "dense" else nullcontext()):
-        st = _State(solver, ubar, float(lam), geo)
-        # squeeze with every contact bonded: the report's removal of all negative forces at
-        # once (the set only shrinks, so this ends) ...
-        while True:
-            st.solve()
-            fz, _, _ = st.at(0.0)
-            fscale = max(float(np.abs(fz).max()), np.finfo(float).tiny)
-            neg = st.C & (fz < -TIE * fscale)
-            if not neg.any():
-                break
-            st.C &= ~neg
-            st.S &= ~neg
-        # ... then every remaining violation one at a time, most violated first: a lost
-        # contact leaves, a penetrating site enters contact unbonded (bonded it may need a
-        # tensile force), an overloaded bond is released
-        seen: set[bytes] = set()
-        while (v := st.violation(0.0)) is not None:
-            st.apply(*v)
-            key = st.C.tobytes() + st.S.tobytes()
-            if key in seen:
-                raise NumericalError("coupled squeeze: the contact and stick sets cycle at "
-                                     "D_x = 0 (no admissible state reached)")
-            seen.add(key)
-            st.solve()
-        released = int((st.C & ~st.S).sum())
-        events: list[Event] = []
-        states: list | None = [] if record_states else None
-
-        def record(D: float, kind: str, site: int) -> None:
-            F_x, F_z = st.totals(D)
-            events.append(Event(D, F_x, F_z, kind, site))
-            if states is not None:
-                fz, fx, g = st.at(D)
-                states.append((D, fz.copy(), fx.copy(), g.copy(), st.C.copy(), st.S.copy()))
-
-        fz0, fx0, _ = st.at(0.0)
-        F_x, F_z = st.totals(0.0)
-        record(0.0, "start", -1)
-        snap0 = (fz0.copy(), fx0.copy(), st.C.copy(), st.S.copy())
-        best = (F_x, F_z, 0.0, fz0.copy(), fx0.copy(), st.S.copy(), st.C.copy())
-        D = 0.0
-        limit = max_events if max_events is not None else 20 * int(geo.sum()) + 100
-        message = ""
-        transient = 0
-        first = True
-        while st.S.any():
-            if len(events) + transient > limit:
-                message = f"stopped after {limit} events"
-                break
-            lo, hi, kind, j = st.interval()
-            if first and math.isfinite(hi) and hi > 0:
-                st.Dscale = hi  # the first event sets the displacement scale
-                first = False
-            tol_d = TIE * max(st.Dscale, abs(D))
-            if (lo > D + tol_d or lo > hi + tol_d) and st.violation(D) is None:
-                # Admissible at D within the value tolerances of every constraint, which the
-                # test in D missed: a constraint that changes slowly with D (a gap closing at a
-                # small rate, say) puts its root far from D for a violation far below the
-                # solver's residual. Take the state as admissible from D on.
-                lo = min(lo, D, hi)
-            feasible = lo <= hi + tol_d
-            if feasible and lo <= D + tol_d and hi >= D - tol_d:
-                if not math.isfinite(hi):
-                    message = "no further event: the remaining bonds never break"
-                    break
-                D = max(D, hi)  # the next event of a stable state
-                at = D
-            elif feasible and hi < D:
-                at = hi  # an avalanche state, recorded at its own limit (below D)
-            else:
-                v = st.violation(D)  # transient: admissible at no D up to the current one
-                if v is None:
-                    raise NumericalError("coupled model: inconsistent state (no violation "
-                                         "but no admissible displacement)")
-                st.apply(*v)
-                st.solve()
-                transient += 1
-                continue
-            record(at, kind, j)
-            F_x, F_z = st.totals(at)
-            if F_x > best[0]:
-                fz, fx, _ = st.at(at)
-                best = (F_x, F_z, at, fz.copy(), fx.copy(), st.S.copy(), st.C.copy())
-            st.apply(kind, j)
-            st.solve()
-        ok = not message and (not isinstance(solver, _FFT) or solver.worst <= 10 * tol)
-        if isinstance(solver, _FFT) and solver.worst > 10 * tol:
-            message = f"worst CG residual {solver.worst:.2e}"
-    fz0, fx0, C0, S0 = snap0
-    for name, arr in (("fz", fz0), ("fx", fx0), ("fz at peak", best[3])):
-        if not np.all(np.isfinite(arr)):
-            raise NumericalError(f"coupled model: non-finite {name}")
-    return CoupledResult(
-        friction_force=float(best[0]), normal_force_at_peak=float(best[1]),
-        peak_dx=float(best[2]), events=events, normal_force=float(fz0.sum()),
-        contact_area=float(C0.sum()) / C0.size, released=released, fz0=fz0, fx0=fx0,
-        contact0=C0, stick0=S0, fz_peak=best[3], fx_peak=best[4], stick_peak=best[5],
-        contact_peak=best[6], converged=bool(ok), seconds=time.perf_counter() - t0,
-        solves=solver.solves, method=method,
-        message=note + (message or f"{len(events)} events, {transient} transient state(s)"),
-        states=states,
-    )
+    """:func:`couple` on a problem built from plain numbers (or given, ignoring ``a`` ...
+    ``threads``)."""
+    problem = heights if isinstance(heights, Problem) else Problem.from_arrays(
+        heights, a=a, E=E, nu=nu, boundary=boundary, periodic_kernel=periodic_kernel, fft=fft,
+        threads=threads)
+    return couple(problem, depth=depth, lam=lam, method=method, tol=tol, max_iter=max_iter,
+                  max_events=max_events, reference=reference, record_states=record_states)

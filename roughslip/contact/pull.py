@@ -43,20 +43,21 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from contextlib import nullcontext
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+from roughslip.contact.methods import Registry
 from roughslip.contact.squeeze import NormalResult
 from roughslip.elastic.operators import ElasticOperator
 from roughslip.errors import InputError, MemoryLimitError, NumericalError
 from roughslip.linalg import lapack64
-from roughslip.linalg.cg import masked_cg
+from roughslip.linalg.cg import CGResult, cg
 from roughslip.linalg.memory import available_bytes
+from roughslip.linalg.restricted import Restricted
 from roughslip.linalg.threads import blas_threads
 
-METHODS = ("auto", "literal", "inverse", "cg", "batch")
+#: slip laws: what a site carries once it leaves the stick set
 SLIP_LAWS = ("break", "coulomb")
 TIE_TOL = 1e-9
 
@@ -124,6 +125,42 @@ class SlipResult:
         return float(self.dx_lim[self.peak_index]) if self.dx_lim.size else 0.0
 
 
+@dataclass(frozen=True)
+class PullOptions:
+    """The settings every pull method reads (validated by :func:`pull`)."""
+
+    slip_law: str = "break"
+    tol: float = 1e-10
+    early_stop: bool = True
+    batch_size: int = 16
+    block: int = 128
+    max_iter: int = 10_000
+
+
+@dataclass(frozen=True)
+class PullMethod:
+    """A pull method: ``run(bonds, options, t0) -> SlipResult``.
+
+    Attributes
+    ----------
+    exact : bool
+        Gives the exact pull curve (up to the solver tolerance).
+    dense : bool
+        Works on an n x n matrix: BLAS gets the threads, and the FFTs one thread.
+    laws : tuple of str
+        The slip laws it implements.
+    """
+
+    run: Callable[..., SlipResult] | None
+    exact: bool
+    dense: bool
+    laws: tuple[str, ...] = ("break",)
+
+
+#: the pull methods, by name (the configuration's ``pull.method``)
+METHODS: Registry[PullMethod] = Registry("pull method")
+
+
 # ----------------------------------------------------------------------------------------------
 # Problem setup shared by the methods
 # ----------------------------------------------------------------------------------------------
@@ -132,9 +169,9 @@ class SlipResult:
 class _Bonds:
     """The bonded sites of a squeezed contact and the tangential operator on the grid."""
 
-    def __init__(self, normal: NormalResult, lam: float, op: ElasticOperator | None,
-                 fft: str, threads: int):
+    def __init__(self, normal: NormalResult, lam: float, threads: int | None = None):
         self.normal = normal
+        self.problem = normal.problem
         self.grid = normal.grid
         self.shape = normal.grid.shape
         self.lam = lam
@@ -142,18 +179,16 @@ class _Bonds:
         self.n = int(self.sites.size)
         self.fz = normal.fz.ravel()[self.sites].astype(float)
         self.cap = lam * self.fz  # lambda f_z per bond
-        self._op = op
-        self._fft, self._threads = fft, threads
-
-    @property
-    def op(self) -> ElasticOperator:
-        if self._op is None:
-            self._op = self.grid.operator(self.normal.material, ("xx",), fft=self._fft,
-                                          threads=self._threads)
-        return self._op
+        op = self.problem.operator("xx")
+        self.op: ElasticOperator = op if threads is None else op.with_threads(threads)
 
     def apply(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
         return self.op.apply("xx", v, out=out)
+
+    def restricted(self, positions: np.ndarray | None = None) -> Restricted:
+        """:math:`G_{xx}[S, S]` on the bonds at ``positions`` (all bonds by default)."""
+        mask = self.mask(np.arange(self.n) if positions is None else positions)
+        return Restricted(self.apply, mask)
 
     def field(self, values: np.ndarray, positions: np.ndarray | None = None) -> np.ndarray:
         out = np.zeros(self.shape)
@@ -259,18 +294,29 @@ class _Curve:
 
 
 def _solve_phi(b: _Bonds, alive_pos: np.ndarray, tol: float, x0: np.ndarray | None,
-               max_iter: int):
-    mask = b.mask(alive_pos)
-    rhs = mask.astype(float)
+               max_iter: int) -> tuple[np.ndarray, CGResult]:
+    r""":math:`\varphi` on the stick set: :math:`G_{xx}[S,S]\varphi = 1_S` by CG."""
+    A = b.restricted(alive_pos)
     x0f = None if x0 is None else b.field(x0, alive_pos)
-    r = masked_cg(b.apply, rhs, mask, x0=x0f, tol=tol, max_iter=max_iter)
-    return r.x.ravel()[b.sites[alive_pos]], r
+    r = cg(A, A.weights, x0=x0f, tol=tol, max_iter=max_iter)
+    return A.gather(r.x), r
 
 
-def _break_literal(b: _Bonds, tol: float, early_stop: bool, warm: bool, max_iter: int,
-                   t0: float, method: str) -> SlipResult:
-    """One CG solve per break (cold from zero for ``literal``, warm for ``cg``)."""
-    curve = _Curve(b, early_stop)
+def _break_literal(b: _Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    """The report's algorithm: one CG solve from zero per break, every bond."""
+    return _break_solves(b, opt, t0, warm=False)
+
+
+def _break_cg(b: _Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    """Matrix-free exact: one warm-started CG solve per break, with the early stop."""
+    return _break_solves(b, opt, t0, warm=True)
+
+
+def _break_solves(b: _Bonds, opt: PullOptions, t0: float, *, warm: bool) -> SlipResult:
+    """One CG solve per break (cold from zero, or warm from the previous solution)."""
+    tol, max_iter = opt.tol, opt.max_iter
+    method = "cg" if warm else "literal"
+    curve = _Curve(b, opt.early_stop and warm)
     alive = np.arange(b.n)
     phi = None
     ok, solves, iters, worst = True, 0, 0, 0.0
@@ -398,11 +444,11 @@ class _InverseSweep:
             self.v = {name: vec[keep] for name, vec in self.v.items()}
 
 
-def _break_inverse(b: _Bonds, tol: float, early_stop: bool, block: int, t0: float
-                   ) -> SlipResult:
+def _break_inverse(b: _Bonds, opt: PullOptions, t0: float) -> SlipResult:
     """Exact break law with :class:`_InverseSweep`: :math:`O(n)` per break plus blocked
     BLAS-3 updates; :math:`\varphi` is certified against the FFT operator after each block."""
-    curve = _Curve(b, early_stop)
+    tol, block = opt.tol, opt.block
+    curve = _Curve(b, opt.early_stop)
     sw = _InverseSweep(b, block)
     sw.v["phi"] = sw.apply(np.ones(b.n))
     cap_sum = float(b.cap.sum())
@@ -437,7 +483,7 @@ def _stick_residual(b: _Bonds, pos: np.ndarray, v: np.ndarray, rhs: np.ndarray |
                     ) -> tuple[np.ndarray, float]:
     r"""Residual :math:`r = \mathrm{rhs} - G_{xx}[S,S]\,v` on the stick set ``pos`` (bond
     positions), by the FFT operator, and its norm relative to that of ``rhs``."""
-    u = b.apply(b.field(v, pos), np.empty(b.shape)).ravel()[b.sites[pos]]
+    u = b.restricted(pos).matvec(v)
     rhs = np.broadcast_to(np.asarray(rhs, dtype=float), u.shape)
     r = rhs - u
     return r, float(np.linalg.norm(r)) / max(float(np.linalg.norm(rhs)), 1e-300)
@@ -466,10 +512,26 @@ def _certify(b: _Bonds, sw: _InverseSweep, name: str, load: np.ndarray | None, t
         nref += 1
 
 
-def _break_batch(b: _Bonds, tol: float, early_stop: bool, size: int, max_iter: int,
-                 t0: float) -> SlipResult:
-    """Approximate: break the ``size`` largest-ratio bonds per solve (biased low)."""
-    curve = _Curve(b, early_stop)
+def _break_batch(b: _Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    """Approximate: break the ``batch_size`` largest-ratio bonds per solve (biased low); the
+    error is estimated from a second pass with half the batch size."""
+    res = _batch_pass(b, opt, t0, opt.batch_size)
+    half_size = max(1, opt.batch_size // 2)
+    half = _batch_pass(b, opt, t0, half_size)
+    # the bias grows about linearly with the batch size (measured: -0.6 %, -5 %, -10 %,
+    # -17 % for 4, 8, 16, 32 bonds per solve), so the error of size b is ~ twice the
+    # difference between sizes b and b/2
+    est = 2.0 * abs(res.friction_force - half.friction_force) / max(half.friction_force,
+                                                                      1e-300)
+    return replace(res, error_estimate=est, seconds=time.perf_counter() - t0,
+                   message=res.message + f"; error estimate (from batch size {half_size}): "
+                   f"{est:.2e}")
+
+
+def _batch_pass(b: _Bonds, opt: PullOptions, t0: float, size: int) -> SlipResult:
+    """One batch pass with ``size`` bonds broken per solve."""
+    tol, max_iter = opt.tol, opt.max_iter
+    curve = _Curve(b, opt.early_stop)
     alive = np.arange(b.n)
     phi = None
     ok, solves, worst = True, 0, 0.0
@@ -498,7 +560,7 @@ def _break_batch(b: _Bonds, tol: float, early_stop: bool, size: int, max_iter: i
 # ----------------------------------------------------------------------------------------------
 
 
-def _coulomb(b: _Bonds, tol: float, block: int, t0: float) -> SlipResult:
+def _coulomb(b: _Bonds, opt: PullOptions, t0: float) -> SlipResult:
     r"""Event-driven Coulomb slip: the exact piecewise-linear :math:`F_x(D_x)` to full sliding.
 
     With stick set :math:`S` and slip set :math:`L` carrying :math:`f_x = s\,\lambda f_z`
@@ -510,8 +572,8 @@ def _coulomb(b: _Bonds, tol: float, block: int, t0: float) -> SlipResult:
     and :math:`\psi \leftarrow \psi - c(\psi_k + s_k\lambda f_{z,k})/c_k`
     (:class:`_InverseSweep`). Both are certified against the FFT operator after each block.
     """
-    n = b.n
-    sw = _InverseSweep(b, block)
+    n, tol = b.n, opt.tol
+    sw = _InverseSweep(b, opt.block)
     sw.v["phi"] = sw.apply(np.ones(n))
     sw.v["psi"] = np.zeros(n)
     sign = np.zeros(n)  # slip direction per bond position
@@ -583,8 +645,7 @@ def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
 LANCZOS_SEED = 20030101
 
 
-def bond_spectrum(normal: NormalResult, *, rtol: float = 1e-2, fft: str = "auto",
-                  threads: int = 1, operator: ElasticOperator | None = None
+def bond_spectrum(normal: NormalResult, *, rtol: float = 1e-2, threads: int | None = None
                   ) -> tuple[float, float]:
     r"""Estimates :math:`(\theta_{\min}, \theta_{\max})` of the extreme eigenvalues of
     :math:`A_0 = G_{xx}[S_0,S_0]` on the bonds :math:`S_0` of a squeeze.
@@ -635,9 +696,9 @@ def bond_spectrum(normal: NormalResult, *, rtol: float = 1e-2, fft: str = "auto"
     NumericalError
         When Lanczos does not converge or the smallest estimate is not positive.
     """
-    from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigsh
+    from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, eigsh
 
-    b = _Bonds(normal, 1.0, operator, fft, threads)
+    b = _Bonds(normal, 1.0, threads)
     if b.n == 0:
         raise InputError("bond_spectrum: the squeeze has no contact sites")
     if b.n <= 500:
@@ -645,12 +706,7 @@ def bond_spectrum(normal: NormalResult, *, rtol: float = 1e-2, fft: str = "auto"
             w = np.linalg.eigvalsh(b.dense())
         lo, hi = float(w[0]), float(w[-1])
     else:
-        tmp = np.empty(b.shape)
-
-        def matvec(x: np.ndarray) -> np.ndarray:
-            return b.apply(b.field(np.ravel(x)), tmp).ravel()[b.sites]
-
-        A = LinearOperator((b.n, b.n), matvec=matvec, dtype=float)
+        A = b.restricted()
         v0 = np.random.default_rng(LANCZOS_SEED).standard_normal(b.n)
         try:
             with blas_threads(1):
@@ -694,9 +750,7 @@ def pull(
     batch_size: int = 16,
     block: int = 128,
     max_iter: int = 10_000,
-    fft: str = "auto",
-    threads: int = 1,
-    operator: ElasticOperator | None = None,
+    threads: int | None = None,
     estimate_error: bool = False,
 ) -> SlipResult:
     r"""Pull a squeezed contact sideways until it slides (docs/theory/pull.rst#break-law).
@@ -704,23 +758,29 @@ def pull(
     Parameters
     ----------
     normal : NormalResult
-        The squeeze result; its contact sites (``f_z > 0``) are the initial bonds, and its grid
-        and material define :math:`G_{xx}`.
+        The squeeze result; its contact sites (``f_z > 0``) are the initial bonds, and its
+        problem (grid, material, operator) defines :math:`G_{xx}`.
     lam : float
         Local friction coefficient :math:`\lambda > 0`: a bond breaks (or slips) when
         :math:`|f_x| > \lambda f_z`.
     slip_law : {"break", "coulomb"}
         ``"break"``: a broken bond carries no force (the report). ``"coulomb"``: a slipping
         site carries :math:`\lambda f_z`.
-    method : {"auto", "literal", "inverse", "cg", "batch"}
-        See the module docstring. ``"auto"`` picks an exact method by bond count and memory.
+    method : str
+        A name from :data:`METHODS`: ``"auto"``, ``"literal"``, ``"inverse"``, ``"cg"`` or
+        ``"batch"`` (module docstring). ``"auto"`` picks an exact method by bond count and
+        memory (:func:`choose_method`).
     tol : float
         Relative residual of the tangential solves (and of the certification of ``inverse``).
     early_stop : bool
-        Stop once :math:`\lambda\sum_S f_z` falls below the best :math:`F_{x,\rm lim}` (exact).
-        ``method="literal"`` always runs to the last bond, as the report does.
+        Stop once :math:`\lambda\sum_S f_z` falls below the best :math:`F_{x,\rm lim}`
+        (exact). ``method="literal"`` always runs to the last bond, as the report does.
     batch_size : int
         Bonds broken per solve by ``method="batch"``.
+    block : int
+        Removals per blocked update of ``method="inverse"``.
+    threads : int, optional
+        BLAS threads of the dense methods (default: the problem's threads).
     estimate_error : bool
         Also estimate the condition number of :math:`G_{xx}` on the bonds
         (:func:`bond_spectrum`, a few hundred operator applications; deterministic) and report
@@ -736,66 +796,54 @@ def pull(
         raise InputError(f"lam = {lam!r}: must be a finite number > 0")
     if slip_law not in SLIP_LAWS:
         raise InputError(f"slip_law = {slip_law!r}: must be 'break' or 'coulomb'")
-    if method not in METHODS:
-        raise InputError(f"method = {method!r}: must be one of {', '.join(METHODS)}")
+    impl = METHODS.get(method)
     if not 0 < tol < 1:
         raise InputError(f"tol = {tol!r}: must satisfy 0 < tol < 1")
     if int(batch_size) < 1 or int(block) < 1:
         raise InputError("batch_size and block must be >= 1")
-    if int(threads) < 1:
+    threads = normal.problem.threads if threads is None else int(threads)
+    if threads < 1:
         raise InputError(f"threads = {threads!r}: must be >= 1")
-    b = _Bonds(normal, float(lam), operator, fft, threads)
+    opt = PullOptions(slip_law=slip_law, tol=float(tol), early_stop=bool(early_stop),
+                      batch_size=int(batch_size), block=int(block), max_iter=int(max_iter))
+    b = _Bonds(normal, float(lam))
     if b.n == 0:
         return _Curve(b, early_stop).result(t0, method, converged=True,
                                             message="no contact: nothing to pull",
                                             slip_law=slip_law)
-    chosen = choose_method(b.n) if method == "auto" else method
-    # Dense linear algebra gets the threads; FFT-bound CG loops keep BLAS single-threaded
-    # (competing FFTW and OpenBLAS thread pools made CG iterations 60x slower).
-    dense = chosen == "inverse" or slip_law == "coulomb"
-    # ... and the dense methods' FFTs (certification) run on one thread next to threaded BLAS
-    with blas_threads(threads if dense else 1), \
-            (b.op.fft_threads(1) if dense else nullcontext()):
-        res = _pull(b, slip_law, method, chosen, tol, early_stop, int(batch_size), int(block),
-                    max_iter, t0)
+    chosen = choose_method(b.n) if impl.run is None else method
+    impl = METHODS.get(chosen)
+    if slip_law not in impl.laws:
+        laws = [n for n in METHODS if METHODS.get(n).run is None or slip_law in
+                METHODS.get(n).laws]
+        raise InputError(f"slip_law = {slip_law!r} supports methods {', '.join(laws)}, not "
+                         f"{chosen!r}")
+    if impl.dense:
+        # Dense linear algebra gets the threads, and the certification's FFTs run on one
+        # thread beside it; FFT-bound CG loops keep BLAS single-threaded (competing FFTW and
+        # OpenBLAS thread pools made CG iterations 60x slower).
+        b = _Bonds(normal, float(lam), threads=1)
+    with blas_threads(threads if impl.dense else 1):
+        run = _coulomb if slip_law == "coulomb" else impl.run
+        res = run(b, opt, t0)
+    if method != chosen:
+        res = replace(res, message=f"auto chose {chosen} for {b.n} bonds; " + res.message)
     if estimate_error:
-        lo, hi = bond_spectrum(normal, operator=b.op, threads=threads)
+        lo, hi = bond_spectrum(normal, threads=threads)
         kappa = hi / lo
         est = res.error_estimate if res.method == "batch" else kappa * res.residual
-        res = _replace(res, condition=kappa, error_estimate=est,
-                       seconds=time.perf_counter() - t0)
+        res = replace(res, condition=kappa, error_estimate=est,
+                      seconds=time.perf_counter() - t0)
     return res
 
 
-def _pull(b: _Bonds, slip_law, method, chosen, tol, early_stop, batch_size, block, max_iter,
-          t0) -> SlipResult:
-    if slip_law == "coulomb":
-        if chosen not in ("inverse", "literal", "auto"):
-            raise InputError(f"slip_law = 'coulomb' supports methods auto and inverse, not "
-                             f"{chosen!r}")
-        return _coulomb(b, tol, block, t0)
-    if chosen == "literal":
-        res = _break_literal(b, tol, False, False, max_iter, t0, "literal")
-    elif chosen == "cg":
-        res = _break_literal(b, tol, early_stop, True, max_iter, t0, "cg")
-    elif chosen == "inverse":
-        res = _break_inverse(b, tol, early_stop, block, t0)
-    else:
-        res = _break_batch(b, tol, early_stop, batch_size, max_iter, t0)
-        half = _break_batch(b, tol, early_stop, max(1, batch_size // 2), max_iter, t0)
-        # the bias grows about linearly with the batch size (measured: -0.6 %, -5 %, -10 %,
-        # -17 % for 4, 8, 16, 32 bonds per solve), so the error of size b is ~ twice the
-        # difference between sizes b and b/2
-        est = 2.0 * abs(res.friction_force - half.friction_force) / max(half.friction_force,
-                                                                          1e-300)
-        res = _replace(res, error_estimate=est, seconds=time.perf_counter() - t0,
-                       message=res.message + f"; error estimate (from batch size "
-                       f"{max(1, batch_size // 2)}): {est:.2e}")
-    if method == "auto":
-        res = _replace(res, message=f"auto chose {chosen} for {b.n} bonds; " + res.message)
-    return res
-
-
-def _replace(res: SlipResult, **kw) -> SlipResult:
-    return replace(res, **kw)
-
+METHODS.register("auto", "an exact method chosen by bond count and memory")(
+    PullMethod(None, exact=True, dense=False, laws=SLIP_LAWS))
+METHODS.register("literal", "the report's algorithm, one CG solve from zero per break")(
+    PullMethod(_break_literal, exact=True, dense=False))
+METHODS.register("inverse", "exact, an updated inverse of G_xx on the bonds (O(n^2) memory)")(
+    PullMethod(_break_inverse, exact=True, dense=True, laws=SLIP_LAWS))
+METHODS.register("cg", "exact and matrix-free, a warm-started CG solve per break")(
+    PullMethod(_break_cg, exact=True, dense=False))
+METHODS.register("batch", "approximate, several bonds broken per solve")(
+    PullMethod(_break_batch, exact=False, dense=False))

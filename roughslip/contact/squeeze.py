@@ -11,8 +11,8 @@ and :math:`f\,g = 0`. This is the minimum of :math:`\tfrac12 f^T G f - \bar u^T 
 :math:`f \ge 0`. Load control prescribes :math:`F_n = \sum f` instead; :math:`D_z` becomes an
 unknown (the Lagrange multiplier of the force constraint).
 
-Methods
--------
+Methods (registered in :data:`METHODS`)
+---------------------------------------
 ``"pk"``
     Polonsky & Keer (1999), *Wear* 231:206: conjugate gradients that add and remove contact
     sites inside one run, on the FFT operator.
@@ -41,16 +41,20 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
+from typing import Protocol
 
 import numpy as np
 
-from roughslip.elastic.operators import ElasticOperator, Grid, Material
+from roughslip.contact.methods import Registry
+from roughslip.contact.problem import Problem, check_heights, finite
+from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import ConvergenceError, InputError, NumericalError
-from roughslip.linalg.cg import masked_cg
+from roughslip.linalg.cg import cg
 from roughslip.linalg.threads import blas_threads
 
-METHODS = ("pk", "active-set")
+__all__ = ["METHODS", "NormalResult", "NormalSolver", "check_heights", "squeeze"]
+
 _SYNC = 64  # PK: recompute u = G p from scratch at least this often
 
 
@@ -76,6 +80,8 @@ class NormalResult:
         :math:`D_z` (given, or found under load control).
     converged, iterations, residual, seconds, method :
         Solver record (``residual`` as defined in the module docstring).
+    problem : Problem
+        The problem that was solved (grid, material, heights, operator).
     """
 
     fz: np.ndarray
@@ -90,15 +96,28 @@ class NormalResult:
     residual: float
     seconds: float
     method: str
+    problem: Problem
     control: str = "depth"
     message: str = ""
     force_error: float = 0.0
     penetration: float = 0.0
     convolutions: int = 0
     fft_seconds: float = 0.0
-    grid: Grid = field(default_factory=lambda: Grid((1, 1)))
-    material: Material = field(default_factory=Material)
-    heights: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def grid(self) -> Grid:
+        """The problem's grid."""
+        return self.problem.grid
+
+    @property
+    def material(self) -> Material:
+        """The problem's material."""
+        return self.problem.material
+
+    @property
+    def heights(self) -> np.ndarray:
+        """The problem's heights."""
+        return self.problem.heights
 
     @property
     def n_contact(self) -> int:
@@ -111,78 +130,70 @@ class NormalResult:
         return self.n_contact * self.grid.a**2
 
 
-def check_heights(heights: np.ndarray, name: str = "heights") -> np.ndarray:
-    """Return ``heights`` as a float64 2-D array, or raise :class:`InputError`."""
-    h = np.asarray(heights)
-    if h.ndim != 2:
-        raise InputError(f"{name}: must be a 2-D array, got {h.ndim} dimension(s)")
-    if h.size == 0:
-        raise InputError(f"{name}: is empty")
-    if not np.issubdtype(h.dtype, np.number) or np.iscomplexobj(h):
-        raise InputError(f"{name}: must be real numbers, got dtype {h.dtype}")
-    h = np.ascontiguousarray(h, dtype=float)
-    if not np.all(np.isfinite(h)):
-        bad = np.argwhere(~np.isfinite(h))[0]
-        raise InputError(f"{name}: non-finite value at [iy, ix] = {bad.tolist()}")
-    return h
+@dataclass(frozen=True)
+class Outcome:
+    """What a squeeze method returns: the forces, displacement and depth it found."""
+
+    fz: np.ndarray
+    uz: np.ndarray
+    depth: float
+    iterations: int
+    converged: bool
+    message: str
+
+
+class SqueezeMethod(Protocol):
+    """A squeeze method: built once per :class:`NormalSolver`, then solved at many targets."""
+
+    def __init__(self, solver: NormalSolver) -> None: ...
+
+    def at_depth(self, depth: float, x0: np.ndarray | None) -> Outcome: ...
+
+    def at_force(self, force: float, x0: np.ndarray | None) -> Outcome: ...
+
+
+#: the squeeze methods, by name (the configuration's ``squeeze.method``)
+METHODS: Registry[type[SqueezeMethod]] = Registry("squeeze method")
 
 
 class NormalSolver:
-    """Reusable squeeze solver for one topography (operator and work arrays built once).
+    """Reusable squeeze solver for one problem (operator and work arrays built once).
 
     Parameters
     ----------
-    heights : ndarray
-        Composite heights of the rigid surface (positive toward the elastic body).
-    grid : Grid
-        Pixel size and boundary; its shape must equal ``heights.shape``.
-    material : Material
-    method : {"pk", "active-set"}
+    problem : Problem
+        Heights, grid and material; its operator gets the ``"zz"`` spectrum.
+    method : str
+        A name from :data:`METHODS` (``"pk"`` or ``"active-set"``).
     tol : float
         Tolerance on the dimensionless residual (module docstring).
     max_iter : int
         Iteration limit (PK iterations, or CG iterations summed over the active-set loop).
-    operator : ElasticOperator, optional
-        A prebuilt operator with the ``"zz"`` component (shared between solvers).
     """
 
-    def __init__(
-        self,
-        heights: np.ndarray,
-        grid: Grid,
-        material: Material,
-        *,
-        method: str = "pk",
-        tol: float = 1e-10,
-        max_iter: int = 20_000,
-        fft: str = "auto",
-        threads: int = 1,
-        operator: ElasticOperator | None = None,
-    ) -> None:
-        self.heights = check_heights(heights)
-        if self.heights.shape != grid.shape:
-            raise InputError(f"heights shape {self.heights.shape} != grid shape {grid.shape}")
-        if method not in METHODS:
-            raise InputError(f"method = {method!r}: must be one of {', '.join(METHODS)}")
+    def __init__(self, problem: Problem, *, method: str = "pk", tol: float = 1e-10,
+                 max_iter: int = 20_000) -> None:
+        if not isinstance(problem, Problem):
+            raise InputError("NormalSolver takes a Problem (roughslip.contact.problem.Problem); "
+                             "for plain arrays use roughslip.squeeze")
+        impl = METHODS.get(method)
         if not (isinstance(tol, float | int) and 0 < tol < 1):
             raise InputError(f"tol = {tol!r}: must satisfy 0 < tol < 1")
         if int(max_iter) < 1:
             raise InputError(f"max_iter = {max_iter!r}: must be >= 1")
-        if grid.boundary == "periodic" and grid.size < 2:
+        if problem.grid.boundary == "periodic" and problem.grid.size < 2:
             raise InputError("a periodic 1x1 grid has no non-uniform mode: use an open grid")
-        self.grid = grid
-        self.material = material
+        self.problem = problem
+        self.grid = problem.grid
         self.method = method
         self.tol = float(tol)
         self.max_iter = int(max_iter)
-        if operator is None:
-            operator = grid.operator(material, ("zz",), fft=fft, threads=threads)
-        self.op = operator
-        self.hmax = float(self.heights.max())
-        self.hmean = float(self.heights.mean())
-        # geometric overlap at D = 0 (first touch): ubar(D) = D + self._base
-        self._base = self.heights - self.hmax
-        self._diag = float(self.op.apply("zz", _unit(grid.shape))[0, 0])
+        self.op = problem.operator("zz")
+        self._impl = impl(self)
+
+    def apply(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """:math:`u = G_{zz} * v`."""
+        return self.op.apply("zz", v, out=out)
 
     # ------------------------------------------------------------------------------ public
     def solve(self, depth: float | None = None, force: float | None = None,
@@ -202,16 +213,17 @@ class NormalSolver:
         """
         if (depth is None) == (force is None):
             raise InputError("give exactly one of depth and force")
+        pb = self.problem
         if depth is not None:
-            depth = _finite(depth, "depth")
-            if self.grid.boundary == "periodic" and depth >= self.hmax - self.hmean:
+            depth = finite(depth, "depth")
+            if depth >= pb.depth_limit():
                 raise InputError(
                     f"depth = {depth:g}: on a periodic grid displacement control needs "
-                    f"depth < max(h) - mean(h) = {self.hmax - self.hmean:g} (the force diverges "
+                    f"depth < max(h) - mean(h) = {pb.depth_limit():g} (the force diverges "
                     "as the mean gap closes); use load control (force=...) instead"
                 )
         else:
-            force = _finite(force, "force")
+            force = finite(force, "force")
             if force < 0:
                 raise InputError(f"force = {force:g}: must be >= 0")
         if x0 is not None:
@@ -226,79 +238,106 @@ class NormalSolver:
         # competing for the same cores made CG iterations 60x slower)
         with blas_threads(1):
             if (depth is not None and depth <= 0) or (force is not None and force == 0):
-                out = self._no_contact(0.0 if depth is None else depth)
-            elif self.method == "pk":
-                out = self._pk(depth, force, x0)
+                z = np.zeros(self.grid.shape)
+                out = Outcome(z, z.copy(), 0.0 if depth is None else depth, 0, True,
+                              "no overlap: no contact")
             elif depth is not None:
-                out = self._active_set(depth, x0)
+                out = self._impl.at_depth(depth, x0)
             else:
-                out = self._active_set_load(force, x0)
-        fz, uz, d, it, conv, msg = out
-        res = self._finish(fz, uz, d, it, conv, msg, depth is None, force, t0, conv0, fft0)
+                out = self._impl.at_force(force, x0)
+        res = self._finish(out, force)
+        res = _with_record(res, seconds=time.perf_counter() - t0,
+                           convolutions=self.op.applications - conv0,
+                           fft_seconds=self.op.fft_seconds - fft0)
         if strict and not res.converged:
             raise ConvergenceError(f"squeeze did not converge: {res.message}")
         return res
 
     # ------------------------------------------------------------------------------ helpers
-    def _apply(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
-        return self.op.apply("zz", v, out=out)
-
-    def _no_contact(self, depth: float):
-        z = np.zeros(self.grid.shape)
-        return z, z.copy(), depth, 0, True, "no overlap: no contact"
-
-    def _residual(self, fz: np.ndarray, g: np.ndarray, scale: float) -> tuple[float, float]:
-        """(residual, penetration), both relative to ``scale``."""
-        c = fz > 0
-        gap_err = float(np.max(np.abs(g[c]))) if np.any(c) else 0.0
-        pen = float(max(0.0, -np.min(g[~c]))) if np.any(~c) else 0.0
-        scale = max(scale, np.finfo(float).tiny)
-        return max(gap_err, pen) / scale, pen / scale
-
-    def _finish(self, fz, uz, depth, iterations, converged, message, load, force, t0, conv0,
-                fft0) -> NormalResult:
+    def _finish(self, out: Outcome, force: float | None) -> NormalResult:
+        """The result of a method's outcome: gap, residual and the checks."""
+        fz, uz, depth = out.fz, out.uz, out.depth
         if not (np.all(np.isfinite(fz)) and np.all(np.isfinite(uz)) and math.isfinite(depth)):
             raise NumericalError(f"squeeze ({self.method}): non-finite value in the solution")
-        ubar = self._base + depth
-        gap = uz - ubar
-        res, pen = self._residual(fz, gap, depth)
+        gap = uz - self.problem.overlap(depth)
+        res, pen = _residual(fz, gap, depth)
         contact = fz > 0
         F = float(fz.sum())
-        ferr = abs(F - force) / force if load and force else 0.0
+        load = force is not None
+        message = out.message
         if self.method == "active-set" and pen > self.tol:
             message = (f"{message}; penetration off contact {pen:.2e} (relative to the depth) "
                        "exceeds the tolerance: the removal-only loop missed contact sites")
         return NormalResult(
             fz=fz, uz=uz, gap=gap, contact=contact, normal_force=F,
             contact_area=float(np.count_nonzero(contact)) / self.grid.size, depth=float(depth),
-            converged=bool(converged and res <= self.tol), iterations=int(iterations),
-            residual=float(res), seconds=time.perf_counter() - t0, method=self.method,
-            control="force" if load else "depth", message=message, force_error=float(ferr),
-            penetration=float(pen), convolutions=self.op.applications - conv0,
-            fft_seconds=self.op.fft_seconds - fft0, grid=self.grid, material=self.material,
-            heights=self.heights,
+            converged=bool(out.converged and res <= self.tol), iterations=int(out.iterations),
+            residual=float(res), seconds=0.0, method=self.method, problem=self.problem,
+            control="force" if load else "depth", message=message,
+            force_error=float(abs(F - force) / force) if load and force else 0.0,
+            penetration=float(pen),
         )
 
-    # ------------------------------------------------------------------------------ PK
+
+def _with_record(res: NormalResult, **kw: float) -> NormalResult:
+    return replace(res, **kw)
+
+
+def _residual(fz: np.ndarray, g: np.ndarray, scale: float) -> tuple[float, float]:
+    """(residual, penetration), both relative to ``scale``."""
+    c = fz > 0
+    gap_err = float(np.max(np.abs(g[c]))) if np.any(c) else 0.0
+    pen = float(max(0.0, -np.min(g[~c]))) if np.any(~c) else 0.0
+    scale = max(scale, np.finfo(float).tiny)
+    return max(gap_err, pen) / scale, pen / scale
+
+
+# ---------------------------------------------------------------------------------- PK
+@METHODS.register("pk", "Polonsky-Keer constrained CG")
+class PolonskyKeer:
+    """Polonsky & Keer (1999), *Wear* 231:206: conjugate gradients that add and remove contact
+    sites inside one run, on the FFT operator; displacement or load control.
+
+    One convolution per iteration (``r = G t``): the displacement is carried along as
+    ``u -= tau r``, and the projection's changes (clipped forces, new overlap sites) are
+    added exactly, by direct sums when they are few and by a fresh ``u = G p`` otherwise.
+    ``u`` is recomputed from scratch every ``_SYNC`` iterations and before convergence is
+    declared, so round-off cannot accumulate into the answer.
+
+    This method keeps its own iteration rather than :func:`roughslip.linalg.cg.cg`: its
+    contact set changes inside the iteration (a projection after every step, and conjugacy
+    restarts when sites enter), so no fixed restricted operator describes it.
+    """
+
+    def __init__(self, solver: NormalSolver) -> None:
+        self.solver = solver
+        self.grid = solver.grid
+        self.op = solver.op
+        self.tol, self.max_iter = solver.tol, solver.max_iter
+        self._apply = solver.apply
+        self._base = solver.problem.base
+        unit = np.zeros(self.grid.shape)
+        unit[0, 0] = 1.0
+        self._diag = float(self._apply(unit, np.empty_like(unit))[0, 0])
+        self._ws: dict[str, np.ndarray] | None = None
+
+    def at_depth(self, depth: float, x0: np.ndarray | None) -> Outcome:
+        return self._run(depth, None, x0)
+
+    def at_force(self, force: float, x0: np.ndarray | None) -> Outcome:
+        return self._run(None, force, x0)
+
     def _workspace(self) -> dict[str, np.ndarray]:
-        ws = self.__dict__.get("_ws")
-        if ws is None:
+        if self._ws is None:
             shape = self.grid.shape
             ws = {k: np.zeros(shape) for k in ("p", "u", "g", "gs", "t", "r", "Sf", "ubar",
                                                "tmp", "tmp_g")}
             ws["mb"] = np.zeros(shape, dtype=bool)
             self._ws = ws
-        return ws
+        return self._ws
 
-    def _pk(self, depth: float | None, force: float | None, x0: np.ndarray | None):
-        """Polonsky–Keer constrained CG (displacement or load control).
-
-        One convolution per iteration (``r = G t``): the displacement is carried along as
-        ``u -= tau r``, and the projection's changes (clipped forces, new overlap sites) are
-        added exactly, by direct sums when they are few and by a fresh ``u = G p`` otherwise.
-        ``u`` is recomputed from scratch every ``_SYNC`` iterations and before convergence is
-        declared, so round-off cannot accumulate into the answer.
-        """
+    def _run(self, depth: float | None, force: float | None, x0: np.ndarray | None
+             ) -> Outcome:
         load = force is not None
         ws = self._workspace()
         p, u, g, gs, t, r, Sf, ubar = (ws[k] for k in ("p", "u", "g", "gs", "t", "r", "Sf",
@@ -401,7 +440,8 @@ class NormalSolver:
                 self._apply(p, u)
                 stale = 0
         d = shift if load else depth
-        return p.copy(), u.copy(), d, it, converged, message or f"converged in {it} iterations"
+        return Outcome(p.copy(), u.copy(), d, it, converged,
+                       message or f"converged in {it} iterations")
 
     def _initial(self, ubar: np.ndarray, force: float | None) -> np.ndarray:
         """Cold start: forces proportional to the positive overlap, best scale along it."""
@@ -412,19 +452,31 @@ class NormalSolver:
         c = float(np.dot(ubar.ravel(), v.ravel())) / float(np.dot(v.ravel(), gv.ravel()))
         return c * v
 
-    # ------------------------------------------------------------------------------ active set
-    def _active_set(self, depth: float, x0: np.ndarray | None, budget: int | None = None):
-        """The report's removal-only loop ([Report2003] §4.5.3) at a fixed depth."""
-        ubar = self._base + depth
+
+
+# ---------------------------------------------------------------------------------- active set
+@METHODS.register("active-set", "the report's removal-only loop (a reference)")
+class ActiveSet:
+    """The report's loop ([Report2003] §4.5.3): start from the geometric overlap, solve
+    :math:`G_{KK} f_K = \\bar u_K` by CG (:func:`roughslip.linalg.cg.cg`), drop the sites with
+    :math:`f < 0`, repeat. It can only remove sites, so penetration off contact is checked at
+    the end. Load control is a bracketed root search on the depth."""
+
+    def __init__(self, solver: NormalSolver) -> None:
+        self.solver = solver
+        self.problem = solver.problem
+
+    def at_depth(self, depth: float, x0: np.ndarray | None) -> Outcome:
+        s, pb = self.solver, self.problem
+        ubar = pb.overlap(depth)
         K = ubar > 0  # the geometric overlap: a superset of the contact set
         f = None if x0 is None else np.where(K, x0, 0.0)
         total = 0
-        budget = self.max_iter if budget is None else budget
         message = ""
         ok = True
         while True:
-            r = masked_cg(self._apply, ubar, K, x0=f, tol=self.tol * 1e-2,
-                          max_iter=max(1, budget - total))
+            r = cg(pb.restricted("zz", K), ubar, x0=f, tol=s.tol * 1e-2,
+                   max_iter=max(1, s.max_iter - total))
             total += r.iterations
             f = r.x
             if not r.converged:
@@ -437,54 +489,39 @@ class NormalSolver:
             K &= ~neg
             f[neg] = 0.0
         f = np.where(K, np.maximum(f, 0.0), 0.0)
-        u = self._apply(f, np.empty_like(f))
-        return f, u, depth, total, ok, message or f"{total} CG iterations"
+        u = s.apply(f, np.empty_like(f))
+        return Outcome(f, u, depth, total, ok, message or f"{total} CG iterations")
 
-    def _active_set_load(self, force: float, x0: np.ndarray | None):
-        """Load control for the reference method: a bracketed secant search on D_z."""
+    def at_force(self, force: float, x0: np.ndarray | None) -> Outcome:
+        """Load control: a bracketed root search on D_z (Brent)."""
         from scipy.optimize import brentq
 
+        pb = self.problem
         iters = [0]
-        last = {}
+        last: dict[float, Outcome] = {}
 
         def excess(d: float) -> float:
-            f, u, _, it, ok, msg = self._active_set(d, None)
-            iters[0] += it
-            last[d] = (f, u, ok, msg)
-            return float(f.sum()) - force
+            out = self.at_depth(d, None)
+            iters[0] += out.iterations
+            last[d] = out
+            return float(out.fz.sum()) - force
 
-        lo, hi = 0.0, max(self.hmax - self.heights.min(), self.grid.a) * 1e-3
-        limit = (self.hmax - self.hmean) if self.grid.boundary == "periodic" else math.inf
+        lo, hi = 0.0, max(pb.hmax - float(pb.heights.min()), pb.grid.a) * 1e-3
+        limit = pb.depth_limit()
         while excess(hi) < 0:
             lo = hi
             hi = min(2 * hi, 0.5 * (hi + limit)) if math.isfinite(limit) else 2 * hi
-            if hi > 1e12 * max(self.grid.a, 1.0):
+            if hi > 1e12 * max(pb.grid.a, 1.0):
                 raise InputError(f"force = {force:g}: no depth reaches it")
         d = brentq(excess, lo, hi, xtol=1e-15 * hi, rtol=4 * np.finfo(float).eps, maxiter=200)
         if d not in last:
             excess(d)
-        f, u, ok, msg = last[d]
-        return f, u, d, iters[0], ok, msg
-
-
-def _unit(shape: tuple[int, int]) -> np.ndarray:
-    e = np.zeros(shape)
-    e[0, 0] = 1.0
-    return e
-
-
-def _finite(v, name: str) -> float:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} = {v!r}: must be a number") from None
-    if not math.isfinite(x):
-        raise InputError(f"{name} = {v!r}: must be finite")
-    return x
+        out = last[d]
+        return Outcome(out.fz, out.uz, d, iters[0], out.converged, out.message)
 
 
 def squeeze(
-    heights: np.ndarray,
+    heights: np.ndarray | Problem,
     *,
     depth: float | None = None,
     force: float | None = None,
@@ -504,9 +541,12 @@ def squeeze(
     r"""Squeeze a rigid surface into an elastic half-space
     (docs/theory/squeeze.rst#squeeze-problem).
 
+    A convenience over :class:`NormalSolver`: it builds the :class:`Problem` from plain numbers
+    (or takes one, ignoring ``a`` ... ``threads``) and solves once.
+
     Parameters
     ----------
-    heights : ndarray, shape (ny, nx)
+    heights : ndarray, shape (ny, nx), or Problem
         Heights of the rigid (composite) surface, positive toward the elastic body.
     depth : float, optional
         Penetration :math:`D_z` from first touch (displacement control).
@@ -519,6 +559,7 @@ def squeeze(
     tol : float
         Tolerance on the dimensionless residual (see module docstring).
     method : {"pk", "active-set"}
+        A name from :data:`METHODS`.
     x0 : ndarray, optional
         Warm start, e.g. the ``fz`` of a shallower depth.
     fft : {"auto", "pyfftw", "scipy"}
@@ -536,8 +577,8 @@ def squeeze(
     >>> r.converged, round(r.normal_force / (4 / 3 * 0.02 ** 1.5), 2)
     (True, 1.0)
     """
-    h = check_heights(heights)
-    grid = Grid(h.shape, a, boundary, periodic_kernel)
-    solver = NormalSolver(h, grid, Material(E, nu), method=method, tol=tol, max_iter=max_iter,
-                          fft=fft, threads=threads)
+    problem = heights if isinstance(heights, Problem) else Problem.from_arrays(
+        heights, a=a, E=E, nu=nu, boundary=boundary, periodic_kernel=periodic_kernel, fft=fft,
+        threads=threads)
+    solver = NormalSolver(problem, method=method, tol=tol, max_iter=max_iter)
     return solver.solve(depth=depth, force=force, x0=x0, strict=strict)

@@ -19,10 +19,10 @@ nothing else. Applying it allocates nothing when an ``out`` array is given (pyff
 
 from __future__ import annotations
 
+import copy
 import math
 import time
-from collections.abc import Iterable, Iterator
-from contextlib import contextmanager
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -119,6 +119,15 @@ class Grid:
                                fft=fft, threads=threads)
 
 
+def padded_shape(shape: tuple[int, int], boundary: str) -> tuple[int, int]:
+    """The FFT grid of an operator: fast lengths ``>= 2n - 1`` per axis for open grids (linear
+    convolution by zero padding), the grid itself for periodic ones."""
+    ny, nx = shape
+    if boundary == "open":
+        return fast_len(2 * ny - 1), fast_len(2 * nx - 1)
+    return ny, nx
+
+
 def _check_grid(shape: tuple[int, int], a: float) -> tuple[int, int]:
     if len(shape) != 2:
         raise InputError(f"grid shape {shape!r}: must be (ny, nx)")
@@ -180,21 +189,20 @@ class ElasticOperator:
             )
         self.boundary = boundary
         self.periodic_kernel = periodic_kernel
-        ny, nx = self.shape
-        if boundary == "open":
-            self.padded_shape = (fast_len(2 * ny - 1), fast_len(2 * nx - 1))
-        else:
-            self.padded_shape = (ny, nx)
+        ny = self.shape[0]
+        self.padded_shape = padded_shape(self.shape, boundary)
         # open grids: only the first ny rows carry data in and out (pruned row transforms)
         self.fft = RealFFT2(self.padded_shape, backend=fft, threads=threads,
                             rows=ny if boundary == "open" else None)
         self._kernel_fft = RealFFT2(self.padded_shape, backend=fft, threads=threads)
-        self._fft_by_threads = {self.fft.threads: self.fft}
         self._in = self.fft.real_buffer()
         self._out = self.fft.real_buffer()
         self._spec = [self.fft.spectrum_buffer() for _ in range(2)]
         self._work = None
         self._khat: dict[str, np.ndarray] = {}
+        # kernel tables in real space, built on demand (shared with thread views)
+        self._tables: dict[str, np.ndarray] = {}
+        self._pairs: dict[str, tuple[np.ndarray, int, int]] = {}
         self.setup_seconds = 0.0
         requested = list(components)
         for c in requested:
@@ -251,25 +259,50 @@ class ElasticOperator:
             ) from None
         return k if sign > 0 else -k
 
-    @contextmanager
-    def fft_threads(self, threads: int) -> Iterator[ElasticOperator]:
-        """Apply with ``threads`` FFT threads inside the ``with`` block.
+    def require(self, components: Iterable[str]) -> ElasticOperator:
+        """Build the spectra of ``components`` that this operator does not have yet.
+
+        Lets one operator per grid serve every stage of a scene, each asking only for what it
+        applies (the squeeze ``zz``, the pull ``xx``, the coupled model all three). Returns
+        the operator itself.
+        """
+        t0 = time.perf_counter()
+        for c in components:
+            if c not in _CANONICAL:
+                raise InputError(f"unknown component {c!r}; use one of {tuple(_CANONICAL)}")
+            canon = _CANONICAL[c][0]
+            if canon not in self._khat:
+                self._khat[canon] = self._build_spectrum(canon)
+        self.setup_seconds += time.perf_counter() - t0
+        return self
+
+    def with_threads(self, threads: int) -> ElasticOperator:
+        """An operator sharing this one's spectra and kernel tables that applies with
+        ``threads`` FFT threads, with its own transforms, buffers and counters.
 
         Used by the dense pull and coupled solvers: right after a threaded BLAS-3 call,
         OpenBLAS's spinning threads made a two-thread FFTW convolution 40x slower on two cores
-        (26 ms against 0.65 ms single-threaded on a 256^2 padded grid).
+        (26 ms against 0.65 ms single-threaded on a 256^2 padded grid). Views are cached per
+        thread count; the operator itself is never modified, so views can be used side by side.
         """
-        saved = self.fft
-        fft = self._fft_by_threads.get(int(threads))
-        if fft is None:
-            fft = self._fft_by_threads[int(threads)] = RealFFT2(
-                self.padded_shape, backend=saved.backend, threads=int(threads),
-                rows=saved.rows if saved.pruned else None)
-        self.fft = fft
-        try:
-            yield self
-        finally:
-            self.fft = saved
+        threads = int(threads)
+        if threads == self.fft.threads:
+            return self
+        views = self.__dict__.setdefault("_views", {})
+        view = views.get(threads)
+        if view is None:
+            view = copy.copy(self)  # shares _khat and the table caches (same dict objects)
+            view.fft = RealFFT2(self.padded_shape, backend=self.fft.backend, threads=threads,
+                                rows=self.fft.rows if self.fft.pruned else None)
+            view._in = view.fft.real_buffer()
+            view._out = view.fft.real_buffer()
+            view._spec = [view.fft.spectrum_buffer() for _ in range(2)]
+            view._work = None
+            view.fft_seconds = 0.0
+            view.applications = 0
+            view.__dict__["_views"] = {}
+            views[threads] = view
+        return view
 
     # -- application --------------------------------------------------------------------------
     def _check_field(self, f: np.ndarray, name: str = "f") -> None:
@@ -364,6 +397,11 @@ class ElasticOperator:
         ux = self._unload(w, out_x)
         return uz, ux
 
+    def apply_stacked(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """:meth:`apply_block` on stacked fields ``v = [f_z, f_x]`` of shape ``(2, ny, nx)``."""
+        self.apply_block(v[0], v[1], out[0], out[1])
+        return out
+
     # -- sparse sources -------------------------------------------------------------------------
     def real_space_table(self, component: str) -> np.ndarray:
         """The kernel in real space, laid out so that every source has a contiguous window.
@@ -372,7 +410,7 @@ class ElasticOperator:
         Periodic grids: the periodic kernel tiled twice per axis, shape ``(2ny, 2nx)``.
         Recovered from the stored spectrum by one inverse FFT and cached.
         """
-        cache = self.__dict__.setdefault("_tables", {})
+        cache = self._tables
         if component in cache:
             return cache[component]
         ny, nx = self.shape
@@ -397,7 +435,7 @@ class ElasticOperator:
         ``G(i - j) = T[(iy_i - iy_j) w + (ix_i - ix_j) + off]``. Open grids use the closed-form
         pixel kernel (no FFT round-off); periodic grids the periodic kernel.
         """
-        cache = self.__dict__.setdefault("_pairs", {})
+        cache = self._pairs
         if component in cache:
             return cache[component]
         ny, nx = self.shape

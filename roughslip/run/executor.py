@@ -24,52 +24,52 @@ from typing import Any
 import numpy as np
 
 from roughslip._version import __version__
-from roughslip.contact.coupled import squeeze_pull_coupled
-from roughslip.contact.pull import SlipResult, pull
-from roughslip.contact.squeeze import NormalResult, NormalSolver
+from roughslip.contact.problem import Problem
 from roughslip.elastic.fft import library_versions, resolve_backend
-from roughslip.elastic.operators import ElasticOperator
+from roughslip.elastic.operators import padded_shape
 from roughslip.errors import (
-    ConvergenceError,
     InputError,
     MemoryLimitError,
     NumericalError,
     WorkerError,
 )
 from roughslip.linalg import memory
+from roughslip.run import schema
 from roughslip.run.config import RunConfig
 from roughslip.run.scene import Scene
-from roughslip.run.store import RunWriter, SampleResult, scalar_specs
+from roughslip.run.stages import stage_for
+from roughslip.run.store import RunWriter, SampleResult
 
 Progress = Callable[[dict[str, Any]], None]
 
-_SCENES: dict[str, Scene] = {}
-_OPERATORS: dict[tuple, ElasticOperator] = {}
+
+class _Context:
+    """What a process keeps between the samples of one configuration: the scene, the problem
+    whose operator (and kernels) every sample shares, and the stage. One configuration at a
+    time: another one replaces it, so nothing has to be reset by hand."""
+
+    def __init__(self) -> None:
+        self.key: str | None = None
+
+    def get(self, config: RunConfig) -> _Context:
+        key = config.digest() + config.source + repr(config.execution)
+        if key != self.key:
+            scene = Scene.from_config(config)
+            ex = config.execution
+            self.scene = scene
+            self.problem = Problem(np.zeros(scene.grid.shape), scene.grid, scene.material,
+                                   fft=ex.fft, threads=ex.threads)
+            self.stage = stage_for(config, scene.coupled)
+            self.key = key
+        return self
 
 
-def _scene(config: RunConfig) -> Scene:
-    key = config.digest() + config.source
-    sc = _SCENES.get(key)
-    if sc is None:
-        _SCENES.clear()
-        _OPERATORS.clear()
-        sc = _SCENES[key] = Scene.from_config(config)
-    return sc
-
-
-def _operator(scene: Scene, components: tuple[str, ...]) -> ElasticOperator:
-    ex = scene.config.execution
-    key = (id(scene), components, ex.fft, ex.threads)
-    op = _OPERATORS.get(key)
-    if op is None:
-        op = _OPERATORS[key] = scene.grid.operator(scene.material, components, fft=ex.fft,
-                                                   threads=ex.threads)
-    return op
+_CONTEXT = _Context()
 
 
 def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], None] | None = None
                ) -> SampleResult:
-    """Squeeze (and pull) one sample at every depth of the configuration, in increasing order.
+    """Compute one sample at every target (depth or load) of the configuration, in order.
 
     Parameters
     ----------
@@ -77,7 +77,7 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     sample : int
         Global sample number (its surfaces come from ``SeedSequence(seed, spawn_key=(sample,))``).
     progress : callable ``(sample, depth_index)``, optional
-        Called after each depth.
+        Called after each target.
 
     Raises
     ------
@@ -86,154 +86,41 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     NumericalError
         When a non-finite value appears (naming the sample and depth).
     """
-    scene = _scene(config)
-    cfg = config
+    ctx = _CONTEXT.get(config)
+    scene = ctx.scene
     surf = scene.surfaces(sample)
     targets = scene.targets(surf.composite, surf.valid)
-    sq, _pl = cfg.squeeze, cfg.pull
-    strict = cfg.execution.strict
-    solver = NormalSolver(surf.composite, scene.grid, scene.material, method=sq.method,
-                          tol=sq.tol, max_iter=sq.max_iter, threads=cfg.execution.threads,
-                          operator=_operator(scene, ("zz",)))
-    pull_op = _operator(scene, ("xx",)) if scene.pull else None
-    nd = len(targets)
-    sc = {name: np.zeros(nd, dtype) for name, (dtype, _) in scalar_specs(cfg).items()}
+    runner = ctx.stage.start(ctx.problem.with_heights(surf.composite))
+    rows = schema.empty(config, len(targets))
     fields: list[dict[str, np.ndarray]] = []
     notes = list(scene.notes)
-    x0 = None
-    want = set(cfg.output.fields)
-    if scene.coupled:
-        return _coupled_sample(cfg, scene, sample, surf, targets, sc, progress)
     for k, t in enumerate(targets):
         where = f"sample {sample}, depth index {k}"
-        try:
-            r = (solver.solve(force=float(t), x0=x0) if cfg.control == "force"
-                 else solver.solve(depth=float(t), x0=x0))
-        except NumericalError as exc:
-            raise NumericalError(f"{where}: {exc}") from None
-        if strict and not r.converged:
-            raise ConvergenceError(f"{where}: squeeze did not converge: {r.message}")
-        _check_voids(r.contact, surf.valid, where)
-        if not r.converged:
-            notes.append(f"depth index {k}: squeeze not converged ({r.message})")
-        if sq.warm_start:
-            x0 = r.fz
-        _put(sc, k, depth_length=r.depth, normal_force=r.normal_force,
-             contact_area=r.contact_area, iterations=r.iterations, residual=r.residual,
-             converged=r.converged, seconds=r.seconds)
-        out: dict[str, np.ndarray] = {}
-        for name in ("fz", "uz", "gap", "contact"):
-            if name in want:
-                out[name] = getattr(r, name)
-        if scene.pull:
-            s = _pull(cfg, r, pull_op, where)
-            if strict and not s.converged:
-                raise ConvergenceError(f"{where}: pull did not converge: {s.message}")
-            _put(sc, k, friction_force=s.friction_force, friction_normal_force=s.normal_force,
-                 pull_seconds=s.seconds, pull_converged=s.converged, pull_steps=s.steps,
-                 pull_error_estimate=s.error_estimate)
-            if "fx" in want:
-                out["fx"] = s.fx_at_peak
-            if "stick" in want:
-                out["stick"] = s.stick_at_peak
-            if "ux" in want:
-                out["ux"] = pull_op.apply("xx", s.fx_at_peak)
-            if "pull_curve" in want:
-                out.update(dx_lim=s.dx_lim, fx_lim=s.fx_lim, broken_site=s.broken_site)
-        for name, a in out.items():
+        rec = runner.step(float(t), where)
+        _check_voids(rec.contact, surf.valid, where)
+        schema.put(rows, k, rec.scalars)
+        notes.extend(f"depth index {k}: {n}" for n in rec.notes)
+        for name, a in rec.fields.items():
             if np.issubdtype(np.asarray(a).dtype, np.floating) and not np.all(np.isfinite(a)):
                 raise NumericalError(f"{where}: non-finite values in field {name!r}")
-        fields.append(out)
+        fields.append(rec.fields)
         if progress is not None:
             progress(sample, k)
-    for name, a in sc.items():
-        if np.issubdtype(a.dtype, np.floating) and not np.all(np.isfinite(a)):
+    for name, row in rows.items():
+        if np.any(np.isinf(row)):
             raise NumericalError(f"sample {sample}: non-finite {name}")
     surfaces = {"rigid_surface": surf.rigid}
     if surf.elastic is not None:
         surfaces["elastic_surface"] = surf.elastic
-    return SampleResult(sample, sc, fields, surfaces, notes)
+    return SampleResult(sample, rows, fields, surfaces, notes)
 
 
-def _check_voids(contact: np.ndarray, valid: np.ndarray | None, where: str) -> None:
+def _check_voids(contact: np.ndarray | None, valid: np.ndarray | None, where: str) -> None:
     """A void (missing point) never carries force; one in contact means the run is wrong."""
-    if valid is not None and np.any(contact & ~valid):
+    if contact is not None and valid is not None and np.any(contact & ~valid):
         raise NumericalError(f"{where}: {int(np.sum(contact & ~valid))} void point(s) came "
                              "into contact; the depth reaches below the voids' stand-in "
                              "height (use surface.missing = 'interpolate')")
-
-
-def _put(sc: dict[str, np.ndarray], k: int, **values: float) -> None:
-    """Store scalar results of depth ``k``."""
-    for name, v in values.items():
-        sc[name][k] = v
-
-
-def _coupled_sample(cfg: RunConfig, scene: Scene, sample: int, surf, targets, sc, progress
-                    ) -> SampleResult:
-    """A sample of the coupled model: squeeze with bonded contacts, then the exact event pull."""
-    op = _operator(scene, ("zz", "zx", "xx"))
-    g = scene.grid
-    want = set(cfg.output.fields)
-    fields, notes = [], list(scene.notes)
-    for k, t in enumerate(targets):
-        where = f"sample {sample}, depth index {k}"
-        try:
-            r = squeeze_pull_coupled(
-                surf.composite, depth=float(t), lam=cfg.pull.lam, a=g.a, E=scene.material.E,
-                nu=scene.material.nu, boundary=g.boundary, periodic_kernel=g.periodic_kernel,
-                tol=min(cfg.pull.tol, 1e-10), fft=cfg.execution.fft,
-                threads=cfg.execution.threads, operator=op)
-        except NumericalError as exc:
-            raise NumericalError(f"{where}: {exc}") from None
-        if cfg.execution.strict and not r.converged:
-            raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
-        _check_voids(r.contact0, surf.valid, where)
-        _put(sc, k, depth_length=float(t), normal_force=r.normal_force,
-             contact_area=r.contact_area, iterations=r.solves, residual=0.0,
-             converged=r.converged, seconds=r.seconds, friction_force=r.friction_force,
-             friction_normal_force=r.normal_force_at_peak, pull_seconds=r.seconds,
-             pull_converged=r.converged, pull_steps=len(r.events), pull_error_estimate=0.0,
-             released_bonds=r.released)
-        notes.append(f"depth index {k}: {r.released} bond(s) released at D_x = 0")
-        out: dict[str, np.ndarray] = {}
-        if "fz" in want:
-            out["fz"] = r.fz0
-        if "contact" in want:
-            out["contact"] = r.contact0
-        if "uz" in want or "gap" in want:
-            uz = op.apply_block(r.fz0, r.fx0)[0]
-            if "uz" in want:
-                out["uz"] = uz
-            if "gap" in want:
-                out["gap"] = uz - (float(t) - (surf.composite.max() - surf.composite))
-        if "fx" in want:
-            out["fx"] = r.fx_peak
-        if "stick" in want:
-            out["stick"] = r.stick_peak
-        if "ux" in want:
-            out["ux"] = op.apply_block(r.fz_peak, r.fx_peak)[1]
-        if "pull_curve" in want:
-            out.update(dx_lim=r.dx, fx_lim=r.fx, fz_lim=r.fz,
-                       broken_site=np.array([e.site for e in r.events], dtype=np.int64))
-        fields.append(out)
-        if progress is not None:
-            progress(sample, k)
-    surfaces = {"rigid_surface": surf.rigid}
-    if surf.elastic is not None:
-        surfaces["elastic_surface"] = surf.elastic
-    return SampleResult(sample, sc, fields, surfaces, notes)
-
-
-def _pull(cfg: RunConfig, r: NormalResult, op: ElasticOperator, where: str) -> SlipResult:
-    pl = cfg.pull
-    try:
-        return pull(r, lam=pl.lam, slip_law=pl.slip_law, method=pl.method, tol=pl.tol,
-                    batch_size=pl.batch_size, fft=cfg.execution.fft,
-                    threads=cfg.execution.threads, operator=op, estimate_error=pl.error_estimate,
-                    early_stop=pl.early_stop)
-    except NumericalError as exc:
-        raise NumericalError(f"{where}: pull: {exc}") from None
 
 
 # ------------------------------------------------------------------------------------------------
@@ -286,12 +173,12 @@ def estimate_memory(scene: Scene) -> int:
     """
     ny, nx = scene.grid.shape
     n = ny * nx
-    if scene.grid.boundary == "open":
-        m = (2 * ny) * (2 * nx)
-    else:
-        m = n
-    per_op = 8 * m * 2 + 16 * (m // 2 + 1) * 3 + 8 * 4 * n  # buffers, spectra, direct-sum table
-    ops = per_op * len(scene.components) + 16 * (m // 2 + 1) * len(scene.components)
+    py, px = padded_shape(scene.grid.shape, scene.grid.boundary)
+    m = py * px
+    half = 16 * (py * (px // 2 + 1))  # one complex half-spectrum
+    # one operator per process: real buffers and transforms (its own and the kernels'), and
+    # per component a spectrum and a real-space kernel table
+    ops = 8 * m * 3 + half * 4 + len(scene.components) * (half + 8 * 4 * n)
     work = 8 * n * 16
     nfields = max(1, len(scene.config.output.fields))
     stored = 8 * n * nfields * len(scene.config.targets) + 8 * n * 3

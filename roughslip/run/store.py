@@ -2,7 +2,7 @@
 
 Layout of ``OUT.h5`` (``n_s`` samples, ``n_d`` depths or loads)::
 
-    /                        attrs: format, format_version, version, command_line, config
+    /                        attrs: format, format_version (2), version, command_line, config
                                     (resolved TOML), config_digest, control, libraries (JSON),
                                     fft_backend, threads, seed, units (JSON), notes (JSON)
     /sample_index  (n_s)     global sample numbers (ensemble.first_sample + i)
@@ -22,7 +22,11 @@ Layout of ``OUT.h5`` (``n_s`` samples, ``n_d`` depths or loads)::
             fz, uz, gap, contact, fx, ux, stick            (ny, nx), chunked and compressed
             dx_lim, fx_lim, broken_site                    the pull curve ("pull_curve")
 
-Entries of samples that are not complete are NaN (floats) or 0; read ``/complete`` first.
+The scalars and fields are those of the output schema (:mod:`roughslip.run.schema`), which
+describes each (also in its ``description`` attribute). Every scalar is ``float64``; a value
+that was not computed (or a sample that is not complete) is NaN: read ``/complete`` first.
+``/sample_index`` and ``/depth`` (or ``/force_target``) are HDF5 dimension scales attached to
+the two axes of every per-depth dataset, so generic HDF5 tools label them.
 
 Writing is single-writer and crash-safe. The journal folder ``OUT.h5.journal/`` is the
 record of a run until it ends: it is made first (with ``run.json``, the configuration digest),
@@ -60,59 +64,12 @@ import h5py
 import numpy as np
 
 from roughslip.errors import InputError, OutputError
+from roughslip.run import schema
 from roughslip.run.config import RunConfig
 
-FORMAT = "roughslip-run"
-FORMAT_VERSION = 1
-
-#: per-(sample, depth) scalar datasets: name -> (dtype, fill)
-SCALARS = {
-    "depth_length": ("f8", np.nan),
-    "normal_force": ("f8", np.nan),
-    "contact_area": ("f8", np.nan),
-    "iterations": ("i8", 0),
-    "residual": ("f8", np.nan),
-    "converged": ("u1", 0),
-    "seconds": ("f8", np.nan),
-}
-PULL_SCALARS = {
-    "friction_force": ("f8", np.nan),
-    "friction_normal_force": ("f8", np.nan),
-    "pull_seconds": ("f8", np.nan),
-    "pull_converged": ("u1", 0),
-    "pull_steps": ("i8", 0),
-    "pull_error_estimate": ("f8", np.nan),
-}
-#: scalars of the coupled model only
-COUPLED_SCALARS = {
-    "released_bonds": ("i8", 0),  # contact sites whose bond breaks already at D_x = 0
-}
-BOOL_FIELDS = ("contact", "stick")
-
-#: ``description`` attribute of each root dataset
-DESCRIPTIONS = {
-    "sample_index": "global sample numbers (ensemble.first_sample + row)",
-    "complete": "1 once the sample is fully written; entries of other rows are fill values",
-    "depth": "configured depths, in squeeze.depth_unit",
-    "force_target": "configured normal loads, in squeeze.force_unit",
-    "depth_length": "penetration D_z in length units",
-    "normal_force": "total normal force F_n",
-    "contact_area": "contact area as a fraction of the grid",
-    "iterations": "squeeze solver iterations",
-    "residual": "squeeze residual: worst gap error relative to the depth",
-    "converged": "1 when the squeeze met its tolerance",
-    "seconds": "squeeze wall-clock time (a measurement, differs between runs)",
-    "friction_force": "static friction force: the peak of the pull curve",
-    "friction_normal_force": "normal force of the pulled state",
-    "pull_seconds": "pull wall-clock time (a measurement, differs between runs)",
-    "pull_converged": "1 when every pull solve met its tolerance",
-    "pull_steps": "bonds broken (or sites slipped) until the pull stopped",
-    "pull_error_estimate": "estimate (not a bound) of the relative error of friction_force: "
-                           "batch-size sensitivity for method 'batch'; with "
-                           "pull.error_estimate, Lanczos condition estimate x certified "
-                           "residual for the exact methods; 0 otherwise",
-    "released_bonds": "coupled model: contact sites whose bond is released at D_x = 0",
-}
+FORMAT = schema.FORMAT
+FORMAT_VERSION = schema.FORMAT_VERSION
+BOOL_FIELDS = schema.BOOL_FIELDS
 
 
 @dataclass
@@ -317,7 +274,7 @@ class RunWriter:
             del f[name]
         for k, v in res.scalars.items():
             if k in f:
-                f[k][i, :] = v
+                f[k][i, :] = _stored(f[k].dtype, v)
         g = f.create_group(name)
         _write_sample_group(g, res, self.config)
         g.attrs["complete"] = True
@@ -390,28 +347,34 @@ def _init_file(f: h5py.File, config: RunConfig, indices: list[int], n_targets: i
     f.create_dataset("sample_index", data=np.asarray(indices, dtype=np.int64))
     f.create_dataset("complete", data=np.zeros(ns, dtype=np.uint8))
     axis = np.asarray(config.targets, dtype=float)
-    if config.control == "depth":
-        d = f.create_dataset("depth", data=axis)
-        d.attrs["unit"] = config.squeeze.depth_unit
-    else:
-        d = f.create_dataset("force_target", data=axis)
-        d.attrs["unit"] = config.squeeze.force_unit
-    for name, (dtype, fill) in scalar_specs(config).items():
-        f.create_dataset(name, shape=(ns, n_targets), dtype=dtype, fillvalue=fill)
-    for name in f:
-        if name in DESCRIPTIONS:
-            f[name].attrs["description"] = DESCRIPTIONS[name]
+    axis_name = "depth" if config.control == "depth" else "force_target"
+    d = f.create_dataset(axis_name, data=axis)
+    d.attrs["unit"] = config.squeeze.depth_unit if axis_name == "depth" else \
+        config.squeeze.force_unit
+    d.attrs["description"] = schema.AXES[axis_name]
+    d.make_scale(axis_name)
+    rows = f["sample_index"]
+    rows.make_scale("sample_index")
+    for name, text in schema.ROOT.items():
+        f[name].attrs["description"] = text
+    for col in schema.columns(config):
+        ds = f.create_dataset(col.name, shape=(ns, n_targets), dtype="f8", fillvalue=np.nan)
+        ds.attrs["description"] = col.description
+        ds.attrs["kind"] = col.kind
+        ds.dims[0].attach_scale(rows)
+        ds.dims[1].attach_scale(d)
+        ds.dims[0].label = "sample"
+        ds.dims[1].label = axis_name
     f.create_group("samples")
 
 
-def scalar_specs(config: RunConfig) -> dict[str, tuple[str, Any]]:
-    """The per-(sample, depth) scalars a run of ``config`` stores: name -> (dtype, fill)."""
-    specs = dict(SCALARS)
-    if config.pull.enabled:
-        specs.update(PULL_SCALARS)
-    if config.coupling.enabled:
-        specs.update(COUPLED_SCALARS)
-    return specs
+def _stored(dtype: np.dtype, values: np.ndarray) -> np.ndarray:
+    """Scalars as the dataset stores them: float64 (NaN where not computed), or, in files of
+    format 1 (integer counts and flags), 0 for NaN."""
+    v = np.asarray(values, dtype=float)
+    if np.issubdtype(dtype, np.integer):
+        return np.nan_to_num(v, nan=0.0).astype(dtype)
+    return v
 
 
 def _check_format(f: h5py.File, path: Path) -> None:
@@ -537,8 +500,7 @@ def read_run(path: str | Path) -> RunData:
         try:
             attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
             axis_name = "depth" if "depth" in f else "force_target"
-            scalars = {k: f[k][()] for k in (*SCALARS, *PULL_SCALARS, *COUPLED_SCALARS)
-                       if k in f}
+            scalars = {c.name: f[c.name][()] for c in schema.COLUMNS if c.name in f}
             unit = f[axis_name].attrs.get("unit", "")
             return RunData(
                 path=p, attrs=attrs, config_toml=str(attrs.get("config", "")),

@@ -1,0 +1,141 @@
+"""The output schema of a run: every per-(sample, depth) scalar and every per-depth field, named
+and described once.
+
+The writer creates exactly these datasets, the stages fill them by these names, and the readers,
+``roughslip inspect`` and the documentation list them from here. A scalar a stage did not
+compute stays NaN (the fill value), never 0: a coupled run has no squeeze iteration count, a
+pull without ``pull.error_estimate`` has no error estimate.
+
+Format versions
+    1 stored counts as integers and flags as ``uint8`` with fill 0; 2 stores every scalar as
+    ``float64`` with fill NaN (flags 1.0 / 0.0) and attaches ``/sample_index`` and ``/depth``
+    (or ``/force_target``) as HDF5 dimension scales of the per-depth datasets. Readers accept
+    both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from roughslip.run.config import RunConfig
+
+FORMAT = "roughslip-run"
+FORMAT_VERSION = 2
+
+#: the stages a run can have, in the order a sample runs them
+STAGES = ("squeeze", "pull", "coupled")
+
+
+@dataclass(frozen=True)
+class Column:
+    """A per-(sample, depth) scalar dataset ``/name`` of shape ``(n_samples, n_depths)``.
+
+    ``kind`` is ``"value"``, ``"count"`` (an integer, stored as float so that it can be NaN) or
+    ``"flag"`` (1.0 yes, 0.0 no).
+    """
+
+    name: str
+    stage: str
+    description: str
+    kind: str = "value"
+
+
+COLUMNS: tuple[Column, ...] = (
+    Column("depth_length", "squeeze", "penetration D_z in length units"),
+    Column("normal_force", "squeeze", "total normal force F_n"),
+    Column("contact_area", "squeeze", "contact area as a fraction of the grid"),
+    Column("iterations", "squeeze", "squeeze solver iterations", "count"),
+    Column("residual", "squeeze", "squeeze residual: worst gap error relative to the depth "
+           "(coupled model: worst relative residual of the block solves, NaN for the dense "
+           "solver)"),
+    Column("converged", "squeeze", "1 when the squeeze met its tolerance", "flag"),
+    Column("seconds", "squeeze", "squeeze wall-clock time (a measurement, differs between "
+           "runs)"),
+    Column("friction_force", "pull", "static friction force: the peak of the pull curve"),
+    Column("friction_normal_force", "pull", "normal force of the pulled state"),
+    Column("pull_seconds", "pull", "pull wall-clock time (a measurement, differs between "
+           "runs)"),
+    Column("pull_converged", "pull", "1 when every pull solve met its tolerance", "flag"),
+    Column("pull_steps", "pull", "bonds broken (or sites slipped, or coupled events) until "
+           "the pull stopped", "count"),
+    Column("pull_error_estimate", "pull", "estimate (not a bound) of the relative error of "
+           "friction_force: batch-size sensitivity for method 'batch'; with "
+           "pull.error_estimate, Lanczos condition estimate x certified residual for the exact "
+           "methods; NaN when not estimated"),
+    Column("released_bonds", "coupled", "coupled model: contact sites whose bond is released "
+           "at D_x = 0", "count"),
+)
+BY_NAME = {c.name: c for c in COLUMNS}
+
+#: the axes: the configured targets of displacement or load control
+AXES = {
+    "depth": "configured depths, in squeeze.depth_unit",
+    "force_target": "configured normal loads, in squeeze.force_unit",
+}
+ROOT = {
+    "sample_index": "global sample numbers (ensemble.first_sample + row)",
+    "complete": "1 once the sample is fully written; entries of other rows are fill values",
+}
+
+
+@dataclass(frozen=True)
+class Field:
+    """A per-(sample, depth) array in ``/samples/sNNNNNN/dKKK/name``."""
+
+    name: str
+    description: str
+    grid: bool = True  # (ny, nx) on the grid, else a curve (one entry per event)
+    boolean: bool = False
+
+
+FIELDS: tuple[Field, ...] = (
+    Field("fz", "normal pixel forces after the squeeze"),
+    Field("uz", "normal surface displacement after the squeeze"),
+    Field("gap", "gap u_z - overlap (0 in contact)"),
+    Field("contact", "contact sites", boolean=True),
+    Field("fx", "tangential pixel forces at the friction peak"),
+    Field("ux", "tangential surface displacement at the friction peak"),
+    Field("stick", "bonded (stick) sites at the friction peak", boolean=True),
+    Field("dx_lim", "pull curve: displacement of each event", grid=False),
+    Field("fx_lim", "pull curve: pull force of each event", grid=False),
+    Field("fz_lim", "pull curve (coupled model): normal force of each event", grid=False),
+    Field("broken_site", "pull curve: flat index iy * nx + ix of each event's site", grid=False),
+)
+FIELD_BY_NAME = {f.name: f for f in FIELDS}
+BOOL_FIELDS = tuple(f.name for f in FIELDS if f.boolean)
+#: ``output.fields`` entries that stand for several arrays
+FIELD_GROUPS = {"pull_curve": ("dx_lim", "fx_lim", "fz_lim", "broken_site")}
+
+
+def stages(config: RunConfig) -> tuple[str, ...]:
+    """The stages whose columns a run of ``config`` stores."""
+    out = ["squeeze"]
+    if config.pull.enabled:
+        out.append("pull")
+    if config.coupling.enabled:
+        out.append("coupled")
+    return tuple(out)
+
+
+def columns(config: RunConfig) -> tuple[Column, ...]:
+    """The scalar columns of a run of ``config``."""
+    have = stages(config)
+    return tuple(c for c in COLUMNS if c.stage in have)
+
+
+def empty(config: RunConfig, n_targets: int) -> dict[str, np.ndarray]:
+    """NaN-filled rows of one sample, one array of ``n_targets`` per column."""
+    return {c.name: np.full(n_targets, np.nan) for c in columns(config)}
+
+
+def put(rows: dict[str, np.ndarray], k: int, values: dict[str, float]) -> None:
+    """Store a stage's scalars at target index ``k``; a name outside the schema is an error."""
+    for name, v in values.items():
+        if name not in rows:
+            raise KeyError(f"output schema: {name!r} is not a column of this run "
+                           f"(columns: {', '.join(rows)})")
+        rows[name][k] = float(v)

@@ -1,0 +1,179 @@
+"""The stages that compute one sample of a run, target by target.
+
+A stage knows its solvers; the run loop (:func:`roughslip.run.executor.run_sample`) knows only
+stages and the output schema (:mod:`roughslip.run.schema`). Two stages exist:
+
+* :class:`DecoupledStage`: the squeeze at each depth or load, then (with ``pull.enabled``) the
+  decoupled pull of the squeezed contact;
+* :class:`CoupledStage`: the coupled normal-tangential model (``coupling.enabled`` and
+  :math:`\\nu < 1/2`), squeeze and pull in one solve per depth.
+
+Each step returns a :class:`Record` of scalars named by the schema and of the fields the
+configuration asks for (``output.fields``), computed only when asked for.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from roughslip.contact.coupled import couple
+from roughslip.contact.problem import Problem
+from roughslip.contact.pull import SlipResult, pull
+from roughslip.contact.squeeze import NormalResult, NormalSolver
+from roughslip.errors import ConvergenceError, NumericalError
+from roughslip.run.config import RunConfig
+
+
+@dataclass
+class Record:
+    """What one stage step produces at one target."""
+
+    scalars: dict[str, float]
+    fields: dict[str, np.ndarray] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    contact: np.ndarray | None = None  # the contact set, for the void check
+
+
+class DecoupledStage:
+    """Squeeze, then the decoupled pull (the report's model)."""
+
+    name = "decoupled"
+
+    def __init__(self, config: RunConfig) -> None:
+        self.config = config
+        self.want = set(config.output.fields)
+
+    def start(self, problem: Problem) -> _DecoupledSample:
+        """The stage's state for one sample (warm starts run from depth to depth)."""
+        return _DecoupledSample(self, problem)
+
+
+class _DecoupledSample:
+    def __init__(self, stage: DecoupledStage, problem: Problem) -> None:
+        sq = stage.config.squeeze
+        self.stage = stage
+        self.problem = problem
+        self.solver = NormalSolver(problem, method=sq.method, tol=sq.tol, max_iter=sq.max_iter)
+        self.x0: np.ndarray | None = None
+
+    def step(self, target: float, where: str) -> Record:
+        cfg, want = self.stage.config, self.stage.want
+        try:
+            r = (self.solver.solve(force=target, x0=self.x0) if cfg.control == "force"
+                 else self.solver.solve(depth=target, x0=self.x0))
+        except NumericalError as exc:
+            raise NumericalError(f"{where}: {exc}") from None
+        if cfg.execution.strict and not r.converged:
+            raise ConvergenceError(f"{where}: squeeze did not converge: {r.message}")
+        if cfg.squeeze.warm_start:
+            self.x0 = r.fz
+        rec = Record(
+            scalars=dict(depth_length=r.depth, normal_force=r.normal_force,
+                         contact_area=r.contact_area, iterations=r.iterations,
+                         residual=r.residual, converged=r.converged, seconds=r.seconds),
+            fields={n: getattr(r, n) for n in ("fz", "uz", "gap", "contact") if n in want},
+            contact=r.contact,
+        )
+        if not r.converged:
+            rec.notes.append(f"squeeze not converged ({r.message})")
+        if cfg.coupling.enabled:  # nu = 1/2: G_zx = 0 and the coupled model is this one
+            rec.scalars["released_bonds"] = 0
+        if cfg.pull.enabled:
+            self._pull(r, rec, where)
+        return rec
+
+    def _pull(self, r: NormalResult, rec: Record, where: str) -> None:
+        cfg, want = self.stage.config, self.stage.want
+        pl = cfg.pull
+        try:
+            s: SlipResult = pull(r, lam=pl.lam, slip_law=pl.slip_law, method=pl.method,
+                                 tol=pl.tol, batch_size=pl.batch_size,
+                                 estimate_error=pl.error_estimate, early_stop=pl.early_stop)
+        except NumericalError as exc:
+            raise NumericalError(f"{where}: pull: {exc}") from None
+        if cfg.execution.strict and not s.converged:
+            raise ConvergenceError(f"{where}: pull did not converge: {s.message}")
+        estimated = s.method == "batch" or pl.error_estimate
+        rec.scalars.update(friction_force=s.friction_force,
+                           friction_normal_force=s.normal_force, pull_seconds=s.seconds,
+                           pull_converged=s.converged, pull_steps=s.steps)
+        if estimated:
+            rec.scalars["pull_error_estimate"] = s.error_estimate
+        if "fx" in want:
+            rec.fields["fx"] = s.fx_at_peak
+        if "stick" in want:
+            rec.fields["stick"] = s.stick_at_peak
+        if "ux" in want:
+            rec.fields["ux"] = self.problem.operator("xx").apply("xx", s.fx_at_peak)
+        if "pull_curve" in want:
+            rec.fields.update(dx_lim=s.dx_lim, fx_lim=s.fx_lim, broken_site=s.broken_site)
+
+
+class CoupledStage:
+    """The coupled normal-tangential model: one event-driven solve per depth."""
+
+    name = "coupled"
+
+    def __init__(self, config: RunConfig) -> None:
+        self.config = config
+        self.want = set(config.output.fields)
+
+    def start(self, problem: Problem) -> _CoupledSample:
+        return _CoupledSample(self, problem)
+
+
+class _CoupledSample:
+    def __init__(self, stage: CoupledStage, problem: Problem) -> None:
+        self.stage = stage
+        self.problem = problem
+
+    def step(self, target: float, where: str) -> Record:
+        cfg, want = self.stage.config, self.stage.want
+        pb = self.problem
+        try:
+            r = couple(pb, depth=target, lam=cfg.pull.lam, tol=min(cfg.pull.tol, 1e-10))
+        except NumericalError as exc:
+            raise NumericalError(f"{where}: {exc}") from None
+        if cfg.execution.strict and not r.converged:
+            raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
+        # one solve gives squeeze and pull: the squeeze has no iteration count of its own
+        rec = Record(
+            scalars=dict(depth_length=target, normal_force=r.normal_force,
+                         contact_area=r.contact_area, residual=r.residual,
+                         converged=r.converged, seconds=r.seconds,
+                         friction_force=r.friction_force,
+                         friction_normal_force=r.normal_force_at_peak,
+                         pull_seconds=r.seconds, pull_converged=r.converged,
+                         pull_steps=len(r.events), released_bonds=r.released),
+            notes=[f"{r.released} bond(s) released at D_x = 0"],
+            contact=r.contact0,
+        )
+        f = rec.fields
+        if "fz" in want:
+            f["fz"] = r.fz0
+        if "contact" in want:
+            f["contact"] = r.contact0
+        op = pb.operator("zz", "zx", "xx")
+        if "uz" in want or "gap" in want:
+            uz = op.apply_block(r.fz0, r.fx0)[0]
+            if "uz" in want:
+                f["uz"] = uz
+            if "gap" in want:
+                f["gap"] = uz - pb.overlap(target)
+        if "fx" in want:
+            f["fx"] = r.fx_peak
+        if "stick" in want:
+            f["stick"] = r.stick_peak
+        if "ux" in want:
+            f["ux"] = op.apply_block(r.fz_peak, r.fx_peak)[1]
+        if "pull_curve" in want:
+            f.update(dx_lim=r.dx, fx_lim=r.fx, fz_lim=r.fz,
+                     broken_site=np.array([e.site for e in r.events], dtype=np.int64))
+        return rec
+
+
+def stage_for(config: RunConfig, coupled: bool) -> DecoupledStage | CoupledStage:
+    """The stage of a scene: coupled when the coupled model runs (``coupled``)."""
+    return CoupledStage(config) if coupled else DecoupledStage(config)
