@@ -19,6 +19,7 @@ from roughslip.errors import (
     NumericalError,
     OutputError,
     RoughslipError,
+    SizeLimitError,
 )
 from roughslip.run.config import RunConfig, load_config
 
@@ -38,6 +39,7 @@ __all__ = [
     "Problem",
     "RoughslipError",
     "RunConfig",
+    "SizeLimitError",
     "SlipResult",
     "__version__",
     "couple",

@@ -12,6 +12,7 @@ OutputError            1     an output file cannot be written or read back
 ConvergenceError       3     a solver missed its tolerance and strict mode is on
 NumericalError         1     a NaN or inf appeared inside a computation
 MemoryLimitError       2     the estimated peak memory exceeds what is available
+SizeLimitError         2     a problem too large for a library's index range (32-bit LAPACK)
 WorkerError            1     a worker process died (killed, out of memory)
 =====================  ====  ==========================================================
 """
@@ -57,6 +58,13 @@ class NumericalError(RoughslipError):
 
 class MemoryLimitError(RoughslipError):
     """The estimated peak memory of a computation exceeds the memory available."""
+
+    exit_code = 2
+
+
+class SizeLimitError(RoughslipError):
+    """A problem exceeds what a library can index (a dense matrix beyond 32-bit LAPACK), however
+    much memory there is."""
 
     exit_code = 2
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import linalg
 
-from roughslip.errors import MemoryLimitError, NumericalError
+from roughslip.errors import NumericalError, SizeLimitError
 from roughslip.linalg import lapack64
 
 
@@ -39,7 +39,7 @@ def test_not_positive_definite_is_an_error():
 
 def test_fallback_refuses_orders_beyond_32_bit_indexing(monkeypatch):
     monkeypatch.setattr(lapack64, "_load", lambda: None)
-    with pytest.raises(MemoryLimitError, match="64-bit integers"):
+    with pytest.raises(SizeLimitError, match="64-bit integers"):
         lapack64.check_size(lapack64.LP64_MAX_N + 1)
     lapack64.check_size(lapack64.LP64_MAX_N)
     a = spd(50)

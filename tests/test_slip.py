@@ -241,13 +241,10 @@ def test_auto_records_its_choice(rough_contact):
 
 
 def test_memory_guard_refuses_the_inverse(rough_contact):
-    memory.set_limit(1e-6)
-    try:
+    with memory.limited(1e-6):
         with pytest.raises(MemoryLimitError, match="GiB"):
             pull(rough_contact, method="inverse")
         assert pull(rough_contact).method == "cg"  # auto falls back to matrix-free
-    finally:
-        memory.set_limit(None)
 
 
 def test_bad_arguments(rough_contact):

@@ -18,6 +18,18 @@ def mean_sem(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return mean, sem
 
 
+def _computed(values: np.ndarray) -> np.ndarray:
+    """The entries that were computed (not NaN), as floats."""
+    v = np.asarray(values, dtype=float).ravel()
+    return v[~np.isnan(v)]
+
+
+def _count_false(flags: np.ndarray) -> tuple[int, int]:
+    """(entries that are 0, entries computed) of a flag column."""
+    v = _computed(flags)
+    return int((v == 0).sum()), int(v.size)
+
+
 def length_unit(run) -> str | None:
     """The run's length unit (``units.length``), or None for bare numbers."""
     return run.config_dict().get("units", {}).get("length")
@@ -70,18 +82,22 @@ def summarize(path: str | Path) -> str:
             m, e = stats[n][0][k], stats[n][1][k]
             row += f"{m:>17.6g} +- {e:<10.3g}"
         lines.append(row)
-    conv = run.scalars["converged"][sel]
-    bad = int((conv == 0).sum())
-    problems = [f"  squeeze solves not converged: {bad} of {conv.size}"]
+    bad, total = _count_false(run.scalars["converged"][sel])
+    problems = [f"  squeeze solves not converged: {bad} of {total}"]
     if "pull_converged" in run.scalars:
-        pc = run.scalars["pull_converged"][sel]
-        problems.append(f"  pulls not converged: {int((pc == 0).sum())} of {pc.size}")
-        est = run.scalars["pull_error_estimate"][sel]
+        bad, total = _count_false(run.scalars["pull_converged"][sel])
+        problems.append(f"  pulls not converged: {bad} of {total}")
+        est = _computed(run.scalars["pull_error_estimate"][sel])
         if np.any(est > 0):
             problems.append(f"  approximate pulls: max estimated error {est.max():.2e}")
-    res = run.scalars["residual"][sel]
-    problems.append(f"  worst squeeze residual: {res.max():.2e}; mean iterations "
-                    f"{run.scalars['iterations'][sel].mean():.1f}; mean solve seconds "
-                    f"{run.scalars['seconds'][sel].mean():.3g}")
+    parts = []
+    for name, text in (("residual", "worst squeeze residual: {:.2e}"),
+                       ("iterations", "mean iterations {:.1f}"),
+                       ("seconds", "mean solve seconds {:.3g}")):
+        v = _computed(run.scalars[name][sel])
+        if v.size:
+            parts.append(text.format(v.max() if name == "residual" else v.mean()))
+    if parts:
+        problems.append("  " + "; ".join(parts))
     lines.extend(problems)
     return "\n".join(lines)

@@ -21,7 +21,7 @@ from types import SimpleNamespace
 import numpy as np
 from scipy.linalg import blas, lapack
 
-from roughslip.errors import MemoryLimitError, NumericalError
+from roughslip.errors import NumericalError, SizeLimitError
 
 #: largest n for which an n x n matrix has fewer than 2^31 entries (32-bit LAPACK is safe)
 LP64_MAX_N = 46340
@@ -83,7 +83,7 @@ def check_size(n: int) -> None:
     """Refuse an order the available LAPACK cannot index."""
     limit = max_n()
     if limit is not None and n > limit:
-        raise MemoryLimitError(
+        raise SizeLimitError(
             f"{n} bonds: the dense inverse needs a LAPACK with 64-bit integers beyond {limit} "
             "(this numpy build has none); use pull method 'cg' (exact, matrix-free)")
 

@@ -27,7 +27,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from roughslip.contact.pull import METHODS as PULL_METHODS
+from roughslip.contact.pull import SLIP_LAWS
+from roughslip.contact.squeeze import METHODS as SQUEEZE_METHODS
 from roughslip.errors import ConfigError
+from roughslip.run import schema
 from roughslip.surfaces.topography import LENGTH_UNITS
 
 # --------------------------------------------------------------------------------------------
@@ -115,7 +119,8 @@ SURFACE_KEYS: dict[str, tuple[set[str], set[str]]] = {
               "crop", "downsample", "tiles"}, {"path"}),
 }
 
-FIELD_NAMES = ("fz", "uz", "gap", "contact", "fx", "ux", "stick", "pull_curve")
+#: ``output.fields`` names: the grid fields of the schema, and "pull_curve" for the curve arrays
+FIELD_NAMES = (*(f.name for f in schema.FIELDS if f.grid), *schema.FIELD_GROUPS)
 
 
 @dataclass(frozen=True)
@@ -229,8 +234,7 @@ class SqueezeConfig:
                          choices=("length", "rms", "range"))
     force_unit: str = _f("force", "forces as totals or as mean pressures in units of E*",
                          choices=("force", "pressure"))
-    method: str = _f("pk", "pk: Polonsky-Keer constrained CG; active-set: the report's loop",
-                     choices=("pk", "active-set"))
+    method: str = _f("pk", SQUEEZE_METHODS.describe(), choices=SQUEEZE_METHODS.names())
     tol: float = _f(1e-10, "dimensionless residual tolerance", _tol_rule)
     max_iter: int = _f(20000, "iteration limit", _at_least(1))
     warm_start: bool = _f(True, "start each depth from the previous depth's forces")
@@ -243,16 +247,13 @@ class PullConfig:
     enabled: bool = _f(False, "run the pull stage")
     lam: float = _f(0.2, "local friction coefficient lambda", _positive)
     slip_law: str = _f("break", "break: a slipped bond carries no force; coulomb: lam f_z",
-                       choices=("break", "coulomb"))
-    method: str = _f("auto", "auto, literal, inverse (exact, O(n^2) memory), cg (exact, "
-                     "matrix-free) or batch (approximate)",
-                     choices=("auto", "literal", "inverse", "cg", "batch"))
+                       choices=SLIP_LAWS)
+    method: str = _f("auto", PULL_METHODS.describe(), choices=PULL_METHODS.names())
     tol: float = _f(1e-10, "relative tolerance of the tangential solves", _tol_rule)
     batch_size: int = _f(16, "sites broken per solve by method = 'batch'", _at_least(1))
     error_estimate: bool = _f(False, "estimate cond(G_xx) on the bonds (Lanczos, fixed start) "
                               "and store cond * residual as pull_error_estimate of the exact "
                               "methods (an estimate, not a bound)")
-    coulomb_steps: int = _f(32, "pull displacements on the Coulomb curve", _at_least(2))
     early_stop: bool = _f(True, "stop the break sequence once no later break can exceed the "
                           "peak (exact for the friction force); false records every break, "
                           "for the bursts after the peak")
@@ -352,6 +353,8 @@ class RunConfig:
     source: str = field(default="<config>", compare=False)
     #: dotted keys the user gave (file and overrides), as opposed to defaults
     given: frozenset[str] = field(default=frozenset(), compare=False)
+    #: retired keys the user gave (:data:`_RETIRED`): no effect, but part of older digests
+    retired: dict[str, Any] = field(default_factory=dict, compare=False)
 
     @property
     def length_unit(self) -> str | None:
@@ -378,27 +381,38 @@ class RunConfig:
         """The resolved configuration as TOML text (round-trips through :func:`load_config`)."""
         return dumps_toml(self.to_dict())
 
-    def digest(self, *, legacy: bool = False) -> str:
+    def digest(self, *, generation: int | None = None) -> str:
         """SHA-256 of everything that determines the numbers (execution settings excluded).
 
-        ``legacy=True``: the digest the same configuration had before keys were renamed or
-        added (:data:`_RENAMED`, :data:`_ADDED`), so that runs started then can be resumed.
+        ``generation``: the digest the same configuration had in an earlier version, so that
+        runs started then can be resumed. 1: before keys were retired (:data:`_RETIRED`, at
+        their default or given value); 0: also before keys were renamed or added
+        (:data:`_RENAMED`, :data:`_ADDED`). The serialisation (:func:`_canonical`) is frozen:
+        a digest must not change when a TOML writer's formatting does.
         """
         d = self.to_dict()
         d.pop("execution", None)
         d.pop("title", None)
-        if legacy:
+        if generation is not None and generation <= 1:
+            for (section, key), (default, before, _) in _RETIRED.items():
+                if section in d:
+                    value = self.retired.get(f"{section}.{key}", default)
+                    items = list(d[section].items())
+                    at = next((i for i, (k, _) in enumerate(items) if k == before), len(items))
+                    items.insert(at, (key, value))
+                    d[section] = dict(items)
+        if generation is not None and generation <= 0:
             for (section, old), new in _RENAMED.items():
                 if section in d and new in d[section]:
                     d[section] = {old if k == new else k: v for k, v in d[section].items()}
             for (section, key), default in _ADDED.items():
                 if d.get(section, {}).get(key, default) == default:
                     d.get(section, {}).pop(key, None)
-        return hashlib.sha256(dumps_toml(d).encode()).hexdigest()
+        return hashlib.sha256(_canonical(d).encode()).hexdigest()
 
     def matches(self, digest: str) -> bool:
-        """Whether a stored digest is this configuration's (now or before renames)."""
-        return digest in (self.digest(), self.digest(legacy=True))
+        """Whether a stored digest is this configuration's (now or in an earlier version)."""
+        return digest in (self.digest(), self.digest(generation=1), self.digest(generation=0))
 
     @property
     def shape(self) -> tuple[int, int] | None:
@@ -443,10 +457,26 @@ def _plain(v: Any) -> Any:
 
 
 # --------------------------------------------------------------------------------------------
-# TOML writing (the standard library only reads TOML)
+# TOML writing: tomli-w for text people read; a frozen canonical form for digests
 # --------------------------------------------------------------------------------------------
 
 _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def dumps_toml(d: Mapping[str, Any]) -> str:
+    """Write a configuration mapping as TOML (tomli-w)."""
+    import tomli_w
+
+    def plain(v: Any) -> Any:
+        if isinstance(v, tuple):
+            return [plain(x) for x in v]
+        if isinstance(v, list):
+            return [plain(x) for x in v]
+        if isinstance(v, dict):
+            return {k: plain(x) for k, x in v.items()}
+        return v
+
+    return tomli_w.dumps(plain(dict(d)))
 
 
 def _toml_key(k: str) -> str:
@@ -479,8 +509,9 @@ def _toml_value(v: Any) -> str:
     raise TypeError(f"cannot write {type(v).__name__} as TOML")
 
 
-def dumps_toml(d: Mapping[str, Any]) -> str:
-    """Write a two-level mapping (top-level scalars, then tables) as TOML."""
+def _canonical(d: Mapping[str, Any]) -> str:
+    """The text a configuration digest hashes. Frozen: stored digests of every earlier run
+    file were made with exactly this form, so it must not follow any library's formatting."""
     lines = [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in d.items() if not isinstance(v, dict)]
     for k, v in d.items():
         if isinstance(v, dict):
@@ -502,6 +533,8 @@ class _Ctx:
     def __init__(self, source: str, overridden: dict[str, str]):
         self.source = source
         self.overridden = overridden
+        #: retired keys given, with their values (dotted key -> value)
+        self.retired: dict[str, Any] = {}
 
     def fail(self, key: str, value: Any = dataclasses.MISSING, rule: str = "") -> ConfigError:
         where = self.source
@@ -656,7 +689,8 @@ def _build(data: dict[str, Any], ctx: _Ctx, base_dir: Path) -> RunConfig:
     sections["squeeze"] = _check_squeeze(data.get("squeeze", {}), sections.get("squeeze"), ctx)
     given = frozenset(f"{sec}.{k}" for sec, t in data.items() if isinstance(t, dict)
                       for k in t)
-    cfg = RunConfig(title=title, source=ctx.source, given=given, **sections)
+    cfg = RunConfig(title=title, source=ctx.source, given=given, retired=dict(ctx.retired),
+                    **sections)
     _check_cross(cfg, data, ctx)
     return cfg
 
@@ -715,6 +749,13 @@ _ADDED = {("pull", "early_stop"): True,
                           ("tiles", None))}}
 
 
+#: keys that no longer do anything: (section, key) -> (default, the key before which it stood
+#: in the resolved configuration, why). They are still accepted (and checked), so older
+#: configurations load, and they enter the digest of the version that had them.
+_RETIRED = {("pull", "coulomb_steps"): (32, "early_stop", "the Coulomb pull curve is exact, "
+                                        "event by event")}
+
+
 def _build_section(name: str, cls: type, table: dict[str, Any], ctx: _Ctx) -> Any:
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}
@@ -722,6 +763,12 @@ def _build_section(name: str, cls: type, table: dict[str, Any], ctx: _Ctx) -> An
     for k, v in table.items():
         k = _RENAMED.get((name, k), k)
         key = f"{name}.{k}"
+        if (name, k) in _RETIRED:
+            if isinstance(v, bool) or not isinstance(v, int) or v < 2:
+                raise ctx.fail(key, v, "must be an integer >= 2 (the key has no effect: "
+                               f"{_RETIRED[(name, k)][2]})")
+            ctx.retired[key] = v
+            continue
         if k in kwargs:
             raise ctx.fail(key, rule="given twice (once under its former name)")
         if k not in fields:

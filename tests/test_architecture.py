@@ -1,0 +1,272 @@
+"""The shape of the package: layers, the import graph, registries, restricted operators, the
+output schema, and files of the previous format."""
+
+from __future__ import annotations
+
+import ast
+import json
+import shutil
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import roughslip
+from roughslip.cli import cli
+from roughslip.contact.problem import Problem
+from roughslip.elastic.operators import Grid, Material
+from roughslip.errors import InputError
+from roughslip.linalg.cg import cg
+from roughslip.linalg.restricted import Restricted
+
+PKG = Path(roughslip.__file__).parent
+DATA = Path(__file__).parent / "data"
+
+#: lower layers first; a module may import from its own layer or from layers below it
+RANK = {"errors": 0, "_version": 0, "linalg": 1, "elastic": 2, "contact": 3, "surfaces": 4,
+        "run": 5, "analysis": 6, "cli": 7, "testing": 8, "__init__": 9, "__main__": 9}
+
+
+def _module_name(path: Path) -> str:
+    rel = path.relative_to(PKG.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _imports(path: Path) -> set[str]:
+    """Modules of the package that a file imports, outside ``if TYPE_CHECKING:`` blocks."""
+    tree = ast.parse(path.read_text())
+    skip: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            skip.update(id(n) for b in node.body for n in ast.walk(b))
+    out: set[str] = set()
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0 and \
+                node.module.startswith("roughslip"):
+            for alias in node.names:
+                sub = f"{node.module}.{alias.name}"
+                out.add(sub if (PKG.parent / (sub.replace(".", "/") + ".py")).exists() or
+                        (PKG.parent / sub.replace(".", "/")).is_dir() else node.module)
+        elif isinstance(node, ast.Import):
+            out.update(a.name for a in node.names if a.name.startswith("roughslip"))
+        elif isinstance(node, ast.ImportFrom) and node.level:
+            raise AssertionError(f"{path}: relative import (the package uses absolute ones)")
+    return out
+
+
+def _layer(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _graph() -> dict[str, set[str]]:
+    return {_module_name(p): _imports(p) - {_module_name(p)} for p in PKG.rglob("*.py")}
+
+
+def test_no_upward_imports():
+    bad = []
+    for mod, deps in _graph().items():
+        for d in deps:
+            if d == "roughslip":
+                bad.append((mod, d))
+            elif RANK[_layer(d)] > RANK[_layer(mod)]:
+                bad.append((mod, d))
+    assert not bad, f"imports from a higher layer: {bad}"
+
+
+def test_import_graph_has_no_cycles():
+    graph = _graph()
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(m: str) -> None:
+        state[m] = 1
+        stack.append(m)
+        for d in sorted(graph.get(m, ())):
+            if state.get(d) == 1:
+                cycle = [*stack[stack.index(d):], d]
+                raise AssertionError("import cycle: " + " -> ".join(cycle))
+            if d in graph and not state.get(d):
+                visit(d)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(graph):
+        if not state.get(m):
+            visit(m)
+
+
+def test_the_checker_sees_an_upward_import(tmp_path):
+    """The layer check is not vacuous: a contact module importing the run layer is caught."""
+    f = tmp_path / "x.py"
+    f.write_text("from roughslip.run.config import RunConfig\n"
+                 "from typing import TYPE_CHECKING\n"
+                 "if TYPE_CHECKING:\n    from roughslip.analysis.fit import fit_files\n")
+    deps = _imports(f)
+    assert deps == {"roughslip.run.config"}
+    assert RANK[_layer("roughslip.run.config")] > RANK[_layer("roughslip.contact.squeeze")]
+
+
+# -- registries ----------------------------------------------------------------------------------
+def test_method_names_come_from_the_registries():
+    from roughslip.contact import coupled, pull, squeeze
+    from roughslip.run.config import PullConfig, SqueezeConfig
+
+    meta = {f.name: f.metadata for f in __import__("dataclasses").fields(SqueezeConfig)}
+    assert meta["method"]["choices"] == squeeze.METHODS.names() == ("pk", "active-set")
+    meta = {f.name: f.metadata for f in __import__("dataclasses").fields(PullConfig)}
+    assert meta["method"]["choices"] == pull.METHODS.names()
+    assert set(pull.METHODS.names()) == {"auto", "literal", "inverse", "cg", "batch"}
+    assert coupled.SOLVERS.names() == ("dense", "cg")
+    with pytest.raises(InputError, match=r"method = 'nope': unknown pull method; choose one "
+                                         r"of auto, literal, inverse, cg, batch"):
+        pull.METHODS.get("nope")
+    h = np.zeros((4, 4))
+    with pytest.raises(InputError, match="unknown squeeze method"):
+        roughslip.squeeze(h, depth=0.1, method="pkk")
+    with pytest.raises(InputError, match="unknown coupled solver"):
+        roughslip.squeeze_pull_coupled(h, depth=0.1, method="lu")
+
+
+def test_coulomb_law_is_refused_by_the_methods_that_do_not_implement_it():
+    h = -((np.arange(16) - 7.5)[None, :] ** 2 + (np.arange(16) - 7.5)[:, None] ** 2) / 40
+    normal = roughslip.squeeze(h, depth=0.5)
+    with pytest.raises(InputError, match="supports methods auto, inverse, not 'cg'"):
+        roughslip.pull(normal, slip_law="coulomb", method="cg")
+
+
+# -- problem and restricted operators ------------------------------------------------------------
+def test_problem_builds_only_the_kernels_a_solver_asks_for_and_shares_them():
+    p = Problem(np.zeros((6, 7)), Grid((6, 7)), Material(1.0, 0.25))
+    roughslip.squeeze(p.with_heights(-np.arange(42.0).reshape(6, 7) / 42), depth=0.3)
+    q = p.with_heights(np.ones((6, 7)))
+    op = p.operator("zz")
+    assert op.components == ("zz",) and q.operator("zz") is op
+    assert q.operator("xx").components == ("zz", "xx") and p.operator() is op
+    assert float(q.overlap(0.25).max()) == 0.25
+    with pytest.raises(InputError, match="heights shape"):
+        p.with_heights(np.zeros((3, 3)))
+    with pytest.raises(InputError, match="diagonal component"):
+        p.restricted("zx", np.ones((6, 7), bool))
+
+
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+def test_restricted_operators_pass_the_dot_test_and_match_the_dense_block(boundary):
+    rng = np.random.default_rng(7)
+    shape = (9, 8)
+    p = Problem(np.zeros(shape), Grid(shape, 0.5, boundary), Material(2.0, 0.2))
+    K = rng.random(shape) < 0.4
+    for comp in ("zz", "xx"):
+        A = p.restricted(comp, K)
+        n = int(K.sum())
+        assert A.shape == (n, n)
+        x, y = rng.standard_normal(n), rng.standard_normal(n)
+        # dot test: <A x, y> = <x, A^T y>, and A is symmetric
+        assert np.dot(A @ x, y) == pytest.approx(np.dot(x, A.rmatvec(y)), rel=1e-12)
+        assert np.dot(A @ x, y) == pytest.approx(np.dot(x, A @ y), rel=1e-12)
+        D = p.operator(comp).dense(comp)[np.ix_(K.ravel(), K.ravel())]
+        np.testing.assert_allclose(A @ x, D @ x, rtol=1e-11, atol=1e-13 * np.abs(D @ x).max())
+    C, S = rng.random(shape) < 0.5, rng.random(shape) < 0.3
+    B = p.restricted_block(C, S)
+    m = int(C.sum() + S.sum())
+    x, y = rng.standard_normal(m), rng.standard_normal(m)
+    assert B.shape == (m, m)
+    assert np.dot(B @ x, y) == pytest.approx(np.dot(x, B.rmatvec(y)), rel=1e-12)
+    assert np.dot(B @ x, y) == pytest.approx(np.dot(x, B @ y), rel=1e-11)
+    if boundary == "open":  # the block from closed-form kernels: [[zz, zx], [xz, xx]]
+        op = p.operator("zz", "zx", "xx")
+        c, s = C.ravel(), S.ravel()
+        dense = np.block([[op.dense("zz")[np.ix_(c, c)], op.dense("zx")[np.ix_(c, s)]],
+                          [op.dense("xz")[np.ix_(s, c)], op.dense("xx")[np.ix_(s, s)]]])
+        np.testing.assert_allclose(B @ x, dense @ x, rtol=1e-10,
+                                   atol=1e-12 * np.abs(dense @ x).max())
+
+
+def test_one_cg_solves_scalar_and_block_restrictions_to_the_dense_solution():
+    rng = np.random.default_rng(3)
+    shape = (10, 10)
+    p = Problem(np.zeros(shape), Grid(shape), Material(1.0, 0.3))
+    K = rng.random(shape) < 0.5
+    A = p.restricted("xx", K)
+    b = rng.standard_normal(shape)
+    r = cg(A, b, tol=1e-12)
+    D = p.operator("xx").dense("xx")[np.ix_(K.ravel(), K.ravel())]
+    np.testing.assert_allclose(A.gather(r.x), np.linalg.solve(D, b.ravel()[K.ravel()]),
+                               rtol=1e-9)
+    assert r.converged and np.all(r.x[~K] == 0)
+    B = p.restricted_block(K, K & (rng.random(shape) < 0.5))
+    bb = rng.standard_normal((2, *shape))
+    rb = cg(B, bb, tol=1e-12)
+    Bd = np.column_stack([B @ e for e in np.eye(B.shape[0])])
+    np.testing.assert_allclose(B.gather(rb.x), np.linalg.solve(Bd, B.gather(bb)), rtol=1e-8)
+    assert isinstance(B, Restricted) and rb.converged
+
+
+# -- the output schema ----------------------------------------------------------------------------
+def test_run_file_axes_are_dimension_scales_and_uncomputed_values_are_nan(tmp_path):
+    out = tmp_path / "r.h5"
+    res = CliRunner().invoke(cli, ["run", "configs/demo.toml", "-o", str(out), "--quiet",
+                                   "--set", "grid.n=16", "--set", "ensemble.samples=2",
+                                   "--set", "execution.workers=1"])
+    assert res.exit_code == 0, res.output
+    from roughslip.run import schema
+
+    with h5py.File(out, "r") as f:
+        assert f.attrs["format_version"] == schema.FORMAT_VERSION
+        for c in schema.COLUMNS:
+            if c.stage == "coupled":
+                assert c.name not in f
+                continue
+            ds = f[c.name]
+            assert ds.dtype == np.float64 and ds.attrs["description"] == c.description
+            assert ds.dims[0][0].name == "/sample_index" and ds.dims[1][0].name == "/depth"
+            assert ds.dims[1].label == "depth"
+        assert f["depth"].is_scale and f["sample_index"].is_scale
+        # pull.error_estimate is off and the methods are exact: not estimated, NaN
+        assert np.all(np.isnan(f["pull_error_estimate"][()]))
+        assert np.all(f["converged"][()] == 1.0)
+
+
+@pytest.mark.parametrize("name", ["run_v1_demo.h5", "run_v1_coupled.h5", "run_v1_load.h5"])
+def test_files_of_the_previous_format_open_with_inspect_fit_and_plot(tmp_path, name):
+    """Run files written by the previous version (format 1: integer counts, flags with fill 0,
+    no dimension scales) still open with the readers."""
+    src = tmp_path / name
+    shutil.copy(DATA / name, src)
+    with h5py.File(src, "r") as f:
+        assert f.attrs["format_version"] == 1
+    r = CliRunner().invoke(cli, ["inspect", str(src)])
+    assert r.exit_code == 0 and "samples complete: 3 of 3" in r.output, r.output
+    r = CliRunner().invoke(cli, ["fit", str(src), "--x", "normal_force", "--y", "contact_area",
+                                 "--json"])
+    assert r.exit_code == 0, r.output
+    fit = json.loads(r.output)
+    assert 0.5 < fit[0]["alpha"] < 1.5
+    pytest.importorskip("matplotlib")
+    r = CliRunner().invoke(cli, ["plot", str(src), "-o", str(tmp_path / "p")])
+    assert r.exit_code == 0, r.output
+
+
+def test_a_previous_format_run_resumes_as_the_same_configuration(tmp_path):
+    """The stored configuration of a format-1 file (with the key retired since) loads, and its
+    digest is recognised: --resume finds nothing to do."""
+    src = tmp_path / "old.h5"
+    shutil.copy(DATA / "run_v1_demo.h5", src)
+    with h5py.File(src, "r") as f:
+        text, digest = f.attrs["config"], f.attrs["config_digest"]
+    assert "coulomb_steps" in text
+    cfg_path = tmp_path / "old.toml"
+    cfg_path.write_text(text)
+    from roughslip.run.config import load_config
+
+    cfg = load_config(cfg_path)
+    assert cfg.matches(str(digest)) and cfg.digest() != digest
+    r = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(src), "--resume", "--quiet"])
+    assert r.exit_code == 0, r.output
