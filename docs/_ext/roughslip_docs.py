@@ -81,9 +81,32 @@ def config_reference() -> list[str]:
         lines.append("")
     renamed = ", ".join(f"``{s}.{old}`` (now ``{new}``)" for (s, old), new in
                         C._RENAMED.items())
-    lines += ["Keys read under a former name: " + renamed + ".", ""]
+    retired = ", ".join(f"``{s}.{k}`` ({why})" for (s, k), (_, _, why) in C._RETIRED.items())
+    lines += ["Keys read under a former name: " + renamed + ".", "",
+              "Keys accepted but without effect (kept so that older configurations load): "
+              + retired + ".", ""]
     return lines
 
+
+def schema_reference() -> list[str]:
+    """reStructuredText tables of the output schema (:mod:`roughslip.run.schema`)."""
+    from roughslip.run import schema as S
+
+    lines = [".. list-table::", "   :header-rows: 1", "   :widths: 24 12 10 54", "",
+             "   * - dataset", "     - stage", "     - kind", "     - meaning"]
+    for name, text in {**S.AXES, **S.ROOT}.items():
+        lines += [f"   * - ``/{name}``", "     - ", "     - axis", f"     - {text}"]
+    for c in S.COLUMNS:
+        lines += [f"   * - ``/{c.name}``", f"     - {c.stage}", f"     - {c.kind}",
+                  f"     - {c.description}"]
+    lines += ["", ".. list-table::", "   :header-rows: 1", "   :widths: 24 22 54", "",
+              "   * - field", "     - shape", "     - meaning"]
+    for f in S.FIELDS:
+        shape = "``(ny, nx)``" + (", boolean" if f.boolean else "") if f.grid else "one per event"
+        lines += [f"   * - ``{f.name}``", f"     - {shape}", f"     - {f.description}"]
+    groups = "; ".join(f"``{g}`` stores {', '.join(f'``{x}``' for x in xs)}"
+                       for g, xs in S.FIELD_GROUPS.items())
+    return [*lines, "", f"In ``output.fields``, {groups}.", ""]
 
 class ConfigReference(SphinxDirective):
     has_content = False
@@ -91,6 +114,16 @@ class ConfigReference(SphinxDirective):
     def run(self) -> list[nodes.Node]:
         container = nodes.section()
         nested_parse_with_titles(self.state, StringList(config_reference(), "roughslip-config"),
+                                 container)
+        return container.children
+
+
+class SchemaReference(SphinxDirective):
+    has_content = False
+
+    def run(self) -> list[nodes.Node]:
+        container = nodes.section()
+        nested_parse_with_titles(self.state, StringList(schema_reference(), "roughslip-schema"),
                                  container)
         return container.children
 
@@ -124,6 +157,7 @@ def link_references(app, what, name, obj, options, lines: list[str]) -> None:
 
 def setup(app):
     app.add_directive("roughslip-config", ConfigReference)
+    app.add_directive("roughslip-schema", SchemaReference)
     app.connect("autodoc-process-docstring", link_references)
     app.connect("builder-inited", make_verify_figure)
     return {"parallel_read_safe": True, "parallel_write_safe": True}
