@@ -351,7 +351,7 @@ class PolonskyKeer:
             np.copyto(p, self._initial(ubar, force))
         elif load:
             p *= force / p.sum()
-        pf, tf, rf, gsf, Sff = (a.ravel() for a in (p, t, r, gs, Sf))
+        tf, rf, gsf, Sff = (a.ravel() for a in (t, r, gs, Sf))
         self._apply(p, u)
         stale = 0  # iterations since u was last computed from p
         limit = self.op.direct_sum_limit
@@ -406,32 +406,10 @@ class PolonskyKeer:
             np.multiply(r, tau, out=tmp)
             np.subtract(u, tmp, out=u)
             stale += 1
-            sites, vals = [], []
-            clipped = None
-            if float(p.min()) < 0.0:  # clip: these contact sites lift off
-                clipped = np.flatnonzero(pf < 0.0)
-                sites.append(clipped)
-                vals.append(-pf[clipped])
-                pf[clipped] = 0.0
-            # overlap: sites with p = 0 and g < 0 enter contact; conjugacy restarts. Off the
-            # old contact set this is tmp < 0 (tmp = g off S); add clipped sites with g < 0.
-            np.less(tmp_g, 0.0, out=mb)
-            idx = np.flatnonzero(mb)
-            if clipped is not None:
-                idx = np.concatenate([idx, clipped[g.ravel()[clipped] < 0.0]])
-            delta = 0.0 if idx.size else 1.0
-            if idx.size:
-                v = -tau * g.ravel()[idx]
-                pf[idx] += v
-                sites.append(idx)
-                vals.append(v)
-            if sites:
-                n_changed = sum(x.size for x in sites)
-                if n_changed <= limit:
-                    self.op.add_sources("zz", u, np.concatenate(sites), np.concatenate(vals))
-                else:
-                    self._apply(p, u)
-                    stale = 0
+            entered, synced = self._project(p, u, g, tmp_g, mb, tau, limit)
+            delta = 0.0 if entered else 1.0  # conjugacy restarts when sites enter
+            if synced:
+                stale = 0
             if load:
                 s_ = force / float(p.sum())
                 p *= s_
@@ -442,6 +420,42 @@ class PolonskyKeer:
         d = shift if load else depth
         return Outcome(p.copy(), u.copy(), d, it, converged,
                        message or f"converged in {it} iterations")
+
+    def _project(self, p: np.ndarray, u: np.ndarray, g: np.ndarray, g_off: np.ndarray,
+                 mb: np.ndarray, tau: float, limit: int) -> tuple[bool, bool]:
+        """Project the forces after a step, and carry the displacement along exactly.
+
+        Sites with :math:`p < 0` lift off (clipped to 0); sites with :math:`p = 0` and
+        :math:`g < 0` enter contact with :math:`p = -\\tau g` (off the old contact set that is
+        ``g_off < 0``; clipped sites are checked against ``g``). The changes are added to ``u``
+        by direct sums when there are at most ``limit`` of them, else ``u = G p`` afresh.
+        Returns (sites entered, ``u`` recomputed).
+        """
+        pf = p.ravel()
+        sites, vals = [], []
+        clipped = None
+        if float(p.min()) < 0.0:
+            clipped = np.flatnonzero(pf < 0.0)
+            sites.append(clipped)
+            vals.append(-pf[clipped])
+            pf[clipped] = 0.0
+        np.less(g_off, 0.0, out=mb)
+        idx = np.flatnonzero(mb)
+        if clipped is not None:
+            idx = np.concatenate([idx, clipped[g.ravel()[clipped] < 0.0]])
+        if idx.size:
+            v = -tau * g.ravel()[idx]
+            pf[idx] += v
+            sites.append(idx)
+            vals.append(v)
+        synced = False
+        if sites:
+            if sum(x.size for x in sites) <= limit:
+                self.op.add_sources("zz", u, np.concatenate(sites), np.concatenate(vals))
+            else:
+                self._apply(p, u)
+                synced = True
+        return bool(idx.size), synced
 
     def _initial(self, ubar: np.ndarray, force: float | None) -> np.ndarray:
         """Cold start: forces proportional to the positive overlap, best scale along it."""
