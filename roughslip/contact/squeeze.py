@@ -313,13 +313,20 @@ class PolonskyKeer:
         self.solver = solver
         self.grid = solver.grid
         self.op = solver.op
-        self.tol, self.max_iter = solver.tol, solver.max_iter
         self._apply = solver.apply
         self._base = solver.problem.base
         unit = np.zeros(self.grid.shape)
         unit[0, 0] = 1.0
         self._diag = float(self._apply(unit, np.empty_like(unit))[0, 0])
         self._ws: dict[str, np.ndarray] | None = None
+
+    @property
+    def tol(self) -> float:
+        return self.solver.tol  # read at each solve: the solver's settings may change
+
+    @property
+    def max_iter(self) -> int:
+        return self.solver.max_iter
 
     def at_depth(self, depth: float, x0: np.ndarray | None) -> Outcome:
         return self._run(depth, None, x0)
