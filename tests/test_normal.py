@@ -239,6 +239,16 @@ def test_bad_input():
         squeeze(np.zeros((1, 1)), depth=1.0, boundary="periodic")
 
 
+def test_solver_settings_changed_after_construction_apply_to_the_next_solve():
+    s = NormalSolver(Problem(sphere((32, 32), radius=40.0)))
+    tight = s.solve(depth=0.3)
+    s.tol = 1e-3
+    loose = s.solve(depth=0.3)
+    assert loose.iterations < tight.iterations and loose.residual <= 1e-3
+    s.max_iter = 2
+    assert not s.solve(depth=0.3).converged
+
+
 def test_solver_reuse_records_work():
     h = sphere((32, 32), radius=20.0)
     s = NormalSolver(Problem(h, Grid((32, 32)), Material(1.0, 0.3)))
