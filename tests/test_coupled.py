@@ -164,3 +164,68 @@ def test_matrix_free_solver_takes_states_admissible_within_tolerance(seed, depth
     assert cg.converged and ref.converged
     assert [(e.kind, e.site) for e in cg.events] == [(e.kind, e.site) for e in ref.events]
     assert cg.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
+
+
+# -- load control --------------------------------------------------------------------------------
+@pytest.mark.parametrize("nu", [0.1, 0.3])
+def test_force_held_pull_agrees_between_solvers_and_holds_the_force(nu):
+    """Squeeze to a normal force and pull at that force: the dense reference (no FFT), the
+    updated inverse and matrix-free CG give the same events; F_z is the target at every event
+    and D_z follows."""
+    h = rough(14, seed=5)
+    F = 15.0
+    kw = dict(force=F, lam=0.25, nu=nu, pull_control="force")
+    ref = squeeze_pull_coupled(h, method="dense", reference=True, **kw)
+    inc = squeeze_pull_coupled(h, method="dense", **kw)
+    fft = squeeze_pull_coupled(h, method="cg", tol=1e-13, **kw)
+    assert ref.converged and inc.converged and fft.converged
+    assert len(ref.events) + ref.released > 20  # releases at D_x = 0 are decisions too
+    for other in (inc, fft):
+        assert [(e.kind, e.site) for e in other.events] == [(e.kind, e.site) for e in ref.events]
+        assert np.allclose(other.dx, ref.dx, rtol=1e-8, atol=1e-12)
+        assert np.allclose(other.fx, ref.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
+        assert np.allclose(other.dz, ref.dz, rtol=1e-8)
+        assert other.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
+    assert np.allclose(ref.fz, F, rtol=1e-10)  # the force is held
+    assert ref.normal_force == pytest.approx(F, rel=1e-12)
+    assert np.ptp(ref.dz) > 1e-6 * ref.depth  # ... and the depth moves
+
+
+def test_squeeze_to_a_force_then_hold_the_depth_equals_the_depth_controlled_model():
+    h = rough(14, seed=9)
+    by_force = squeeze_pull_coupled(h, force=5.0, lam=0.2, nu=0.25, pull_control="depth")
+    by_depth = squeeze_pull_coupled(h, depth=by_force.depth, lam=0.2, nu=0.25)
+    assert by_force.normal_force == pytest.approx(5.0, rel=1e-12)
+    assert [(e.kind, e.site) for e in by_force.events] == \
+        [(e.kind, e.site) for e in by_depth.events]
+    assert np.allclose(by_force.fx, by_depth.fx, rtol=1e-8, atol=1e-12)
+    assert np.allclose(by_force.dz, by_force.depth) and by_force.pull_control == "depth"
+    # a depth-controlled squeeze with a force-held pull holds the squeezed force
+    held = squeeze_pull_coupled(h, depth=by_force.depth, lam=0.2, nu=0.25,
+                                pull_control="force")
+    assert np.allclose(held.fz, held.normal_force, rtol=1e-10)
+    assert held.depth == pytest.approx(by_force.depth, rel=1e-12)
+
+
+def test_force_held_pull_at_half_poisson_ratio_is_the_decoupled_pull_at_that_load():
+    """At nu = 1/2 the pull does not change the normal forces, so holding the force and holding
+    the depth are the same pull, and equal to the decoupled model at the same load."""
+    h = sphere((14, 14), radius=12.0)
+    c = squeeze_pull_coupled(h, force=2.0, lam=0.2, nu=0.5, pull_control="force")
+    normal = squeeze(h, force=2.0, nu=0.5, tol=1e-13)
+    d = pull(normal, lam=0.2, method="inverse", early_stop=False, block=8)
+    assert c.depth == pytest.approx(normal.depth, rel=1e-10)
+    assert np.allclose(c.dz, normal.depth, rtol=1e-10)
+    assert [e.site for e in c.events[1:]] == d.broken_site.tolist()
+    assert c.friction_force == pytest.approx(d.friction_force, rel=1e-9)
+
+
+def test_load_control_rejects_bad_input():
+    h = rough(8)
+    with pytest.raises(InputError, match="exactly one of depth and force"):
+        squeeze_pull_coupled(h, depth=1.0, force=1.0)
+    with pytest.raises(InputError, match="pull_control"):
+        squeeze_pull_coupled(h, depth=1.0, pull_control="speed")
+    with pytest.raises(InputError, match="force = -1"):
+        squeeze_pull_coupled(h, force=-1.0)
+    assert squeeze_pull_coupled(h, force=0.0).friction_force == 0.0

@@ -248,10 +248,32 @@ def test_coupled_run_end_to_end(tmp_path):
     assert np.all(read_run(tmp_path / "half.h5").scalars["released_bonds"] == 0)
 
 
-def test_coupling_with_load_control_is_refused(tmp_path):
-    data = {**CFG, "squeeze": {"forces": [1.0, 2.0]}, "coupling": {"enabled": True}}
-    r = CliRunner().invoke(cli, ["show-config", str(write_cfg(tmp_path, data))])
-    assert r.exit_code == 2 and "coupling.enabled" in r.output
+def test_coupled_run_under_load_control_holds_the_force(tmp_path):
+    """squeeze.forces with coupling: the squeeze reaches each load, the pull holds it
+    (coupling.pull_control = "force") and the depth of every event is stored."""
+    data = {**CFG, "grid": {"n": 16}, "ensemble": {"samples": 2, "seed": 3},
+            "material": {"nu": 0.25}, "squeeze": {"forces": [2.0, 6.0]},
+            "coupling": {"enabled": True, "pull_control": "force"},
+            "output": {"fields": ["fz", "pull_curve"]}}
+    out = tmp_path / "load.h5"
+    run(load_config(write_cfg(tmp_path, data)), out)
+    r = read_run(out)
+    assert r.axis_name == "force_target"
+    np.testing.assert_allclose(r.scalars["normal_force"], [[2.0, 6.0]] * 2, rtol=1e-10)
+    assert np.all(np.diff(r.scalars["depth_length"], axis=1) > 0)
+    with h5py.File(out, "r") as f:
+        d = f["samples/s000001/d001"]
+        np.testing.assert_allclose(d["fz_lim"][()], 6.0, rtol=1e-9)
+        dz = d["dz_lim"][()]
+        assert dz[0] == pytest.approx(f["depth_length"][1, 1]) and np.ptp(dz) > 0
+    # the same loads with the depth held: a different pull, the same squeeze
+    held = {**data, "coupling": {"enabled": True}}
+    out2 = tmp_path / "held.h5"
+    run(load_config(write_cfg(tmp_path, held, "held.toml")), out2)
+    r2 = read_run(out2)
+    np.testing.assert_allclose(r2.scalars["depth_length"], r.scalars["depth_length"],
+                               rtol=1e-10)
+    assert not np.allclose(r2.scalars["friction_force"], r.scalars["friction_force"])
 
 
 def test_ctrl_c_with_workers_stops_promptly_and_resumes(tmp_path):
@@ -307,6 +329,7 @@ def test_runs_started_before_keys_were_renamed_or_added_resume(tmp_path):
     old["pull"] = {("error_bound" if k == "error_estimate" else k): v
                    for k, v in old["pull"].items() if k != "early_stop"}
     old["pull"]["coulomb_steps"] = 32  # a key of that version, retired since
+    old["coupling"].pop("pull_control")  # a key added later
     legacy = hashlib.sha256(dump(old).encode()).hexdigest()
     assert cfg.digest(generation=0) == legacy != cfg.digest() and cfg.matches(legacy)
     out = tmp_path / "old.h5"

@@ -28,6 +28,10 @@ reported with :math:`F_z` at the same :math:`D_x` (erratum T26
 (docs/theory/errata.rst#erratum-t26)). At :math:`\nu = 1/2`, :math:`G_{zx} = 0` and the model
 reduces exactly to the decoupled one.
 
+The squeeze goes to a depth or to a normal force, and the pull holds either the depth (the
+report's pull) or the normal force, with the depth following (``_State``,
+docs/theory/coupled.rst#coupled-load-control).
+
 Solvers (registered in :data:`SOLVERS`): ``"dense"`` assembles the reduced block from the
 closed-form kernels and keeps its inverse up to date (for up to a few thousand contact sites);
 ``"cg"`` runs conjugate gradients (:func:`roughslip.linalg.cg.cg`) on the restricted FFT block
@@ -65,6 +69,7 @@ class Event:
     fz: float  # total normal force F_z at the same D_x
     kind: str  # "start", "slip+", "slip-", "lost", "gained", "release" (at D_x = 0)
     site: int  # flat index (-1 for "start")
+    dz: float = math.nan  # the depth D_z at the same D_x (it moves when the force is held)
 
 
 @dataclass(frozen=True)
@@ -93,6 +98,10 @@ class CoupledResult:
     message: str = ""
     #: worst relative residual of the block solves (``cg``); NaN when not measured (``dense``)
     residual: float = math.nan
+    #: D_z after the squeeze (given, or found under load control)
+    depth: float = math.nan
+    #: what the pull holds: ``"depth"`` (D_z fixed, the report's pull) or ``"force"``
+    pull_control: str = "depth"
     #: with ``record_states=True``: (D_x, f_z, f_x, gap, contact, stick) at every event
     states: list | None = None
 
@@ -107,6 +116,10 @@ class CoupledResult:
     @property
     def fz(self) -> np.ndarray:
         return np.array([e.fz for e in self.events])
+
+    @property
+    def dz(self) -> np.ndarray:
+        return np.array([e.dz for e in self.events])
 
 
 # ------------------------------------------------------------------------------------------------
@@ -325,22 +338,67 @@ class _CG:
 
 
 class _State:
-    def __init__(self, solver, ubar: np.ndarray, lam: float, C: np.ndarray):
-        self.solver, self.ubar, self.lam = solver, ubar, lam
+    r"""The contact and stick sets, and the solution on them as affine functions of D_x.
+
+    Displacement control (``force`` None) holds :math:`D_z`: the normal right-hand side is
+    :math:`\bar u = b + D_z` with :math:`b = h - \max h`. Load control holds
+    :math:`F_z = \sum_C f_z = F`, and :math:`D_z` becomes an unknown: with the solutions
+    :math:`f^b, f^d, f^1` for the right-hand sides :math:`(b, 0)`, :math:`(1_C, 0)` and
+    :math:`(0, 1_S)`, the force constraint gives :math:`D_z = d_0 + d_1 D_x` with
+    :math:`d_0 = (F - \sum f^b_z)/\sum f^d_z`, :math:`d_1 = -\sum f^1_z/\sum f^d_z`, and
+    every force stays affine in :math:`D_x`: :math:`f = (f^b + d_0 f^d) + D_x (f^1 + d_1 f^d)`.
+    The events are found exactly as under displacement control.
+    """
+
+    def __init__(self, solver, base: np.ndarray, lam: float, C: np.ndarray, *,
+                 depth: float | None = None, force: float | None = None):
+        self.solver, self.base, self.lam = solver, base, lam
+        self.depth, self.force = depth, force
         self.C = C.copy()
         self.S = C.copy()
-        self.ones = np.ones(ubar.shape)
-        self.zero = np.zeros(ubar.shape)
-        self.scale_g = float(np.max(ubar))
+        self.ones = np.ones(base.shape)
+        self.zero = np.zeros(base.shape)
+        self.scale_g = float(np.max(base + (depth if depth is not None else 0.0)))
         self.Dscale = 1.0  # displacement scale for tolerances (set from the first event)
+        self.d0, self.d1 = (depth if depth is not None else math.nan), 0.0
+
+    def hold_depth(self, depth: float) -> None:
+        """Switch to displacement control at ``depth`` (then call :meth:`solve`)."""
+        self.depth, self.force = depth, None
+
+    def hold_force(self, force: float) -> None:
+        """Switch to load control at ``force`` (then call :meth:`solve`)."""
+        self.depth, self.force = None, force
 
     def solve(self) -> None:
         s = self.solver
         s.prepare(self.C, self.S)
-        self.f0 = s.solve(self.ubar, self.zero, "0")
-        self.f1 = s.solve(self.zero, self.ones, "1") if self.S.any() else (self.zero, self.zero)
-        self.g0 = s.displacement_z(*self.f0) - self.ubar
-        self.g1 = s.displacement_z(*self.f1)
+        f1 = s.solve(self.zero, self.ones, "1") if self.S.any() else (self.zero, self.zero)
+        if self.force is None:
+            ubar = self.base + self.depth
+            self.f0 = s.solve(ubar, self.zero, "0")
+            self.f1 = f1
+            self.d0, self.d1 = self.depth, 0.0
+            self.g0 = s.displacement_z(*self.f0) - ubar
+            self.g1 = s.displacement_z(*self.f1)
+            return
+        fb = s.solve(self.base, self.zero, "b")
+        fd = s.solve(self.ones, self.zero, "d")
+        sd = float(fd[0].sum())
+        if not sd > 0:
+            raise NumericalError("load control: the contact set carries no force under a "
+                                 "uniform approach (no contact left)")
+        self.d0 = (self.force - float(fb[0].sum())) / sd
+        self.d1 = -float(f1[0].sum()) / sd
+        self.f0 = (fb[0] + self.d0 * fd[0], fb[1] + self.d0 * fd[1])
+        self.f1 = (f1[0] + self.d1 * fd[0], f1[1] + self.d1 * fd[1])
+        self.g0 = s.displacement_z(*self.f0) - self.base - self.d0
+        self.g1 = s.displacement_z(*self.f1) - self.d1
+        self.scale_g = max(self.scale_g, float(np.max(self.base)) + self.d0)
+
+    def depth_at(self, D: float) -> float:
+        """:math:`D_z` at pull displacement ``D``."""
+        return self.d0 + self.d1 * D
 
     def at(self, D: float):
         fz = self.f0[0] + D * self.f1[0]
@@ -531,7 +589,7 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
 
     def record(D: float, kind: str, site: int) -> None:
         F_x, F_z = st.totals(D)
-        path.events.append(Event(D, F_x, F_z, kind, site))
+        path.events.append(Event(D, F_x, F_z, kind, site, st.depth_at(D)))
         if path.states is not None:
             fz, fx, g = st.at(D)
             path.states.append((D, fz.copy(), fx.copy(), g.copy(), st.C.copy(), st.S.copy()))
@@ -581,11 +639,27 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
     return path
 
 
+#: what a coupled pull can hold constant
+PULL_CONTROLS = ("depth", "force")
+
+
+def _initial_contact(problem: Problem, force: float) -> np.ndarray:
+    """A starting contact set for a squeeze to ``force``: the geometric overlap at the depth
+    the frictionless squeeze needs for that force, widened by 10 %. The set is then corrected
+    by the same removals and additions as under displacement control."""
+    from roughslip.contact.squeeze import NormalSolver
+
+    r = NormalSolver(problem, tol=1e-8).solve(force=force)
+    return problem.overlap(1.1 * r.depth + 1e-12 * max(problem.grid.a, 1.0)) > 0
+
+
 def couple(
     problem: Problem,
     *,
-    depth: float,
+    depth: float | None = None,
+    force: float | None = None,
     lam: float = 0.2,
+    pull_control: str = "depth",
     method: str = "auto",
     tol: float = 1e-12,
     max_iter: int = 20_000,
@@ -593,17 +667,25 @@ def couple(
     reference: bool = False,
     record_states: bool = False,
 ) -> CoupledResult:
-    r"""Squeeze a problem to ``depth`` and pull it with the coupled model until every bond has
-    broken (module docstring; [Report2003] §6.1 with errata T25 and T26).
+    r"""Squeeze a problem with bonded contacts and pull it with the coupled model until every
+    bond has broken (module docstring; [Report2003] §6.1 with errata T25 and T26).
 
     Parameters
     ----------
     problem : Problem
         Heights, grid and material; its operator gets the ``zz``, ``zx`` and ``xx`` spectra.
-    depth : float
-        Penetration :math:`D_z` from first touch (displacement control, held during the pull).
+    depth : float, optional
+        Squeeze to the penetration :math:`D_z` from first touch (displacement control).
+    force : float, optional
+        Squeeze to the total normal force :math:`F_z` (load control). Exactly one of ``depth``
+        and ``force``.
     lam : float
         Local friction coefficient.
+    pull_control : {"depth", "force"}
+        What the pull holds constant: ``"depth"``, the depth reached by the squeeze (the
+        report's pull; :math:`F_z` changes as the contact changes), or ``"force"``, the normal
+        force after the squeeze, as a dead weight does; then :math:`D_z` follows (recorded per
+        event as ``Event.dz``).
     method : str
         ``"auto"`` or a name from :data:`SOLVERS`: ``auto`` is ``dense`` up to 4000
         geometric-overlap sites when its memory (:func:`dense_memory_bytes`) fits the budget,
@@ -625,9 +707,18 @@ def couple(
     t0 = time.perf_counter()
     if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
         raise InputError(f"lam = {lam!r}: must be a finite number > 0")
-    depth = finite(depth, "depth")
-    ubar = problem.overlap(depth)
-    geo = ubar > 0
+    if (depth is None) == (force is None):
+        raise InputError("give exactly one of depth and force")
+    if pull_control not in PULL_CONTROLS:
+        raise InputError(f"pull_control = {pull_control!r}: must be 'depth' or 'force'")
+    if depth is not None:
+        depth = finite(depth, "depth")
+        geo = problem.overlap(depth) > 0
+    else:
+        force = finite(force, "force")
+        if force < 0:
+            raise InputError(f"force = {force:g}: must be >= 0")
+        geo = _initial_contact(problem, force) if force > 0 else np.zeros(problem.shape, bool)
     method, note = _choose_solver(method, int(geo.sum()))
     if not geo.any():
         z = np.zeros(problem.shape)
@@ -636,15 +727,25 @@ def couple(
             normal_force=0.0, contact_area=0.0, released=0, fz0=z, fx0=z, contact0=geo,
             stick0=geo, fz_peak=z, fx_peak=z, stick_peak=geo, contact_peak=geo,
             converged=True, seconds=time.perf_counter() - t0, solves=0, method=method,
-            message="no overlap: no contact")
+            message="no overlap: no contact", depth=0.0 if depth is None else depth,
+            pull_control=pull_control)
     solver = SOLVERS.get(method)(problem, reference=reference, tol=tol, max_iter=max_iter,
                                  threads=problem.threads)
     limit = max_events if max_events is not None else 20 * int(geo.sum()) + 100
     with blas_threads(problem.threads if method == "dense" else 1):
-        st = _State(solver, ubar, float(lam), geo)
-        released = _squeeze_bonded(st)
-        start = _Snapshot.of(st, 0.0)
+        st = _State(solver, problem.base, float(lam), geo, depth=depth, force=force)
         try:
+            released = _squeeze_bonded(st)
+            start = _Snapshot.of(st, 0.0)
+            squeezed_depth = st.depth_at(0.0)
+            # the pull holds what it is asked to: switch the control if the squeeze used the
+            # other one (the state at D_x = 0 is the same)
+            if pull_control == "depth" and force is not None:
+                st.hold_depth(squeezed_depth)
+                st.solve()
+            elif pull_control == "force" and depth is not None:
+                st.hold_force(start.fz_total)
+                st.solve()
             path = _pull_events(st, limit, record_states)
         except NumericalError as exc:
             raise NumericalError(f"coupled model: {exc}") from None
@@ -666,15 +767,17 @@ def couple(
         method=method, residual=residual,
         message=note + (message or f"{len(path.events)} events, {path.transient} transient "
                         "state(s)"),
-        states=path.states,
+        states=path.states, depth=float(squeezed_depth), pull_control=pull_control,
     )
 
 
 def squeeze_pull_coupled(
     heights: np.ndarray | Problem,
     *,
-    depth: float,
+    depth: float | None = None,
+    force: float | None = None,
     lam: float = 0.2,
+    pull_control: str = "depth",
     a: float = 1.0,
     E: float = 1.0,
     nu: float = 0.3,
@@ -694,5 +797,6 @@ def squeeze_pull_coupled(
     problem = heights if isinstance(heights, Problem) else Problem.from_arrays(
         heights, a=a, E=E, nu=nu, boundary=boundary, periodic_kernel=periodic_kernel, fft=fft,
         threads=threads)
-    return couple(problem, depth=depth, lam=lam, method=method, tol=tol, max_iter=max_iter,
-                  max_events=max_events, reference=reference, record_states=record_states)
+    return couple(problem, depth=depth, force=force, lam=lam, pull_control=pull_control,
+                  method=method, tol=tol, max_iter=max_iter, max_events=max_events,
+                  reference=reference, record_states=record_states)

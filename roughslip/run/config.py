@@ -264,6 +264,9 @@ class CouplingConfig:
     """``[coupling]``: the coupled normal-tangential model (docs/theory/coupled.rst#coupled)."""
 
     enabled: bool = _f(False, "solve squeeze and pull with the full (z, x) block operator")
+    pull_control: str = _f("depth", "what the pull holds: depth (D_z fixed, the report's "
+                           "pull) or force (the normal force after the squeeze, as a dead "
+                           "weight; D_z follows)", choices=("depth", "force"))
 
 
 @dataclass(frozen=True)
@@ -386,8 +389,9 @@ class RunConfig:
 
         ``generation``: the digest the same configuration had in an earlier version, so that
         runs started then can be resumed. 1: before keys were retired (:data:`_RETIRED`, at
-        their default or given value); 0: also before keys were renamed or added
-        (:data:`_RENAMED`, :data:`_ADDED`). The serialisation (:func:`_canonical`) is frozen:
+        their default or given value) and before the keys of generation 2 were added; 0: also
+        before keys were renamed (:data:`_RENAMED`) and the keys of generation 1 added
+        (:data:`_ADDED`). The serialisation (:func:`_canonical`) is frozen:
         a digest must not change when a TOML writer's formatting does.
         """
         d = self.to_dict()
@@ -401,13 +405,14 @@ class RunConfig:
                     at = next((i for i, (k, _) in enumerate(items) if k == before), len(items))
                     items.insert(at, (key, value))
                     d[section] = dict(items)
+        if generation is not None:
+            for (section, key), (default, since) in _ADDED.items():
+                if since > generation and d.get(section, {}).get(key, default) == default:
+                    d.get(section, {}).pop(key, None)
         if generation is not None and generation <= 0:
             for (section, old), new in _RENAMED.items():
                 if section in d and new in d[section]:
                     d[section] = {old if k == new else k: v for k, v in d[section].items()}
-            for (section, key), default in _ADDED.items():
-                if d.get(section, {}).get(key, default) == default:
-                    d.get(section, {}).pop(key, None)
         return hashlib.sha256(_canonical(d).encode()).hexdigest()
 
     def matches(self, digest: str) -> bool:
@@ -740,13 +745,15 @@ _SPECIAL = {("squeeze", "depths"), ("squeeze", "forces")}
 #: keys renamed since they were introduced: old (section, key) -> new key. The old spelling
 #: is still read, so configs and run files written with it keep working.
 _RENAMED = {("pull", "error_bound"): "error_estimate"}
-#: keys added since the first run-file format, with the default that reproduces the former
-#: behaviour (a configuration at that default has the digest it had before)
-_ADDED = {("pull", "early_stop"): True,
-          **{(role, k): v for role in ("surface", "elastic_surface")
+#: keys added since the first run-file format: (section, key) -> (the default that reproduces
+#: the former behaviour, the first digest generation that has the key). A configuration at
+#: that default has the digest it had in earlier generations.
+_ADDED = {("pull", "early_stop"): (True, 1),
+          **{(role, k): (v, 1) for role in ("surface", "elastic_surface")
              for k, v in (("unit", None), ("override_pixel_size", False), ("missing", "error"),
                           ("detrend", "none"), ("crop", None), ("downsample", 1),
-                          ("tiles", None))}}
+                          ("tiles", None))},
+          ("coupling", "pull_control"): ("depth", 2)}
 
 
 #: keys that no longer do anything: (section, key) -> (default, the key before which it stood
@@ -895,9 +902,6 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
                        "applies to depths only; use squeeze.force_unit with forces")
     if cfg.coupling.enabled and not cfg.pull.enabled:
         raise ctx.fail("coupling.enabled", True, "needs pull.enabled = true")
-    if cfg.coupling.enabled and cfg.control == "force":
-        raise ctx.fail("coupling.enabled", True, "the coupled model holds the depth during the "
-                       "pull: use squeeze.depths, not squeeze.forces")
     if cfg.coupling.enabled and cfg.pull.slip_law != "break":
         raise ctx.fail("pull.slip_law", cfg.pull.slip_law,
                        "the coupled model implements the break law only")

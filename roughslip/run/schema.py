@@ -103,12 +103,14 @@ FIELDS: tuple[Field, ...] = (
     Field("dx_lim", "pull curve: displacement of each event", grid=False),
     Field("fx_lim", "pull curve: pull force of each event", grid=False),
     Field("fz_lim", "pull curve (coupled model): normal force of each event", grid=False),
+    Field("dz_lim", "pull curve (coupled model): depth D_z of each event (it moves when the "
+          "pull holds the force)", grid=False),
     Field("broken_site", "pull curve: flat index iy * nx + ix of each event's site", grid=False),
 )
 FIELD_BY_NAME = {f.name: f for f in FIELDS}
 BOOL_FIELDS = tuple(f.name for f in FIELDS if f.boolean)
 #: ``output.fields`` entries that stand for several arrays
-FIELD_GROUPS = {"pull_curve": ("dx_lim", "fx_lim", "fz_lim", "broken_site")}
+FIELD_GROUPS = {"pull_curve": ("dx_lim", "fx_lim", "fz_lim", "dz_lim", "broken_site")}
 
 
 def stages(config: RunConfig) -> tuple[str, ...]:

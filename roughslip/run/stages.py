@@ -132,15 +132,17 @@ class _CoupledSample:
     def step(self, target: float, where: str) -> Record:
         cfg, want = self.stage.config, self.stage.want
         pb = self.problem
+        by = {"force": target} if cfg.control == "force" else {"depth": target}
         try:
-            r = couple(pb, depth=target, lam=cfg.pull.lam, tol=min(cfg.pull.tol, 1e-10))
+            r = couple(pb, **by, lam=cfg.pull.lam, pull_control=cfg.coupling.pull_control,
+                       tol=min(cfg.pull.tol, 1e-10))
         except NumericalError as exc:
             raise NumericalError(f"{where}: {exc}") from None
         if cfg.execution.strict and not r.converged:
             raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
         # one solve gives squeeze and pull: the squeeze has no iteration count of its own
         rec = Record(
-            scalars=dict(depth_length=target, normal_force=r.normal_force,
+            scalars=dict(depth_length=r.depth, normal_force=r.normal_force,
                          contact_area=r.contact_area, residual=r.residual,
                          converged=r.converged, seconds=r.seconds,
                          friction_force=r.friction_force,
@@ -161,7 +163,7 @@ class _CoupledSample:
             if "uz" in want:
                 f["uz"] = uz
             if "gap" in want:
-                f["gap"] = uz - pb.overlap(target)
+                f["gap"] = uz - pb.overlap(r.depth)
         if "fx" in want:
             f["fx"] = r.fx_peak
         if "stick" in want:
@@ -169,7 +171,7 @@ class _CoupledSample:
         if "ux" in want:
             f["ux"] = op.apply_block(r.fz_peak, r.fx_peak)[1]
         if "pull_curve" in want:
-            f.update(dx_lim=r.dx, fx_lim=r.fx, fz_lim=r.fz,
+            f.update(dx_lim=r.dx, fx_lim=r.fx, fz_lim=r.fz, dz_lim=r.dz,
                      broken_site=np.array([e.site for e in r.events], dtype=np.int64))
         return rec
 
