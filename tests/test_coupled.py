@@ -229,3 +229,40 @@ def test_load_control_rejects_bad_input():
     with pytest.raises(InputError, match="force = -1"):
         squeeze_pull_coupled(h, force=-1.0)
     assert squeeze_pull_coupled(h, force=0.0).friction_force == 0.0
+
+
+# -- contacts gained during the pull -------------------------------------------------------------
+def test_contacts_gained_while_pulling_enter_by_the_chosen_rule():
+    """Unbonded (the default): a gained site carries f_z and no f_x. Bonded: it forms a bond
+    that holds the elastic point where it met the rigid surface; it starts with no force, so
+    it survives only while lambda f_z grows faster than |f_x|. Every recorded state is
+    admissible, and the dense reference and matrix-free CG agree on the events."""
+    h = rough(14, seed=7) + sphere((14, 14), radius=25.0)
+    kw = dict(depth=1.4, lam=0.3, nu=0.25, record_states=True)
+    unb = squeeze_pull_coupled(h, **kw)
+    bon = squeeze_pull_coupled(h, gained="bonded", **kw)
+    gained = [e.site for e in unb.events if e.kind == "gained"]
+    assert gained and gained == [e.site for e in bon.events if e.kind == "gained"]
+    for res, bonded in ((unb, False), (bon, True)):
+        fscale = max(float(np.abs(s[1]).max()) for s in res.states)
+        for k, (e, (_D, fz, fx, g, C, S)) in enumerate(zip(res.events, res.states,
+                                                            strict=True)):
+            assert np.all(fz[C] >= -1e-8 * fscale) and np.all(g[~C] >= -1e-8)
+            assert np.all(np.abs(fx[S]) <= 0.3 * fz[S] + 1e-8 * fscale)
+            if e.kind == "gained":  # the state after it is the next one recorded
+                after = res.states[k + 1]
+                assert after[4].flat[e.site] and after[5].flat[e.site] == bonded
+    # a new bond starts with no force: it never jumps the totals
+    for e, s in zip(bon.events, bon.states, strict=True):
+        if e.kind == "gained":
+            assert s[2].flat[e.site] == 0.0
+    ref = squeeze_pull_coupled(h, gained="bonded", method="dense", reference=True, depth=1.4,
+                               lam=0.3, nu=0.25)
+    cg = squeeze_pull_coupled(h, gained="bonded", method="cg", tol=1e-13, depth=1.4, lam=0.3,
+                              nu=0.25)
+    assert [(e.kind, e.site) for e in cg.events] == [(e.kind, e.site) for e in ref.events]
+    assert np.allclose(cg.dx, ref.dx, rtol=1e-8, atol=1e-12)
+    assert np.allclose(cg.fx, ref.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
+    assert [(e.kind, e.site) for e in bon.events] == [(e.kind, e.site) for e in ref.events]
+    with pytest.raises(InputError, match="gained"):
+        squeeze_pull_coupled(h, depth=1.4, gained="sticky")

@@ -142,6 +142,9 @@ class BlockSolver(Protocol):
     def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
         """u_z on the whole grid."""
 
+    def displacement_x(self, fz: np.ndarray, fx: np.ndarray, site: int) -> float:
+        """u_x at one site (flat index)."""
+
     def residual(self) -> float:
         """The worst relative residual of the solves so far (NaN when not measured)."""
 
@@ -299,6 +302,14 @@ class _Dense:
             return u.reshape(fz.shape)
         return self.op.apply_block(fz, fx)[0]
 
+    def displacement_x(self, fz: np.ndarray, fx: np.ndarray, site: int) -> float:
+        if self.reference:  # u_x(i) = sum_j G_xz(i - j) f_z(j) + G_xx(i - j) f_x(j)
+            i = np.array([site])
+            cz, cx = np.flatnonzero(fz.ravel()), np.flatnonzero(fx.ravel())
+            return float(-(self._block(i, cz, "zx") @ fz.ravel()[cz])[0]
+                         + (self._block(i, cx, "xx") @ fx.ravel()[cx])[0])
+        return float(self.op.apply_block(fz, fx)[1].ravel()[site])
+
 
 @SOLVERS.register("cg", "matrix-free: warm-started CG on the restricted FFT block operator")
 class _CG:
@@ -331,6 +342,9 @@ class _CG:
     def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
         return self.op.apply_block(fz, fx)[0]
 
+    def displacement_x(self, fz: np.ndarray, fx: np.ndarray, site: int) -> float:
+        return float(self.op.apply_block(fz, fx)[1].ravel()[site])
+
 
 # ------------------------------------------------------------------------------------------------
 # The event loop
@@ -351,8 +365,13 @@ class _State:
     """
 
     def __init__(self, solver, base: np.ndarray, lam: float, C: np.ndarray, *,
-                 depth: float | None = None, force: float | None = None):
+                 depth: float | None = None, force: float | None = None,
+                 gained: str = "unbonded"):
         self.solver, self.base, self.lam = solver, base, lam
+        self.gained = gained
+        self.pulling = False  # contacts gained while pulling follow the rule ``gained``
+        #: bond offsets: a bond formed at D_x = D_g holds u_x = D_x + o, o = u_x(D_g) - D_g
+        self.offset = np.zeros(base.shape)
         self.depth, self.force = depth, force
         self.C = C.copy()
         self.S = C.copy()
@@ -376,13 +395,13 @@ class _State:
         f1 = s.solve(self.zero, self.ones, "1") if self.S.any() else (self.zero, self.zero)
         if self.force is None:
             ubar = self.base + self.depth
-            self.f0 = s.solve(ubar, self.zero, "0")
+            self.f0 = s.solve(ubar, self.offset, "0")
             self.f1 = f1
             self.d0, self.d1 = self.depth, 0.0
             self.g0 = s.displacement_z(*self.f0) - ubar
             self.g1 = s.displacement_z(*self.f1)
             return
-        fb = s.solve(self.base, self.zero, "b")
+        fb = s.solve(self.base, self.offset, "b")
         fd = s.solve(self.ones, self.zero, "d")
         sd = float(fd[0].sum())
         if not sd > 0:
@@ -425,13 +444,19 @@ class _State:
             return ("slip+" if fx.ravel()[j] > 0 else "slip-"), j
         return None
 
-    def apply(self, kind: str, j: int) -> None:
+    def apply(self, kind: str, j: int, D: float = 0.0) -> None:
+        """Update the sets for an event at site ``j`` at pull displacement ``D``."""
         C, S = self.C.ravel(), self.S.ravel()
         if kind == "lost":
             C[j] = False
             S[j] = False
         elif kind == "gained":
             C[j] = True
+            if self.pulling and self.gained == "bonded":
+                # a new bond holds the elastic point where it is: no jump in any force
+                fz, fx, _ = self.at(D)
+                self.offset.ravel()[j] = self.solver.displacement_x(fz, fx, j) - D
+                S[j] = True
         else:
             S[j] = False
 
@@ -595,6 +620,7 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
             path.states.append((D, fz.copy(), fx.copy(), g.copy(), st.C.copy(), st.S.copy()))
 
     record(0.0, "start", -1)
+    st.pulling = True
     D = 0.0
     first = True
     while st.S.any():
@@ -626,7 +652,7 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
             if v is None:
                 raise NumericalError("inconsistent state (no violation but no admissible "
                                      "displacement)")
-            st.apply(*v)
+            st.apply(*v, D)
             st.solve()
             path.transient += 1
             continue
@@ -634,13 +660,15 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
         F_x, _ = st.totals(at)
         if F_x > path.peak.fx_total:
             path.peak = _Snapshot.of(st, at)
-        st.apply(kind, j)
+        st.apply(kind, j, at)
         st.solve()
     return path
 
 
 #: what a coupled pull can hold constant
 PULL_CONTROLS = ("depth", "force")
+#: how contacts gained during the pull enter (the first is the default)
+GAINED_RULES = ("unbonded", "bonded")
 
 
 def _initial_contact(problem: Problem, force: float) -> np.ndarray:
@@ -660,6 +688,7 @@ def couple(
     force: float | None = None,
     lam: float = 0.2,
     pull_control: str = "depth",
+    gained: str = "unbonded",
     method: str = "auto",
     tol: float = 1e-12,
     max_iter: int = 20_000,
@@ -686,6 +715,13 @@ def couple(
         report's pull; :math:`F_z` changes as the contact changes), or ``"force"``, the normal
         force after the squeeze, as a dead weight does; then :math:`D_z` follows (recorded per
         event as ``Event.dz``).
+    gained : {"unbonded", "bonded"}
+        How a site that comes into contact during the pull enters: ``"unbonded"`` (the
+        default: in the report's model the bonds are the contacts of the squeeze, and the pull
+        only breaks them), carrying a normal force and no tangential one; or ``"bonded"``, with
+        a new bond that holds the elastic point where it is when the gap closes (so no force
+        jumps) and breaks by the same law. Contacts gained while the squeeze corrects its
+        sets, at :math:`D_x = 0`, always enter unbonded.
     method : str
         ``"auto"`` or a name from :data:`SOLVERS`: ``auto`` is ``dense`` up to 4000
         geometric-overlap sites when its memory (:func:`dense_memory_bytes`) fits the budget,
@@ -711,6 +747,8 @@ def couple(
         raise InputError("give exactly one of depth and force")
     if pull_control not in PULL_CONTROLS:
         raise InputError(f"pull_control = {pull_control!r}: must be 'depth' or 'force'")
+    if gained not in GAINED_RULES:
+        raise InputError(f"gained = {gained!r}: must be 'unbonded' or 'bonded'")
     if depth is not None:
         depth = finite(depth, "depth")
         geo = problem.overlap(depth) > 0
@@ -733,7 +771,8 @@ def couple(
                                  threads=problem.threads)
     limit = max_events if max_events is not None else 20 * int(geo.sum()) + 100
     with blas_threads(problem.threads if method == "dense" else 1):
-        st = _State(solver, problem.base, float(lam), geo, depth=depth, force=force)
+        st = _State(solver, problem.base, float(lam), geo, depth=depth, force=force,
+                    gained=gained)
         try:
             released = _squeeze_bonded(st)
             start = _Snapshot.of(st, 0.0)
@@ -778,6 +817,7 @@ def squeeze_pull_coupled(
     force: float | None = None,
     lam: float = 0.2,
     pull_control: str = "depth",
+    gained: str = "unbonded",
     a: float = 1.0,
     E: float = 1.0,
     nu: float = 0.3,
@@ -798,5 +838,5 @@ def squeeze_pull_coupled(
         heights, a=a, E=E, nu=nu, boundary=boundary, periodic_kernel=periodic_kernel, fft=fft,
         threads=threads)
     return couple(problem, depth=depth, force=force, lam=lam, pull_control=pull_control,
-                  method=method, tol=tol, max_iter=max_iter, max_events=max_events,
-                  reference=reference, record_states=record_states)
+                  gained=gained, method=method, tol=tol, max_iter=max_iter,
+                  max_events=max_events, reference=reference, record_states=record_states)

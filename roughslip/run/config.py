@@ -267,6 +267,10 @@ class CouplingConfig:
     pull_control: str = _f("depth", "what the pull holds: depth (D_z fixed, the report's "
                            "pull) or force (the normal force after the squeeze, as a dead "
                            "weight; D_z follows)", choices=("depth", "force"))
+    gained: str = _f("unbonded", "how a site that comes into contact during the pull enters: "
+                     "unbonded (the report's model: the bonds are the squeeze's contacts) or "
+                     "bonded (a new bond, formed where the surfaces meet)",
+                     choices=("unbonded", "bonded"))
 
 
 @dataclass(frozen=True)
@@ -753,7 +757,7 @@ _ADDED = {("pull", "early_stop"): (True, 1),
              for k, v in (("unit", None), ("override_pixel_size", False), ("missing", "error"),
                           ("detrend", "none"), ("crop", None), ("downsample", 1),
                           ("tiles", None))},
-          ("coupling", "pull_control"): ("depth", 2)}
+          ("coupling", "pull_control"): ("depth", 2), ("coupling", "gained"): ("unbonded", 2)}
 
 
 #: keys that no longer do anything: (section, key) -> (default, the key before which it stood

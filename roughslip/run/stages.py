@@ -135,7 +135,7 @@ class _CoupledSample:
         by = {"force": target} if cfg.control == "force" else {"depth": target}
         try:
             r = couple(pb, **by, lam=cfg.pull.lam, pull_control=cfg.coupling.pull_control,
-                       tol=min(cfg.pull.tol, 1e-10))
+                       gained=cfg.coupling.gained, tol=min(cfg.pull.tol, 1e-10))
         except NumericalError as exc:
             raise NumericalError(f"{where}: {exc}") from None
         if cfg.execution.strict and not r.converged:
