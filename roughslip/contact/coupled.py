@@ -53,6 +53,7 @@ from scipy.linalg import blas
 from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem, finite
 from roughslip.errors import InputError, MemoryLimitError, NumericalError
+from roughslip.linalg import lapack64
 from roughslip.linalg.cg import cg
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.threads import blas_threads
@@ -139,6 +140,10 @@ class BlockSolver(Protocol):
         """Grid fields (f_z, f_x) for right-hand sides on the grid; ``key`` names the
         right-hand side, for warm starts."""
 
+    def solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
+                   ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """:meth:`solve` for several ``(rz, rx, key)`` at once."""
+
     def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
         """u_z on the whole grid."""
 
@@ -215,13 +220,20 @@ class _Dense:
         return out
 
     def _factor(self, keys: list[tuple[str, int]]) -> None:
-        A = self._entries(keys, keys)
+        """The inverse of the block on ``keys`` afresh: Cholesky and LAPACK's inverse from it
+        (potrf + potri, in place: a third of the work of solving for the identity)."""
+        A = np.asfortranarray(self._entries(keys, keys))
         try:
-            L = linalg.cho_factor(A, lower=True, check_finite=False)
-        except linalg.LinAlgError:
+            lapack64.cholesky_inverse(A)
+        except NumericalError:
             raise NumericalError("coupled model: the coupled block on the contact and stick "
                                  "sets is not positive definite") from None
-        self.M = np.asfortranarray(linalg.cho_solve(L, np.eye(len(keys)), check_finite=False))
+        n, b = A.shape[0], 512
+        for j in range(0, n, b):  # mirror the lower triangle, a panel at a time
+            A[j:j + b, j + b:] = A[j + b:, j:j + b].T
+            blk = A[j:j + b, j:j + b]
+            blk[np.triu_indices(blk.shape[0], 1)] = blk.T[np.triu_indices(blk.shape[0], 1)]
+        self.M = A
         self._set_keys(keys)
         self.updates = 0
 
@@ -282,15 +294,25 @@ class _Dense:
     def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = "") -> tuple[np.ndarray,
                                                                              np.ndarray]:
         """Grid fields (fz, fx) for right-hand sides given on the grid (used on C and S)."""
-        self.solves += 1
+        return self.solve_many([(rz, rx, key)])[0]
+
+    def solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
+                   ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """:meth:`solve` for several right-hand sides with one matrix product (the inverse is
+        read from memory once)."""
+        self.solves += len(rhs)
         idx, isz = self.idx, self.isz
-        rhs = np.where(isz, rz.ravel()[idx], rx.ravel()[idx]) * self.live
-        sol = self.M @ rhs
+        B = np.column_stack([np.where(isz, rz.ravel()[idx], rx.ravel()[idx]) * self.live
+                             for rz, rx, _ in rhs])
+        sol = self.M @ B
         live_z, live_x = isz & self.live, ~isz & self.live
-        fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
-        fz.ravel()[idx[live_z]] = sol[live_z]
-        fx.ravel()[idx[live_x]] = sol[live_x]
-        return fz, fx
+        out = []
+        for k, (rz, _, _) in enumerate(rhs):
+            fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
+            fz.ravel()[idx[live_z]] = sol[live_z, k]
+            fx.ravel()[idx[live_x]] = sol[live_x, k]
+            out.append((fz, fx))
+        return out
 
     def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
         if self.reference:
@@ -338,6 +360,10 @@ class _CG:
         self.worst = max(self.worst, r.residual)
         self.prev[key] = r.x
         return r.x[0], r.x[1]
+
+    def solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
+                   ) -> list[tuple[np.ndarray, np.ndarray]]:
+        return [self.solve(rz, rx, key) for rz, rx, key in rhs]
 
     def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
         return self.op.apply_block(fz, fx)[0]
@@ -392,17 +418,21 @@ class _State:
     def solve(self) -> None:
         s = self.solver
         s.prepare(self.C, self.S)
-        f1 = s.solve(self.zero, self.ones, "1") if self.S.any() else (self.zero, self.zero)
+        stick = bool(self.S.any())
         if self.force is None:
             ubar = self.base + self.depth
-            self.f0 = s.solve(ubar, self.offset, "0")
-            self.f1 = f1
+            rhs = [(ubar, self.offset, "0")] + ([(self.zero, self.ones, "1")] if stick else [])
+            sols = s.solve_many(rhs)
+            self.f0 = sols[0]
+            self.f1 = sols[1] if stick else (self.zero, self.zero)
             self.d0, self.d1 = self.depth, 0.0
             self.g0 = s.displacement_z(*self.f0) - ubar
             self.g1 = s.displacement_z(*self.f1)
             return
-        fb = s.solve(self.base, self.offset, "b")
-        fd = s.solve(self.ones, self.zero, "d")
+        rhs = [(self.base, self.offset, "b"), (self.ones, self.zero, "d")]
+        sols = s.solve_many(rhs + ([(self.zero, self.ones, "1")] if stick else []))
+        fb, fd = sols[0], sols[1]
+        f1 = sols[2] if stick else (self.zero, self.zero)
         sd = float(fd[0].sum())
         if not sd > 0:
             raise NumericalError("load control: the contact set carries no force under a "
