@@ -48,6 +48,7 @@ bench: $(STAMP)
 	$(PY) scripts/bench_squeeze.py
 	$(PY) scripts/bench_pull.py
 	$(PY) scripts/bench_run.py
+	$(PY) scripts/bench_coupled.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache build *.egg-info docs/_build docs/_generated
