@@ -807,22 +807,9 @@ def couple(
     CoupledResult
     """
     t0 = time.perf_counter()
-    if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
-        raise InputError(f"lam = {lam!r}: must be a finite number > 0")
-    if (depth is None) == (force is None):
-        raise InputError("give exactly one of depth and force")
-    if pull_control not in PULL_CONTROLS:
-        raise InputError(f"pull_control = {pull_control!r}: must be 'depth' or 'force'")
-    if gained not in GAINED_RULES:
-        raise InputError(f"gained = {gained!r}: must be 'unbonded' or 'bonded'")
-    if depth is not None:
-        depth = finite(depth, "depth")
-        geo = problem.overlap(depth) > 0
-    else:
-        force = finite(force, "force")
-        if force < 0:
-            raise InputError(f"force = {force:g}: must be >= 0")
-        geo = _initial_contact(problem, force) if force > 0 else np.zeros(problem.shape, bool)
+    geo = _check_couple(problem, depth, force, lam, pull_control, gained)
+    depth = None if depth is None else finite(depth, "depth")
+    force = None if force is None else finite(force, "force")
     method, note = _choose_solver(method, int(geo.sum()))
     if not geo.any():
         z = np.zeros(problem.shape)
@@ -874,6 +861,25 @@ def couple(
                         "state(s)"),
         states=path.states, depth=float(squeezed_depth), pull_control=pull_control,
     )
+
+
+def _check_couple(problem: Problem, depth: float | None, force: float | None, lam: float,
+                  pull_control: str, gained: str) -> np.ndarray:
+    """Validate the arguments of :func:`couple`; returns the starting contact set."""
+    if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
+        raise InputError(f"lam = {lam!r}: must be a finite number > 0")
+    if (depth is None) == (force is None):
+        raise InputError("give exactly one of depth and force")
+    if pull_control not in PULL_CONTROLS:
+        raise InputError(f"pull_control = {pull_control!r}: must be 'depth' or 'force'")
+    if gained not in GAINED_RULES:
+        raise InputError(f"gained = {gained!r}: must be 'unbonded' or 'bonded'")
+    if depth is not None:
+        return problem.overlap(finite(depth, "depth")) > 0
+    force = finite(force, "force")
+    if force < 0:
+        raise InputError(f"force = {force:g}: must be >= 0")
+    return _initial_contact(problem, force) if force > 0 else np.zeros(problem.shape, bool)
 
 
 def squeeze_pull_coupled(
