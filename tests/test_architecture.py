@@ -171,7 +171,7 @@ def test_restricted_operators_pass_the_dot_test_and_match_the_dense_block(bounda
         # dot test: <A x, y> = <x, A^T y>, and A is symmetric
         assert np.dot(A @ x, y) == pytest.approx(np.dot(x, A.rmatvec(y)), rel=1e-12)
         assert np.dot(A @ x, y) == pytest.approx(np.dot(x, A @ y), rel=1e-12)
-        D = p.operator(comp).dense(comp)[np.ix_(K.ravel(), K.ravel())]
+        D = p.operator(comp).tables.dense(comp)[np.ix_(K.ravel(), K.ravel())]
         np.testing.assert_allclose(A @ x, D @ x, rtol=1e-11, atol=1e-13 * np.abs(D @ x).max())
     C, S = rng.random(shape) < 0.5, rng.random(shape) < 0.3
     B = p.restricted_block(C, S)
@@ -183,8 +183,9 @@ def test_restricted_operators_pass_the_dot_test_and_match_the_dense_block(bounda
     if boundary == "open":  # the block from closed-form kernels: [[zz, zx], [xz, xx]]
         op = p.operator("zz", "zx", "xx")
         c, s = C.ravel(), S.ravel()
-        dense = np.block([[op.dense("zz")[np.ix_(c, c)], op.dense("zx")[np.ix_(c, s)]],
-                          [op.dense("xz")[np.ix_(s, c)], op.dense("xx")[np.ix_(s, s)]]])
+        d = op.tables.dense
+        dense = np.block([[d("zz")[np.ix_(c, c)], d("zx")[np.ix_(c, s)]],
+                          [d("xz")[np.ix_(s, c)], d("xx")[np.ix_(s, s)]]])
         np.testing.assert_allclose(B @ x, dense @ x, rtol=1e-10,
                                    atol=1e-12 * np.abs(dense @ x).max())
 
@@ -197,7 +198,7 @@ def test_one_cg_solves_scalar_and_block_restrictions_to_the_dense_solution():
     A = p.restricted("xx", K)
     b = rng.standard_normal(shape)
     r = cg(A, b, tol=1e-12)
-    D = p.operator("xx").dense("xx")[np.ix_(K.ravel(), K.ravel())]
+    D = p.operator("xx").tables.dense("xx")[np.ix_(K.ravel(), K.ravel())]
     np.testing.assert_allclose(A.gather(r.x), np.linalg.solve(D, b.ravel()[K.ravel()]),
                                rtol=1e-9)
     assert r.converged and np.all(r.x[~K] == 0)

@@ -304,7 +304,7 @@ def test_pull_error_estimate_is_stored_when_asked_and_reproducible(serial_run, t
     # most that of G_xx on the whole grid
     n = CFG["grid"]["n"]
     op = ElasticOperator((n, n), material=Material(1.0, 0.3), components=("xx",))  # config defaults
-    w = np.linalg.eigvalsh(op.dense("xx"))
+    w = np.linalg.eigvalsh(op.tables.dense("xx"))
     assert np.all(r.scalars["pull_converged"] == 1)
     assert np.all(est >= 0) and np.any(est > 0) and np.all(est <= w[-1] / w[0] * 1e-10)
     # not estimated: NaN, not 0

@@ -182,7 +182,7 @@ class _Dense:
         op = problem.operator("zz", "zx", "xx").with_threads(1)
         self.ny, self.nx = op.shape
         self.op = op
-        self.tables = {c: op.pair_table(c) for c in ("zz", "zx", "xx")}
+        self.tables = {c: op.tables.pair(c) for c in ("zz", "zx", "xx")}
         self.reference = reference
         self.solves = 0
         self.M: np.ndarray | None = None

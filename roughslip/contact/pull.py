@@ -215,7 +215,7 @@ class _Bonds:
         times faster than panels of columns).
         """
         nx = self.shape[1]
-        T, w, off = self.op.pair_table("xx")
+        T, w, off = self.op.tables.pair("xx")
         sites = self.sites if positions is None else self.sites[positions]
         iy, ix = np.divmod(sites, nx)
         lin = (iy * w + ix).astype(np.intp)

@@ -361,7 +361,7 @@ class PolonskyKeer:
         tf, rf, gsf, Sff = (a.ravel() for a in (t, r, gs, Sf))
         self._apply(p, u)
         stale = 0  # iterations since u was last computed from p
-        limit = self.op.direct_sum_limit
+        limit = self.op.tables.direct_sum_limit
         t.fill(0.0)
         delta, g_old, shift, it = 0.0, 1.0, 0.0, 0
         scale = 0.0 if load else depth
@@ -458,7 +458,8 @@ class PolonskyKeer:
         synced = False
         if sites:
             if sum(x.size for x in sites) <= limit:
-                self.op.add_sources("zz", u, np.concatenate(sites), np.concatenate(vals))
+                self.op.tables.add_sources("zz", u, np.concatenate(sites),
+                                           np.concatenate(vals))
             else:
                 self._apply(p, u)
                 synced = True

@@ -521,3 +521,17 @@ def _periodic_base_pixel(base, QX, QY, zero, a, alpha, images, window, nx, ny):
     short_hat = ey @ short @ ex.T
     total = long + short_hat
     return total if base in ("x", "y") else total.real
+
+
+#: which stored spectrum serves a component, and with which sign (G_xz = -G_zx etc.)
+CANONICAL = {
+    "zz": ("zz", 1.0),
+    "xx": ("xx", 1.0),
+    "yy": ("yy", 1.0),
+    "xy": ("xy", 1.0),
+    "yx": ("xy", 1.0),
+    "zx": ("zx", 1.0),
+    "xz": ("zx", -1.0),
+    "zy": ("zy", 1.0),
+    "yz": ("zy", -1.0),
+}

@@ -30,23 +30,14 @@ from scipy.sparse.linalg import LinearOperator
 
 from roughslip.elastic import green
 from roughslip.elastic.fft import RealFFT2, fast_len
+from roughslip.elastic.green import CANONICAL as _CANONICAL
+from roughslip.elastic.tables import KernelTables
 from roughslip.errors import InputError
 
 BOUNDARIES = ("open", "periodic")
+
 PERIODIC_KERNELS = ("pixel", "continuous")
 
-# Which stored spectrum serves a component, and with which sign (G_xz = -G_zx etc.).
-_CANONICAL = {
-    "zz": ("zz", 1.0),
-    "xx": ("xx", 1.0),
-    "yy": ("yy", 1.0),
-    "xy": ("xy", 1.0),
-    "yx": ("xy", 1.0),
-    "zx": ("zx", 1.0),
-    "xz": ("zx", -1.0),
-    "zy": ("zy", 1.0),
-    "yz": ("zy", -1.0),
-}
 
 
 @dataclass(frozen=True)
@@ -200,9 +191,8 @@ class ElasticOperator:
         self._spec = [self.fft.spectrum_buffer() for _ in range(2)]
         self._work = None
         self._khat: dict[str, np.ndarray] = {}
-        # kernel tables in real space, built on demand (shared with thread views)
-        self._tables: dict[str, np.ndarray] = {}
-        self._pairs: dict[str, tuple[np.ndarray, int, int]] = {}
+        #: kernel tables in real space, built on demand (shared with thread views)
+        self.tables = KernelTables(self)
         self.setup_seconds = 0.0
         requested = list(components)
         for c in requested:
@@ -402,86 +392,6 @@ class ElasticOperator:
         self.apply_block(v[0], v[1], out[0], out[1])
         return out
 
-    # -- sparse sources -------------------------------------------------------------------------
-    def real_space_table(self, component: str) -> np.ndarray:
-        """The kernel in real space, laid out so that every source has a contiguous window.
-
-        Open grids: ``T[m + ny - 1, l + nx - 1] = G(l, m)``, shape ``(2ny - 1, 2nx - 1)``.
-        Periodic grids: the periodic kernel tiled twice per axis, shape ``(2ny, 2nx)``.
-        Recovered from the stored spectrum by one inverse FFT and cached.
-        """
-        cache = self._tables
-        if component in cache:
-            return cache[component]
-        ny, nx = self.shape
-        my, mx = self.padded_shape
-        spec = self._kernel_fft.spectrum_buffer()
-        np.copyto(spec, self.spectrum(component))
-        K = self._kernel_fft.real_buffer(zero=False)
-        self._kernel_fft.backward(spec, K)
-        if self.boundary == "open":
-            rows = np.r_[my - ny + 1 : my, 0:ny]
-            cols = np.r_[mx - nx + 1 : mx, 0:nx]
-            T = np.ascontiguousarray(K[np.ix_(rows, cols)])
-        else:
-            T = np.tile(K, (2, 2))
-        cache[component] = T
-        return T
-
-    def pair_table(self, component: str) -> tuple[np.ndarray, int, int]:
-        """Flat lookup table for the kernel between any two sites of the grid.
-
-        Returns ``(T, w, off)`` such that for flat site indices ``i = iy nx + ix`` and ``j``,
-        ``G(i - j) = T[(iy_i - iy_j) w + (ix_i - ix_j) + off]``. Open grids use the closed-form
-        pixel kernel (no FFT round-off); periodic grids the periodic kernel.
-        """
-        cache = self._pairs
-        if component in cache:
-            return cache[component]
-        ny, nx = self.shape
-        if self.boundary == "open":
-            canon, sign = _CANONICAL[component]
-            mat = self.material
-            T = sign * green.kernel_table(canon, nx, ny, a=self.a, E=mat.E, nu=mat.nu)
-            w, oy, ox = 2 * nx - 1, ny - 1, nx - 1
-        else:
-            T = self.real_space_table(component)
-            w, oy, ox = 2 * nx, ny, nx
-        out = (np.ascontiguousarray(T).ravel(), w, oy * w + ox)
-        cache[component] = out
-        return out
-
-    def add_sources(self, component: str, out: np.ndarray, sites: np.ndarray,
-                    values: np.ndarray) -> np.ndarray:
-        """``out += G * f`` for forces ``values`` at flat indices ``sites``, by direct sums.
-
-        Costs one pass over the grid per site: cheaper than a convolution for a handful of
-        sites (see :meth:`direct_sum_limit`).
-        """
-        T = self.real_space_table(component)
-        ny, nx = self.shape
-        sy, sx = np.divmod(np.asarray(sites), nx)
-        if self.boundary == "open":
-            oy, ox = ny - 1 - sy, nx - 1 - sx
-        else:
-            oy, ox = ny - sy, nx - sx
-        for y0, x0, v in zip(oy, ox, values, strict=True):
-            out += v * T[y0 : y0 + ny, x0 : x0 + nx]
-        return out
-
-    @property
-    def direct_sum_limit(self) -> int:
-        """Number of point sources below which :meth:`add_sources` beats a convolution.
-
-        One convolution costs ~``M log2 M`` for ``M`` padded points, one source ~``N`` for
-        ``N`` grid points; on this hardware class the measured cost ratio is ~0.7 of
-        ``M log2 M / N`` (N = 256..1024, open and periodic). The limit is a deterministic
-        function of the grid, so the iteration path does not depend on timing.
-        """
-        m = self.padded_shape[0] * self.padded_shape[1]
-        n = self.shape[0] * self.shape[1]
-        return max(1, int(0.6 * m * math.log2(max(m, 2)) / n))
-
     # -- adapters -----------------------------------------------------------------------------
     def as_linear_operator(self, component: str = "zz") -> LinearOperator:
         """A :class:`scipy.sparse.linalg.LinearOperator` on flattened fields (row-major)."""
@@ -508,30 +418,3 @@ class ElasticOperator:
             return np.concatenate([uz.ravel(), ux.ravel()])
 
         return LinearOperator((2 * n, 2 * n), matvec=mv, rmatvec=mv, dtype=float)
-
-    def dense(self, component: str = "zz") -> np.ndarray:
-        """Dense ``(ny nx) x (ny nx)`` matrix of a component, without FFTs (small grids only).
-
-        Open grids: the closed-form pixel kernel at every offset. Periodic grids: the circulant
-        of the symbol, inverted by an explicit DFT.
-        """
-        ny, nx = self.shape
-        n = ny * nx
-        if n > 4096:
-            raise InputError(f"dense matrix of a {self.shape} grid is too large (n = {n} > 4096)")
-        iy, ix = np.divmod(np.arange(n), nx)
-        l = ix[:, None] - ix[None, :]
-        m = iy[:, None] - iy[None, :]
-        if self.boundary == "open":
-            E, nu = self.material.E, self.material.nu
-            return green.pixel_kernel(component, l, m, a=self.a, E=E, nu=nu)
-        k = self.spectrum(component) * (ny * nx)
-        # Explicit inverse real DFT of the half spectrum (Hermitian completion along x).
-        full = np.zeros((ny, nx), dtype=complex)
-        full[:, : nx // 2 + 1] = k
-        for kx in range(nx // 2 + 1, nx):
-            full[:, kx] = np.conj(k[(-np.arange(ny)) % ny, nx - kx])
-        ey = np.exp(2j * np.pi * np.outer(np.arange(ny), np.arange(ny)) / ny)
-        ex = np.exp(2j * np.pi * np.outer(np.arange(nx), np.arange(nx)) / nx)
-        kern = (ey @ full @ ex.T).real / (ny * nx)  # kern[m, l]
-        return kern[m % ny, l % nx]
