@@ -1,13 +1,15 @@
 """How much does neglecting the normal-tangential coupling change the friction law?
 
-    python scripts/coupling_effect.py [--n 64] [--samples 10] [--out runs/coupling]
+    python scripts/coupling_effect.py [--sizes 64] [--samples 10] [--nu 0.0 0.25 0.45]
+                                      [--depths 8] [--no-hertz] [--out runs/coupling]
 
-The report's own open question ([Report2003] §6.1). For nu = 0, 0.25 and 0.45 it runs the decoupled
-model (the report's) and the coupled model with exact event tracking on rough surfaces (H = 0.8,
-``--samples`` samples, 8 depths 0.3-2 rms) and on the Hertz sphere (configs/hertz.toml), and prints
-the friction exponent alpha of F_friction ~ F_n^alpha for both, the mean ratio of the friction
-forces, and the fraction of bonds released already at D_x = 0 under coupling. Prints Markdown
-(docs/results.md holds the output of a run).
+The report's own open question ([Report2003] §6.1). For each nu (default 0, 0.25, 0.45) it
+runs the decoupled model (the report's) and the coupled model with exact event tracking on rough
+surfaces (H = 0.8, ``--samples`` samples, ``--depths`` depths 0.3-2 rms, one grid per
+``--sizes``) and on the Hertz sphere (configs/hertz.toml), and prints the friction exponent alpha
+of F_friction ~ F_n^alpha for both, the mean ratio of the friction forces, and the fraction of
+bonds released already at D_x = 0 under coupling. Prints Markdown (docs/results.md holds the
+output of a run).
 """
 
 from __future__ import annotations
@@ -48,25 +50,30 @@ def grid_sites(path: Path) -> int:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    ap.add_argument("--n", type=int, default=64)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[64], help="rough grids N")
     ap.add_argument("--samples", type=int, default=10)
+    ap.add_argument("--nu", type=float, nargs="+", default=[0.0, 0.25, 0.45])
+    ap.add_argument("--depths", type=int, default=8, help="depths from 0.3 to 2 rms")
+    ap.add_argument("--no-hertz", action="store_true", help="skip the Hertz scene")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "coupling")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    print(f"# cores: {os.cpu_count()}; rough: N = {args.n}, {args.samples} samples, H = 0.8; "
-          "Hertz: N = 64; lambda = 0.2\n")
-    print("| scene | nu | alpha decoupled | alpha coupled | F_fric coupled / decoupled "
+    print(f"# cores: {os.cpu_count()}; rough: N = {args.sizes}, {args.samples} samples, "
+          f"H = 0.8, {args.depths} depths 0.3-2 rms; Hertz: N = 64; lambda = 0.2\n")
+    print("| scene | N | nu | alpha decoupled | alpha coupled | F_fric coupled / decoupled "
           "| bonds released at D_x = 0 | seconds (dec / coup) |")
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     scenes = [
-        ("rough", "rough_h08.toml", [f"grid.n={args.n}", f"ensemble.samples={args.samples}",
-                                     "squeeze.depths={start = 0.3, stop = 2.0, num = 8, "
-                                     "spacing = 'log'}"]),
-        ("hertz", "hertz.toml", []),
+        (f"rough{n}", "rough_h08.toml", [f"grid.n={n}", f"ensemble.samples={args.samples}",
+                                         "squeeze.depths={start = 0.3, stop = 2.0, num = "
+                                         f"{args.depths}, spacing = 'log'}}"])
+        for n in args.sizes
     ]
+    if not args.no_hertz:
+        scenes.append(("hertz", "hertz.toml", []))
     for scene, name, base in scenes:
-        for nu in (0.0, 0.25, 0.45):
+        for nu in args.nu:
             paths, secs = {}, {}
             for coupled in (False, True):
                 cfg = load_config(ROOT / "configs" / name, [*base, f"material.nu={nu}",
@@ -87,7 +94,9 @@ def main() -> None:
                     f.alpha_bootstrap_std
                 return f"{f.alpha:.3f} ± {e:.3f}"
 
-            print(f"| {scene} | {nu} | {fmt(fd)} | {fmt(fc)} | {ratio:.3f} | "
+            n = grid_sites(paths[False])
+            print(f"| {scene.rstrip('0123456789')} | {round(n ** 0.5)} | {nu} | {fmt(fd)} "
+                  f"| {fmt(fc)} | {ratio:.3f} | "
                   f"{released_fraction(paths[True]):.2f} | {secs[False]:.0f} / "
                   f"{secs[True]:.0f} |", flush=True)
 
