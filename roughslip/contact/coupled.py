@@ -324,6 +324,10 @@ class _Dense:
     def residual(self) -> float:
         return math.nan  # direct solves: not measured
 
+    def reset(self) -> None:
+        """Drop the updated inverse: the next :meth:`prepare` factorises afresh."""
+        self.M = None
+
     def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = "") -> tuple[np.ndarray,
                                                                              np.ndarray]:
         """Grid fields (fz, fx) for right-hand sides given on the grid (used on C and S)."""
@@ -452,6 +456,24 @@ class _State:
         self.depth, self.force = None, force
 
     def solve(self) -> None:
+        """Solve the current sets. A non-finite solution from an updated inverse (round-off
+        grown through many updates) is recomputed from a fresh factorisation; one that stays
+        non-finite is an error, never a silent NaN."""
+        self._solve()
+        if self._finite():
+            return
+        reset = getattr(self.solver, "reset", None)
+        if reset is not None:
+            reset()
+            self._solve()
+            if self._finite():
+                return
+        raise NumericalError("non-finite forces in the solve of the contact and stick sets")
+
+    def _finite(self) -> bool:
+        return all(np.all(np.isfinite(a)) for a in (*self.f0, *self.f1, self.g0, self.g1))
+
+    def _solve(self) -> None:
         s = self.solver
         s.prepare(self.C, self.S)
         stick = bool(self.S.any())

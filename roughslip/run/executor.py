@@ -97,6 +97,9 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     for k, t in enumerate(targets):
         where = f"sample {sample}, depth index {k}"
         rec = runner.step(float(t), where)
+        bad = [n for n, v in rec.scalars.items() if not np.isfinite(float(v))]
+        if bad:  # a stage gives only what it computed: NaN there is a failure, not a gap
+            raise NumericalError(f"{where}: non-finite {', '.join(bad)}")
         _check_voids(rec.contact, surf.valid, where)
         schema.put(rows, k, rec.scalars)
         notes.extend(f"depth index {k}: {n}" for n in rec.notes)
@@ -106,9 +109,6 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
         fields.append(rec.fields)
         if progress is not None:
             progress(sample, k)
-    for name, row in rows.items():
-        if np.any(np.isinf(row)):
-            raise NumericalError(f"sample {sample}: non-finite {name}")
     surfaces = {"rigid_surface": surf.rigid}
     if surf.elastic is not None:
         surfaces["elastic_surface"] = surf.elastic
