@@ -41,6 +41,7 @@ event logic.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from dataclasses import dataclass
@@ -48,7 +49,6 @@ from typing import Protocol
 
 import numpy as np
 from scipy import linalg
-from scipy.linalg import blas
 
 from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem, finite
@@ -97,7 +97,7 @@ class CoupledResult:
     solves: int
     method: str
     message: str = ""
-    #: worst relative residual of the block solves (``cg``); NaN when not measured (``dense``)
+    #: worst relative residual of the block solves against the FFT operator (both solvers)
     residual: float = math.nan
     #: D_z after the squeeze (given, or found under load control)
     depth: float = math.nan
@@ -133,25 +133,24 @@ class BlockSolver(Protocol):
 
     solves: int
 
-    def prepare(self, C: np.ndarray, S: np.ndarray) -> None:
-        """Set the unknowns: f_z on C, f_x on S."""
+    def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
+        """Set the unknowns: f_z on C, f_x on S. ``bulk``: the sets are about to change by
+        many sites at once (no point in keeping an inverse for them)."""
 
-    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str) -> tuple[np.ndarray, np.ndarray]:
-        """Grid fields (f_z, f_x) for right-hand sides on the grid; ``key`` names the
-        right-hand side, for warm starts."""
+    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Grid fields (f_z, f_x, u_z) for right-hand sides on the grid (used on C and S);
+        ``key`` names the right-hand side, for warm starts and tracked solutions."""
 
     def solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
-                   ) -> list[tuple[np.ndarray, np.ndarray]]:
+                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """:meth:`solve` for several ``(rz, rx, key)`` at once."""
-
-    def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
-        """u_z on the whole grid."""
 
     def displacement_x(self, fz: np.ndarray, fx: np.ndarray, site: int) -> float:
         """u_x at one site (flat index)."""
 
     def residual(self) -> float:
-        """The worst relative residual of the solves so far (NaN when not measured)."""
+        """The worst relative residual of the solves so far."""
 
 
 #: the coupled block solvers, by name (``method`` of :func:`couple`)
@@ -160,45 +159,74 @@ SOLVERS: Registry[type] = Registry("coupled solver")
 
 @SOLVERS.register("dense", "the reduced block's inverse, updated at every event")
 class _Dense:
-    r"""Reduced block assembled from the operator's kernel tables, solved directly.
+    r"""Reduced block assembled from the operator's kernel tables, solved through its inverse.
 
-    The explicit inverse :math:`M` of the block on the current unknowns is updated when the
-    contact or stick set changes. Removing an unknown :math:`k` is the rank-one downdate
-    :math:`M - c\,c^T/c_k` with :math:`c` the current column :math:`k` (Sherman-Morrison);
-    the scaled columns :math:`c/\sqrt{c_k}` are kept in :math:`U` and applied lazily, as
-    :math:`(M - UU^T)\,b`, so a removal costs :math:`O(m\,|U|)`, and every ``block`` removals
-    one rank-``block`` product updates :math:`M` (BLAS-3). Adding an unknown is a bordered
-    inverse, :math:`O(m^2)`. Every ``refresh`` updates, or when many unknowns change at once,
-    the block is factorised afresh. With ``reference=True`` every state is factorised from
-    scratch and displacements are dense sums (no FFT at all): the test reference.
+    The unknowns are numbered ``2 i`` (:math:`f_z` at site ``i``) and ``2 i + 1``
+    (:math:`f_x`). The explicit inverse of the block on the current unknowns is updated when
+    the contact or stick set changes, never recomputed for it. It is held as
+    :math:`M + V\,\mathrm{diag}(s)\,V^T`: a stored matrix and up to ``block`` pending
+    rank-one terms of sign :math:`s = \pm 1`, which one product folds into :math:`M` when
+    they are full (BLAS-3).
+
+    * Removing an unknown :math:`r` subtracts :math:`c\,c^T/c_r`, :math:`c` the current
+      column :math:`r` (Sherman-Morrison); a tracked solution :math:`x` of an unchanged
+      right-hand side becomes :math:`x - c\,x_r/c_r`, :math:`O(m)`.
+    * Adding unknowns with couplings :math:`B` and diagonal block :math:`D` is a bordered
+      inverse through the Schur complement :math:`S = D - B^T M B`: the old block gains
+      :math:`(MB)S^{-1}(MB)^T` (pending terms :math:`W W^T`, :math:`W = MB L^{-T}`,
+      :math:`S = LL^T`), the new rows are written into spare capacity, and tracked
+      solutions are bordered too (:math:`O(mk)`).
+    * When more than a third of the unknowns change at once, the block is factorised afresh
+      (Cholesky, then LAPACK's inverse from it).
+    * The squeeze's first passes, which drop every tensile contact at once from the geometric
+      overlap (``prepare(..., bulk=True)``), are solved by warm-started conjugate gradients
+      on the FFT operator when they have more than ``bulk_min`` unknowns: an inverse of the
+      overlap block would cost far more than the rest of the squeeze and pull together, and
+      would be thrown away at the next pass.
+
+    Every solution is certified against the FFT operator: the displacements of the forces,
+    which the event loop needs anyway for the gaps, give the residual on the unknowns; above
+    ``tol`` (relative) it is refined by :math:`x \leftarrow x + M^{-1}_{\rm current} r`, up to
+    ``refinements`` times, and the worst certified residual is reported. With
+    ``reference=True`` every state is factorised from scratch and displacements are dense
+    sums (no FFT at all): the test reference.
     """
 
-    refresh = 200
-    block = 64
+    block = 512
+    refinements = 3
+    bulk_min = 2000
 
-    def __init__(self, problem: Problem, *, reference: bool = False, threads: int = 1,
-                 **_: object) -> None:
+    def __init__(self, problem: Problem, *, reference: bool = False, tol: float = 1e-12,
+                 fallback: bool = False, **_: object) -> None:
         # dense solves get the BLAS threads; the FFTs beside them one thread
+        #: when an inverse does not fit in memory: go on matrix-free (True, with a :attr:`note`)
+        #: or refuse (False, :class:`MemoryLimitError`)
+        self.fallback = fallback
+        self.note = ""
         op = problem.operator("zz", "zx", "xx").with_threads(1)
+        self.problem = problem
         self.ny, self.nx = op.shape
         self.op = op
         self.tables = {c: op.tables.pair(c) for c in ("zz", "zx", "xx")}
         self.reference = reference
+        self.tol = tol
         self.solves = 0
-        self.M: np.ndarray | None = None
-        self.U: np.ndarray | None = None  # pending downdates: the inverse is M - U U^T
+        self.factorisations = 0
+        self.worst = 0.0
+        self.bulk: _CG | None = None  # the matrix-free solver of the bulk passes, when used
+        self.mode = "dense"
+        self.row = np.full(2 * self.ny * self.nx, -1, dtype=np.int64)  # unknown -> row
+        self.buf: np.ndarray | None = None  # F-order, capacity x capacity; M = buf[:m, :m]
+        self.m = 0
+        self.V = np.empty((0, self.block), order="F")
+        self.s = np.empty(self.block)
         self.k = 0
-        self._set_keys([])
-        self.updates = 0
+        self.ids = np.empty(0, dtype=np.int64)  # unknown of each row
+        self.live = np.empty(0, dtype=bool)  # rows still in the system
+        #: tracked solutions by right-hand side name: [b, x, rz, rx] (b and x on the rows)
+        self.cache: dict[str, list[np.ndarray]] = {}
 
-    def _set_keys(self, keys: list[tuple[str, int]]) -> None:
-        """The unknowns in matrix order (all live), and what :meth:`solve` derives from them."""
-        self.keys = list(keys)
-        self.pos = {k: i for i, k in enumerate(self.keys)}
-        self.live = np.ones(len(self.keys), dtype=bool)  # rows of M still in the system
-        self.idx = np.array([i for _, i in self.keys], dtype=np.int64)  # grid sites
-        self.isz = np.array([t == "z" for t, _ in self.keys], dtype=bool)
-
+    # -- assembly ------------------------------------------------------------------------------
     def _block(self, ci: np.ndarray, cj: np.ndarray, comp: str) -> np.ndarray:
         T, w, off = self.tables[comp]
         iy, ix = np.divmod(ci, self.nx)
@@ -206,29 +234,44 @@ class _Dense:
         lin_i, lin_j = iy * w + ix, jy * w + jx
         return T[lin_i[:, None] - lin_j[None, :] + off]
 
-    def _entries(self, keys_i: list[tuple[str, int]], keys_j: list[tuple[str, int]]
-                 ) -> np.ndarray:
+    def _entries(self, ids_i: np.ndarray, ids_j: np.ndarray, order: str = "C") -> np.ndarray:
         """Block entries between two lists of unknowns (u_a at i due to f_b at j)."""
-        out = np.empty((len(keys_i), len(keys_j)))
-        for a in ("z", "x"):
-            ri = [k for k, (t, _) in enumerate(keys_i) if t == a]
-            si = np.array([keys_i[k][1] for k in ri], dtype=np.int64)
-            for b in ("z", "x"):
-                cj = [k for k, (t, _) in enumerate(keys_j) if t == b]
-                if not ri or not cj:
+        ids_i, ids_j = np.asarray(ids_i, dtype=np.int64), np.asarray(ids_j, dtype=np.int64)
+        out = np.empty((ids_i.size, ids_j.size), order=order)
+        for a in (0, 1):  # 0: z, 1: x
+            ri = np.flatnonzero((ids_i & 1) == a)
+            si = ids_i[ri] >> 1
+            for b in (0, 1):
+                cj = np.flatnonzero((ids_j & 1) == b)
+                if not ri.size or not cj.size:
                     continue
-                sj = np.array([keys_j[k][1] for k in cj], dtype=np.int64)
-                if a + b == "xz":  # G_xz(i - j) = G_zx(j - i)
+                sj = ids_j[cj] >> 1
+                if (a, b) == (1, 0):  # G_xz(i - j) = G_zx(j - i)
                     blk = self._block(sj, si, "zx").T
                 else:
-                    blk = self._block(si, sj, a + b)
+                    blk = self._block(si, sj, "zx" if a != b else ("zz" if a == 0 else "xx"))
                 out[np.ix_(ri, cj)] = blk
         return out
 
-    def _factor(self, keys: list[tuple[str, int]]) -> None:
-        """The inverse of the block on ``keys`` afresh: Cholesky and LAPACK's inverse from it
-        (potrf + potri, in place: a third of the work of solving for the identity)."""
-        A = np.asfortranarray(self._entries(keys, keys))
+    # -- the inverse ---------------------------------------------------------------------------
+    def _adopt(self, buf: np.ndarray, m: int, ids: np.ndarray) -> None:
+        """Take ``buf[:m, :m]`` as the inverse on the unknowns ``ids`` (nothing pending)."""
+        self.row[self.ids] = -1
+        self.buf, self.m = buf, m
+        self.ids = np.asarray(ids, dtype=np.int64)
+        self.row[self.ids] = np.arange(m)
+        self.live = np.ones(m, dtype=bool)
+        self.V = np.zeros((buf.shape[0], self.block), order="F")
+        self.k = 0
+
+    def _factor(self, ids: np.ndarray) -> None:
+        """The inverse of the block on ``ids`` afresh: Cholesky and LAPACK's inverse from it
+        (potrf + potri, in place: a third of the work of solving for the identity). Its memory
+        is checked first (:func:`dense_memory_bytes`)."""
+        if not self._room(ids.size):
+            return
+        lapack64.check_size(ids.size)
+        A = self._entries(ids, ids, order="F")
         try:
             lapack64.cholesky_inverse(A)
         except NumericalError:
@@ -239,138 +282,251 @@ class _Dense:
             A[j:j + b, j + b:] = A[j + b:, j:j + b].T
             blk = A[j:j + b, j:j + b]
             blk[np.triu_indices(blk.shape[0], 1)] = blk.T[np.triu_indices(blk.shape[0], 1)]
-        self.M = A
-        self.U = np.empty((n, self.block), order="F")
-        self.k = 0
-        self._set_keys(keys)
-        self.updates = 0
+        self._adopt(A, n, ids)
+        self.cache = {}
+        self.factorisations += 1
+
+    def _room(self, m: int) -> bool:
+        """Whether an inverse for ``m`` unknowns fits in memory (:func:`dense_memory_bytes`).
+        If not: refuse, or with :attr:`fallback` drop the inverse and leave a :attr:`note`."""
+        need, have = DENSE_BYTES_PER_UNKNOWN2 * m * m, available_bytes()
+        if need <= have:
+            return True
+        msg = (f"needs ~{need / 2**30:.2f} GiB for {m} unknowns (contact and stick sites) but "
+               f"{have / 2**30:.2f} GiB are available")
+        if not self.fallback:
+            raise MemoryLimitError(
+                f"coupled model, method 'dense': {msg}; use method 'cg' (matrix-free) or "
+                "'auto', a smaller depth or grid, or raise execution.memory_limit_gb")
+        self.note = f"auto chose cg: the dense solver {msg}; "
+        self.reset()
+        return False
+
+    def _apply(self, B: np.ndarray) -> np.ndarray:
+        """The current inverse times ``B`` (rows of dead unknowns of ``B`` must be zero)."""
+        m = self.m
+        sol = self.buf[:m, :m] @ B
+        if self.k:
+            V = self.V[:m, : self.k]
+            sol += V @ (self.s[: self.k, None] * (V.T @ B))
+        return sol
+
+    def _column(self, r: int) -> np.ndarray:
+        c = self.buf[: self.m, r].copy()
+        if self.k:
+            c += self.V[: self.m, : self.k] @ (self.s[: self.k] * self.V[r, : self.k])
+        return c
+
+    def _push(self, W: np.ndarray, sign: float) -> None:
+        """Pending terms ``sign W W^T`` (W with m rows)."""
+        if self.k + W.shape[1] > self.V.shape[1]:
+            self._flush()
+        if W.shape[1] > self.V.shape[1]:  # too many to keep pending: fold in now
+            M = self.buf[: self.m, : self.m]
+            M += sign * (W @ W.T)
+            return
+        k2 = self.k + W.shape[1]
+        self.V[: self.m, self.k:k2] = W
+        self.s[self.k:k2] = sign
+        self.k = k2
 
     def _flush(self) -> None:
-        """Apply the pending downdates: M -= U U^T (one GEMM)."""
+        """Fold the pending terms into M (one GEMM) and clear dead rows."""
         if self.k:
-            U = self.U[:, : self.k]
-            out = blas.dgemm(-1.0, U, U, beta=1.0, c=self.M, trans_b=1, overwrite_c=1)
-            if not np.shares_memory(out, self.M):
-                self.M = np.asfortranarray(out)
+            m, V = self.m, self.V[: self.m, : self.k]
+            M = self.buf[:m, :m]
+            Vs = V * self.s[: self.k]
+            for j in range(0, m, 2048):  # column panels: no copy of M, small temporaries
+                M[:, j:j + 2048] += Vs @ V[j:j + 2048].T
             dead = ~self.live
-            self.M[dead, :] = 0.0
-            self.M[:, dead] = 0.0
+            M[dead, :] = 0.0
+            M[:, dead] = 0.0
+            self.V[:m, : self.k] = 0.0
             self.k = 0
 
     def _remove(self, r: int) -> bool:
-        """Downdate for removing unknown ``r`` (lazily); False when it is not positive."""
-        c = self.M[:, r].copy()
-        if self.k:
-            c -= self.U[:, : self.k] @ self.U[r, : self.k]
+        """Remove the unknown of row ``r``; False when the pivot is not positive."""
+        c = self._column(r)
         cr = float(c[r])
         if not cr > 0:
             return False
-        self.U[:, self.k] = c * (1.0 / math.sqrt(cr))
-        self.k += 1
+        for b, x, _, _ in self.cache.values():
+            x -= c * (x[r] / cr)
+            x[r] = 0.0
+            b[r] = 0.0
         self.live[r] = False
-        if self.k == self.block:
-            self._flush()
+        self.row[self.ids[r]] = -1
+        self._push((c * (1.0 / math.sqrt(cr)))[:, None], -1.0)
         return True
 
-    def prepare(self, C: np.ndarray, S: np.ndarray) -> None:
-        want = [("z", int(i)) for i in np.flatnonzero(C)] + \
-            [("x", int(i)) for i in np.flatnonzero(S)]
-        wset = set(want)
-        # before the first factorisation there are no keys: everything is new
-        gone = [k for k, ok in zip(self.keys, self.live, strict=True) if ok and k not in wset]
-        new = [k for k in want if k not in self.pos or not self.live[self.pos[k]]]
-        m = int(self.live.sum())
-        if (self.reference or self.M is None or len(gone) + len(new) > max(4, m // 3)
-                or self.updates + len(gone) + len(new) > self.refresh):
-            self._factor(want)
+    def _compact(self, extra: int) -> None:
+        """Drop dead rows; in place when ``extra`` more rows fit, else into a larger buffer.
+
+        Column by column in increasing order (each a gather within one contiguous column):
+        in place, column ``j`` of the result overwrites source column ``j <= keep[j]``, which
+        was read before."""
+        self._flush()
+        keep = np.flatnonzero(self.live)
+        k = keep.size
+        buf = self.buf
+        if k + extra > buf.shape[0]:
+            cap = k + max(extra, k // 8 + 16)
+            buf = np.zeros((cap, cap), order="F")
+        for j, src in enumerate(keep):
+            buf[:k, j] = self.buf[keep, src]
+        cache = {key: [v[0][keep], v[1][keep], v[2], v[3]] for key, v in self.cache.items()}
+        self._adopt(buf, k, self.ids[keep])
+        self.cache = cache
+
+    def _add(self, new: np.ndarray) -> bool:
+        """Border the inverse with the unknowns ``new``; False when the Schur complement is
+        not positive definite."""
+        m, k2 = self.m, new.size
+        B = np.zeros((m, k2))
+        rows = np.flatnonzero(self.live)
+        B[rows] = self._entries(self.ids[rows], new)
+        MB = self._apply(B)
+        MB[~self.live] = 0.0
+        Sc = self._entries(new, new) - B.T @ MB
+        try:  # the Schur complement of an SPD block is SPD: Cholesky checks
+            L = linalg.cholesky(Sc, lower=True, check_finite=False)
+        except linalg.LinAlgError:
+            return False
+        Linv = linalg.solve_triangular(L, np.eye(k2), lower=True, check_finite=False)
+        Si = Linv.T @ Linv
+        MBSi = MB @ Si
+        if m + k2 > self.buf.shape[0]:
+            if not self._room(int(self.live.sum()) + k2):
+                return True  # fallen back: the caller goes on matrix-free
+            self._compact(k2)
+            return self._add(new)
+        buf = self.buf
+        buf[m:m + k2, :m] = -MBSi.T
+        buf[:m, m:m + k2] = -MBSi
+        buf[m:m + k2, m:m + k2] = Si
+        self._push(MB @ Linv.T, 1.0)
+        for v in self.cache.values():  # border the tracked solutions
+            b, x, rz, rx = v
+            sites, isx = new >> 1, (new & 1).astype(bool)
+            bn = np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
+            z = Si @ (bn - B.T @ x)
+            v[0] = np.concatenate([b, bn])
+            v[1] = np.concatenate([x - MB @ z, z])
+        self.m = m + k2
+        self.ids = np.concatenate([self.ids, new])
+        self.row[new] = np.arange(m, m + k2)
+        self.live = np.concatenate([self.live, np.ones(k2, dtype=bool)])
+        return True
+
+    def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
+        if self.note or (bulk and not self.reference and int(C.sum() + S.sum()) > self.bulk_min):
+            if self.bulk is None:
+                self.bulk = _CG(self.problem, tol=self.tol)
+            self.bulk.prepare(C, S)
+            self.reset()
+            self.mode = "bulk"
             return
-        for key in gone:  # lazy rank-one downdates (Sherman-Morrison), one unknown each
-            if not self._remove(self.pos[key]):
-                self._factor(want)
-                return
-            self.updates += 1
-        if new:  # bordered inverse on the live unknowns, then compact
-            self._flush()
-            keep = np.flatnonzero(self.live)
-            keys = [self.keys[i] for i in keep]
-            Mk = self.M[np.ix_(keep, keep)]
-            B = self._entries(keys, new)
-            D = self._entries(new, new)
-            MB = Mk @ B
-            Sc = D - B.T @ MB
-            try:  # the Schur complement of an SPD block is SPD: Cholesky checks and inverts
-                Si = linalg.cho_solve(linalg.cho_factor(Sc, lower=True, check_finite=False),
-                                      np.eye(len(new)), check_finite=False)
-            except linalg.LinAlgError:
-                self._factor(want)
-                return
-            k1, k2 = len(keys), len(new)
-            M2 = np.empty((k1 + k2, k1 + k2), order="F")
-            M2[:k1, :k1] = Mk + MB @ Si @ MB.T
-            M2[:k1, k1:] = -MB @ Si
-            M2[k1:, :k1] = M2[:k1, k1:].T
-            M2[k1:, k1:] = Si
-            self.M = M2
-            self.U = np.empty((k1 + k2, self.block), order="F")
-            self._set_keys(keys + list(new))
-            self.updates += k2
-        elif (~self.live).sum() > 0.25 * self.live.size:
-            self._flush()
-            keep = np.flatnonzero(self.live)
-            self.M = np.asfortranarray(self.M[np.ix_(keep, keep)])
-            self.U = np.empty((keep.size, self.block), order="F")
-            self._set_keys([self.keys[i] for i in keep])
+        self.mode = "dense"
+        want = np.zeros(self.row.size, dtype=bool)
+        want[2 * np.flatnonzero(C)] = True
+        want[2 * np.flatnonzero(S) + 1] = True
+        have = self.row >= 0
+        gone = np.flatnonzero(have & ~want)
+        new = np.flatnonzero(want & ~have)
+        live = int(self.live.sum())
+        if (self.reference or self.buf is None or gone.size + new.size > max(4, live // 3)):
+            self._factor(np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1]))
+            if self.note:  # no room for the inverse: matrix-free from here on
+                self.prepare(C, S)
+            return
+        for u in gone:
+            if not self._remove(int(self.row[u])):
+                self._factor(np.flatnonzero(want))
+                return self.prepare(C, S) if self.note else None
+        if new.size:
+            if not self._add(new):
+                self._factor(np.flatnonzero(want))
+            if self.note:
+                return self.prepare(C, S)
+        if (~self.live).sum() > 0.25 * self.m:
+            self._compact(0)
 
     def residual(self) -> float:
-        return math.nan  # direct solves: not measured
+        return self.worst
 
     def reset(self) -> None:
         """Drop the updated inverse: the next :meth:`prepare` factorises afresh."""
-        self.M = None
+        self.row[:] = -1
+        self.buf, self.m, self.k = None, 0, 0
+        self.ids = np.empty(0, dtype=np.int64)
+        self.live = np.empty(0, dtype=bool)
+        self.cache = {}
 
-    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = "") -> tuple[np.ndarray,
-                                                                             np.ndarray]:
-        """Grid fields (fz, fx) for right-hand sides given on the grid (used on C and S)."""
+    # -- solutions -----------------------------------------------------------------------------
+    def _displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(u_z, u_x) on the grid: FFT, or dense sums for the reference."""
+        if not self.reference:
+            return self.op.apply_block(fz, fx)
+        n = self.ny * self.nx
+        src = np.concatenate([2 * np.flatnonzero(fz.ravel()), 2 * np.flatnonzero(fx.ravel()) + 1])
+        val = np.where(src % 2 == 1, fx.ravel()[src >> 1], fz.ravel()[src >> 1])
+        uz = self._entries(2 * np.arange(n), src) @ val
+        ux = self._entries(2 * np.arange(n) + 1, src) @ val
+        return uz.reshape(fz.shape), ux.reshape(fz.shape)
+
+    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = ""
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return self.solve_many([(rz, rx, key)])[0]
 
     def solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
-                   ) -> list[tuple[np.ndarray, np.ndarray]]:
-        """:meth:`solve` for several right-hand sides with one matrix product (the inverse is
-        read from memory once)."""
+                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """(f_z, f_x, u_z) on the grid for each ``(rz, rx, key)``: the tracked solution when
+        the right-hand side on the unknowns is unchanged, else one product with the inverse
+        for all the new ones (read from memory once); each certified (class docstring)."""
         self.solves += len(rhs)
-        idx, isz = self.idx, self.isz
-        B = np.column_stack([np.where(isz, rz.ravel()[idx], rx.ravel()[idx]) * self.live
-                             for rz, rx, _ in rhs])
-        sol = self.M @ B
-        if self.k:
-            U = self.U[:, : self.k]
-            sol -= U @ (U.T @ B)
-        live_z, live_x = isz & self.live, ~isz & self.live
+        if self.mode == "bulk":
+            out = self.bulk.solve_many(rhs)
+            self.worst = max(self.worst, self.bulk.worst)
+            return out
+        rows = np.flatnonzero(self.live)
+        ids = self.ids[rows]
+        sites, isx = ids >> 1, (ids & 1).astype(bool)
+        bs, xs, todo = [], [], []
+        for k, (rz, rx, key) in enumerate(rhs):
+            b = np.zeros(self.m)
+            b[rows] = np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
+            hit = self.cache.get(key)
+            if hit is not None and np.array_equal(hit[0], b):
+                xs.append(hit[1])
+            else:
+                xs.append(None)
+                todo.append(k)
+            bs.append(b)
+        if todo:
+            X = self._apply(np.column_stack([bs[k] for k in todo]))
+            for j, k in enumerate(todo):
+                xs[k] = np.ascontiguousarray(X[:, j])
         out = []
-        for k, (rz, _, _) in enumerate(rhs):
-            fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
-            fz.ravel()[idx[live_z]] = sol[live_z, k]
-            fx.ravel()[idx[live_x]] = sol[live_x, k]
-            out.append((fz, fx))
+        for (rz, rx, key), b, x in zip(rhs, bs, xs, strict=True):
+            scale = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
+            for attempt in range(self.refinements + 1):
+                fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
+                fz.ravel()[sites[~isx]] = x[rows[~isx]]
+                fx.ravel()[sites[isx]] = x[rows[isx]]
+                uz, ux = self._displacements(fz, fx)
+                r = np.zeros(self.m)
+                r[rows] = b[rows] - np.where(isx, ux.ravel()[sites], uz.ravel()[sites])
+                res = float(np.linalg.norm(r)) / scale
+                if res <= self.tol or attempt == self.refinements or self.reference:
+                    break
+                x = x + self._apply(r)
+            self.worst = max(self.worst, res)
+            self.cache[key] = [b, x, rz.copy(), rx.copy()]
+            out.append((fz, fx, uz))
         return out
 
-    def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
-        if self.reference:
-            n = self.ny * self.nx
-            allc = np.arange(n)
-            cz, cx = np.flatnonzero(fz.ravel()), np.flatnonzero(fx.ravel())
-            u = self._block(allc, cz, "zz") @ fz.ravel()[cz]
-            u += self._block(allc, cx, "zx") @ fx.ravel()[cx]
-            return u.reshape(fz.shape)
-        return self.op.apply_block(fz, fx)[0]
-
     def displacement_x(self, fz: np.ndarray, fx: np.ndarray, site: int) -> float:
-        if self.reference:  # u_x(i) = sum_j G_xz(i - j) f_z(j) + G_xx(i - j) f_x(j)
-            i = np.array([site])
-            cz, cx = np.flatnonzero(fz.ravel()), np.flatnonzero(fx.ravel())
-            return float(-(self._block(i, cz, "zx") @ fz.ravel()[cz])[0]
-                         + (self._block(i, cx, "xx") @ fx.ravel()[cx])[0])
-        return float(self.op.apply_block(fz, fx)[1].ravel()[site])
+        return float(self._displacements(fz, fx)[1].ravel()[site])
 
 
 @SOLVERS.register("cg", "matrix-free: warm-started CG on the restricted FFT block operator")
@@ -386,27 +542,24 @@ class _CG:
         self.worst = 0.0
         self.prev: dict[str, np.ndarray] = {}
 
-    def prepare(self, C: np.ndarray, S: np.ndarray) -> None:
+    def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
         self.A = self.problem.restricted_block(C, S)
 
     def residual(self) -> float:
         return self.worst
 
-    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = "") -> tuple[np.ndarray,
-                                                                             np.ndarray]:
+    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = ""
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         self.solves += 1
         r = cg(self.A, np.stack([rz, rx]), x0=self.prev.get(key), tol=self.tol,
                max_iter=self.max_iter)
         self.worst = max(self.worst, r.residual)
         self.prev[key] = r.x
-        return r.x[0], r.x[1]
+        return r.x[0], r.x[1], self.op.apply_block(r.x[0], r.x[1])[0]
 
     def solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
-                   ) -> list[tuple[np.ndarray, np.ndarray]]:
+                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         return [self.solve(rz, rx, key) for rz, rx, key in rhs]
-
-    def displacement_z(self, fz: np.ndarray, fx: np.ndarray) -> np.ndarray:
-        return self.op.apply_block(fz, fx)[0]
 
     def displacement_x(self, fz: np.ndarray, fx: np.ndarray, site: int) -> float:
         return float(self.op.apply_block(fz, fx)[1].ravel()[site])
@@ -446,6 +599,8 @@ class _State:
         self.scale_g = float(np.max(base + (depth if depth is not None else 0.0)))
         self.Dscale = 1.0  # displacement scale for tolerances (set from the first event)
         self.d0, self.d1 = (depth if depth is not None else math.nan), 0.0
+        #: solve for the rate in D_x too (the pull); the squeeze at D_x = 0 needs none
+        self.slope = True
 
     def hold_depth(self, depth: float) -> None:
         """Switch to displacement control at ``depth`` (then call :meth:`solve`)."""
@@ -455,52 +610,54 @@ class _State:
         """Switch to load control at ``force`` (then call :meth:`solve`)."""
         self.depth, self.force = None, force
 
-    def solve(self) -> None:
-        """Solve the current sets. A non-finite solution from an updated inverse (round-off
-        grown through many updates) is recomputed from a fresh factorisation; one that stays
-        non-finite is an error, never a silent NaN."""
-        self._solve()
+    def solve(self, bulk: bool = False) -> None:
+        """Solve the current sets (``bulk``: see :meth:`BlockSolver.prepare`). A non-finite
+        solution from an updated inverse (round-off grown through many updates) is recomputed
+        from a fresh factorisation; one that stays non-finite is an error, never a silent
+        NaN."""
+        self._solve(bulk)
         if self._finite():
             return
         reset = getattr(self.solver, "reset", None)
         if reset is not None:
             reset()
-            self._solve()
+            self._solve(bulk)
             if self._finite():
                 return
         raise NumericalError("non-finite forces in the solve of the contact and stick sets")
 
     def _finite(self) -> bool:
-        return all(np.all(np.isfinite(a)) for a in (*self.f0, *self.f1, self.g0, self.g1))
+        arrays = (*self.f0, self.g0) + ((*self.f1, self.g1) if self.slope else ())
+        return all(np.all(np.isfinite(a)) for a in arrays)
 
-    def _solve(self) -> None:
+    def _solve(self, bulk: bool = False) -> None:
+        """Solve for the state at D_x = 0 and, with :attr:`slope`, for its rate in D_x (the
+        squeeze's corrections at D_x = 0 need no rate: one solve per state)."""
         s = self.solver
-        s.prepare(self.C, self.S)
-        stick = bool(self.S.any())
+        s.prepare(self.C, self.S, bulk=bulk)
+        slope = self.slope and bool(self.S.any())
+        tail = [(self.zero, self.ones, "1")] if slope else []
         if self.force is None:
             ubar = self.base + self.depth
-            rhs = [(ubar, self.offset, "0")] + ([(self.zero, self.ones, "1")] if stick else [])
-            sols = s.solve_many(rhs)
-            self.f0 = sols[0]
-            self.f1 = sols[1] if stick else (self.zero, self.zero)
+            sols = s.solve_many([(ubar, self.offset, "0"), *tail])
+            self.f0, self.g0 = sols[0][:2], sols[0][2] - ubar
+            self.f1, self.g1 = (sols[1][:2], sols[1][2]) if slope else (
+                (self.zero, self.zero), self.zero)
             self.d0, self.d1 = self.depth, 0.0
-            self.g0 = s.displacement_z(*self.f0) - ubar
-            self.g1 = s.displacement_z(*self.f1)
             return
-        rhs = [(self.base, self.offset, "b"), (self.ones, self.zero, "d")]
-        sols = s.solve_many(rhs + ([(self.zero, self.ones, "1")] if stick else []))
-        fb, fd = sols[0], sols[1]
-        f1 = sols[2] if stick else (self.zero, self.zero)
-        sd = float(fd[0].sum())
+        sols = s.solve_many([(self.base, self.offset, "b"), (self.ones, self.zero, "d"), *tail])
+        (fbz, fbx, ub), (fdz, fdx, ud) = sols[0], sols[1]
+        f1z, f1x, u1 = sols[2] if slope else (self.zero, self.zero, self.zero)
+        sd = float(fdz.sum())
         if not sd > 0:
             raise NumericalError("load control: the contact set carries no force under a "
                                  "uniform approach (no contact left)")
-        self.d0 = (self.force - float(fb[0].sum())) / sd
-        self.d1 = -float(f1[0].sum()) / sd
-        self.f0 = (fb[0] + self.d0 * fd[0], fb[1] + self.d0 * fd[1])
-        self.f1 = (f1[0] + self.d1 * fd[0], f1[1] + self.d1 * fd[1])
-        self.g0 = s.displacement_z(*self.f0) - self.base - self.d0
-        self.g1 = s.displacement_z(*self.f1) - self.d1
+        self.d0 = (self.force - float(fbz.sum())) / sd
+        self.d1 = -float(f1z.sum()) / sd
+        self.f0 = (fbz + self.d0 * fdz, fbx + self.d0 * fdx)
+        self.f1 = (f1z + self.d1 * fdz, f1x + self.d1 * fdx)
+        self.g0 = ub + self.d0 * ud - self.base - self.d0
+        self.g1 = u1 + self.d1 * ud - self.d1
         self.scale_g = max(self.scale_g, float(np.max(self.base)) + self.d0)
 
     def depth_at(self, D: float) -> float:
@@ -508,6 +665,8 @@ class _State:
         return self.d0 + self.d1 * D
 
     def at(self, D: float):
+        if not self.slope and D != 0:
+            raise NumericalError(f"the state at D_x = {D!r} needs its rate (internal error)")
         fz = self.f0[0] + D * self.f1[0]
         fx = self.f0[1] + D * self.f1[1]
         g = self.g0 + D * self.g1
@@ -603,38 +762,25 @@ def _argext(a: np.ndarray, mask: np.ndarray, how: str) -> int:
     return int(np.flatnonzero(close & mask.ravel())[0])
 
 
-#: dense solver's peak memory per squared unknown count: measured 4.0-4.9 x 8 m^2 bytes
-#: (tracemalloc, m = 1 380 and 3 248 unknowns), with a margin
-DENSE_BYTES_PER_UNKNOWN2 = 48
+#: dense solver's peak memory per squared unknown count (bytes): the inverse with up to 27 %
+#: spare rows (8 x 1.27^2 m^2), and a second one while it is compacted or grown
+DENSE_BYTES_PER_UNKNOWN2 = 28
 
 
 def dense_memory_bytes(sites: int) -> int:
-    """Peak memory of ``method="dense"`` for ``sites`` geometric-overlap sites (bytes): the
-    reduced block starts with every site in contact and bonded, ``m = 2 sites`` unknowns."""
+    """Peak memory of ``method="dense"`` for ``sites`` contact sites, all bonded (bytes):
+    ``m = 2 sites`` unknowns."""
     m = 2 * int(sites)
     return DENSE_BYTES_PER_UNKNOWN2 * m * m
 
 
-def _choose_solver(method: str, sites: int) -> tuple[str, str]:
-    """The solver for ``sites`` geometric-overlap sites, and a note when ``auto`` fell back;
-    :class:`MemoryLimitError` when ``dense`` is asked for and does not fit."""
-    if method != "auto":
-        SOLVERS.get(method)
-    need, have = dense_memory_bytes(sites), available_bytes()
+def _choose_solver(method: str) -> str:
+    """The solver class name for ``method`` (``auto`` starts dense; the dense solver checks its
+    memory before each factorisation and, under ``auto``, falls back to ``cg``)."""
     if method == "auto":
-        if sites <= 4000 and need <= have:
-            return "dense", ""
-        note = ("" if sites > 4000 else
-                f"auto chose cg: the dense solver would need ~{need / 2**30:.2f} GiB, "
-                f"{have / 2**30:.2f} GiB available; ")
-        return "cg", note
-    if method == "dense" and need > have:
-        raise MemoryLimitError(
-            f"coupled model, method 'dense': needs ~{need / 2**30:.2f} GiB for "
-            f"{sites} overlap sites but {have / 2**30:.2f} GiB are available; use "
-            "method 'cg' (matrix-free) or 'auto', a smaller depth or grid, or raise "
-            "execution.memory_limit_gb")
-    return method, ""
+        return "dense"
+    SOLVERS.get(method)
+    return method
 
 
 @dataclass
@@ -662,10 +808,12 @@ def _squeeze_bonded(st: _State) -> int:
     First the report's removal of all negative forces at once (the set only shrinks, so this
     ends), then every remaining violation one at a time, most violated first: a lost contact
     leaves, a penetrating site enters contact unbonded (bonded it may need a tensile force),
-    an overloaded bond is released.
+    an overloaded bond is released. The states at D_x = 0 need no rate in D_x
+    (:attr:`_State.slope` is off until the pull).
     """
+    st.slope = False
     while True:
-        st.solve()
+        st.solve(bulk=True)
         fz, _, _ = st.at(0.0)
         fscale = max(float(np.abs(fz).max()), np.finfo(float).tiny)
         neg = st.C & (fz < -TIE * fscale)
@@ -673,10 +821,11 @@ def _squeeze_bonded(st: _State) -> int:
             break
         st.C &= ~neg
         st.S &= ~neg
+    st.solve()  # the updated inverse from here on (the bulk passes may have used CG)
     seen: set[bytes] = set()
     while (v := st.violation(0.0)) is not None:
         st.apply(*v)
-        key = st.C.tobytes() + st.S.tobytes()
+        key = hashlib.blake2b(st.C.tobytes() + st.S.tobytes(), digest_size=16).digest()
         if key in seen:
             raise NumericalError("coupled squeeze: the contact and stick sets cycle at "
                                  "D_x = 0 (no admissible state reached)")
@@ -811,12 +960,13 @@ def couple(
         jumps) and breaks by the same law. Contacts gained while the squeeze corrects its
         sets, at :math:`D_x = 0`, always enter unbonded.
     method : str
-        ``"auto"`` or a name from :data:`SOLVERS`: ``auto`` is ``dense`` up to 4000
-        geometric-overlap sites when its memory (:func:`dense_memory_bytes`) fits the budget,
-        ``cg`` otherwise. ``dense`` refuses with :class:`MemoryLimitError` when it does not
-        fit.
+        ``"auto"`` or a name from :data:`SOLVERS`. The dense solver checks the memory of
+        its inverse (:func:`dense_memory_bytes`) before each factorisation: ``dense``
+        refuses with :class:`MemoryLimitError` when it does not fit, ``auto`` goes on with
+        ``cg`` and says so in the message.
     tol : float
-        Relative residual of the CG solves (``method="cg"``).
+        Relative residual of every block solve (CG's tolerance; the dense solver's
+        certification against the FFT operator).
     max_events : int, optional
         Stop after this many events (default ``20 x overlap sites + 100``).
     reference : bool
@@ -832,7 +982,8 @@ def couple(
     geo = _check_couple(problem, depth, force, lam, pull_control, gained)
     depth = None if depth is None else finite(depth, "depth")
     force = None if force is None else finite(force, "force")
-    method, note = _choose_solver(method, int(geo.sum()))
+    requested = method
+    method = _choose_solver(method)
     if not geo.any():
         z = np.zeros(problem.shape)
         return CoupledResult(
@@ -843,7 +994,7 @@ def couple(
             message="no overlap: no contact", depth=0.0 if depth is None else depth,
             pull_control=pull_control)
     solver = SOLVERS.get(method)(problem, reference=reference, tol=tol, max_iter=max_iter,
-                                 threads=problem.threads)
+                                 threads=problem.threads, fallback=requested == "auto")
     limit = max_events if max_events is not None else 20 * int(geo.sum()) + 100
     with blas_threads(problem.threads if method == "dense" else 1):
         st = _State(solver, problem.base, float(lam), geo, depth=depth, force=force,
@@ -853,20 +1004,23 @@ def couple(
             start = _Snapshot.of(st, 0.0)
             squeezed_depth = st.depth_at(0.0)
             # the pull holds what it is asked to: switch the control if the squeeze used the
-            # other one (the state at D_x = 0 is the same)
+            # other one (the state at D_x = 0 is the same); the pull needs the rates in D_x
             if pull_control == "depth" and force is not None:
                 st.hold_depth(squeezed_depth)
-                st.solve()
             elif pull_control == "force" and depth is not None:
                 st.hold_force(start.fz_total)
-                st.solve()
+            st.slope = True
+            st.solve()
             path = _pull_events(st, limit, record_states)
         except NumericalError as exc:
             raise NumericalError(f"coupled model: {exc}") from None
     residual = solver.residual()
+    note = getattr(solver, "note", "")
+    if note:
+        method = "cg"
     message = path.message
     if not message and residual > 10 * tol:
-        message = f"worst CG residual {residual:.2e}"
+        message = f"worst block-solve residual {residual:.2e}"
     peak = path.peak
     for name, arr in (("fz", start.fz), ("fx", start.fx), ("fz at peak", peak.fz)):
         if not np.all(np.isfinite(arr)):

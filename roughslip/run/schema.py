@@ -50,8 +50,8 @@ COLUMNS: tuple[Column, ...] = (
     Column("contact_area", "squeeze", "contact area as a fraction of the grid"),
     Column("iterations", "squeeze", "squeeze solver iterations", "count"),
     Column("residual", "squeeze", "squeeze residual: worst gap error relative to the depth "
-           "(coupled model: worst relative residual of the block solves, NaN for the dense "
-           "solver)"),
+           "(coupled model: worst relative residual of the block solves, each certified "
+           "against the FFT operator)"),
     Column("converged", "squeeze", "1 when the squeeze met its tolerance", "flag"),
     Column("seconds", "squeeze", "squeeze wall-clock time (a measurement, differs between "
            "runs)"),

@@ -152,7 +152,7 @@ class _CoupledSample:
             notes=[f"{r.released} bond(s) released at D_x = 0"],
             contact=r.contact0,
         )
-        if np.isfinite(r.residual):  # measured by the matrix-free solver only
+        if np.isfinite(r.residual):  # the worst certified residual of the block solves
             rec.scalars["residual"] = r.residual
         f = rec.fields
         if "fz" in want:
