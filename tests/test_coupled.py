@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -288,7 +290,7 @@ def test_updated_inverse_tracks_solutions_through_set_changes():
     compactions = 0
     for _ in range(60):
         d.prepare(C, S)
-        fz, fx, uz = d.solve(rz, rx, "a")
+        fz, fx, _ = d.solve(rz, rx, "a")
         ids = np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1])
         b = np.concatenate([rz[C], rx[S]])
         x = np.linalg.solve(d._entries(ids, ids), b)
@@ -309,3 +311,31 @@ def test_updated_inverse_tracks_solutions_through_set_changes():
         d.prepare(C, S)
         compactions += d.m < m
     assert d.factorisations == 1 and compactions > 0
+
+
+def test_a_slow_rate_is_flat_only_on_the_scale_of_the_pull_so_far():
+    """Found at N = 128 (nu = 0.45, sample 13 of the study): off contact, g = g0 + D g1 with
+    g0 = -1.6e-5 and g1 = 1.6e-4, at D = 0.5, long after a first event at 8.6e-6. Judged flat
+    on the first event's scale, the gap counted as violated at every D and the admissible
+    interval came out empty, [inf, -inf]; the loop then evaluated the state at D = -inf
+    (a NaN from 0 x inf). Over the pull so far the gap is not flat: it has been open since
+    D = 0.1. A non-finite displacement is an error, never a NaN."""
+    from roughslip.contact.coupled import _State
+    from roughslip.errors import NumericalError
+
+    st = object.__new__(_State)
+    st.C = np.array([[True, True, False]])
+    st.S = np.array([[True, False, False]])
+    st.lam, st.Dscale, st.scale_g, st.slope = 0.2, 8.6e-6, 2.0, True
+    st.f0 = (np.array([[0.4, 0.3, 0.0]]), np.array([[0.01, 0.0, 0.0]]))
+    st.f1 = (np.array([[0.0, 0.01, 0.0]]), np.array([[0.1, 0.0, 0.0]]))
+    st.g0 = np.array([[0.0, 0.0, -1.6e-5]])
+    st.g1 = np.array([[0.0, 0.0, 1.6e-4]])
+    lo, hi, kind, site = st.interval(0.5)
+    assert lo == pytest.approx(0.1) and hi == pytest.approx((0.08 - 0.01) / (0.1 - 0.0))
+    assert (kind, site) == ("slip+", 0)
+    # on the first event's scale the rate is negligible: then the constraint is flat
+    assert st.interval(0.0)[:2] == (math.inf, -math.inf)
+    with pytest.raises(NumericalError, match="non-finite displacement"):
+        st.at(-math.inf)
+    assert np.all(np.isfinite(st.at(0.5)[2]))

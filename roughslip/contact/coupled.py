@@ -665,6 +665,8 @@ class _State:
         return self.d0 + self.d1 * D
 
     def at(self, D: float):
+        if not math.isfinite(D):
+            raise NumericalError(f"the pull reached a non-finite displacement D_x = {D!r}")
         if not self.slope and D != 0:
             raise NumericalError(f"the state at D_x = {D!r} needs its rate (internal error)")
         fz = self.f0[0] + D * self.f1[0]
@@ -707,9 +709,14 @@ class _State:
         else:
             S[j] = False
 
-    def interval(self) -> tuple[float, float, str, int]:
+    def interval(self, D: float, flat_ok: bool = False) -> tuple[float, float, str, int]:
         r"""The displacements at which this state is admissible, ``[lo, hi]``, and the event
-        (kind, flat index) that ends it at ``hi``.
+        (kind, flat index) that ends it at ``hi``, for a state reached at pull displacement
+        ``D``. A constraint is flat when its change over the displacement scale
+        :math:`\max(D_{\rm scale}, |D|)` is below the tolerance; a violated flat constraint
+        makes the state admissible nowhere (``lo = inf``, ``hi = -inf``), unless ``flat_ok``:
+        then flat constraints are left out (the caller found the state admissible at ``D``,
+        so a flat constraint stays satisfied).
 
         Every constraint is affine, :math:`a + bD \ge 0`: :math:`f_z \ge 0` on C,
         :math:`g \ge 0` off C, :math:`\lambda f_z \mp f_x \ge 0` on S
@@ -718,7 +725,10 @@ class _State:
         """
         (fz0, fx0), (fz1, fx1) = self.f0, self.f1
         lam = self.lam
-        fs = max(float(np.abs(fz0).max()), float(np.abs(fz1).max()) * self.Dscale,
+        # the scale over which a rate matters: the first event's displacement, or how far the
+        # pull has come (a rate negligible over the first event may not be over the pull)
+        Dref = max(self.Dscale, abs(D))
+        fs = max(float(np.abs(fz0).max()), float(np.abs(fz1).max()) * Dref,
                  np.finfo(float).tiny)
         gs = max(self.scale_g, np.finfo(float).tiny)
         cons = (
@@ -732,8 +742,8 @@ class _State:
             m = mask.ravel()
             a, b = a.ravel(), b.ravel()
             tiny = TIE * scale
-            flat = m & (np.abs(b) * self.Dscale <= tiny)
-            if np.any(flat & (a < -tiny)):
+            flat = m & (np.abs(b) * Dref <= tiny)
+            if not flat_ok and np.any(flat & (a < -tiny)):
                 return math.inf, -math.inf, name, int(np.flatnonzero(flat & (a < -tiny))[0])
             with np.errstate(divide="ignore", invalid="ignore"):
                 root = -a / b
@@ -864,7 +874,7 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
         if len(path.events) + path.transient > limit:
             path.message = f"stopped after {limit} events"
             break
-        lo, hi, kind, j = st.interval()
+        lo, hi, kind, j = st.interval(D)
         if first and math.isfinite(hi) and hi > 0:
             st.Dscale = hi  # the first event sets the displacement scale
             first = False
@@ -873,7 +883,11 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
             # Admissible at D within the value tolerances of every constraint, which the
             # test in D missed: a constraint that changes slowly with D (a gap closing at a
             # small rate, say) puts its root far from D for a violation far below the
-            # solver's residual. Take the state as admissible from D on.
+            # solver's residual. Take the state as admissible from D on. A flat constraint
+            # that the interval's scale called violated is within the tolerance of the value
+            # test too, and stays so: leave it out (else hi = -inf).
+            if hi == -math.inf:
+                lo, hi, kind, j = st.interval(D, flat_ok=True)
             lo = min(lo, D, hi)
         feasible = lo <= hi + tol_d
         if feasible and lo <= D + tol_d and hi >= D - tol_d:
