@@ -400,6 +400,10 @@ class _Dense:
     def _add(self, new: np.ndarray) -> bool:
         """Border the inverse with the unknowns ``new``; False when the Schur complement is
         not positive definite."""
+        if self.m + new.size > self.buf.shape[0]:  # no spare rows left: compact and grow
+            if not self._room(int(self.live.sum()) + new.size):
+                return True  # fallen back: the caller goes on matrix-free
+            self._compact(new.size)
         m, k2 = self.m, new.size
         B = np.zeros((m, k2))
         rows = np.flatnonzero(self.live)
@@ -414,11 +418,6 @@ class _Dense:
         Linv = linalg.solve_triangular(L, np.eye(k2), lower=True, check_finite=False)
         Si = Linv.T @ Linv
         MBSi = MB @ Si
-        if m + k2 > self.buf.shape[0]:
-            if not self._room(int(self.live.sum()) + k2):
-                return True  # fallen back: the caller goes on matrix-free
-            self._compact(k2)
-            return self._add(new)
         buf = self.buf
         buf[m:m + k2, :m] = -MBSi.T
         buf[:m, m:m + k2] = -MBSi
