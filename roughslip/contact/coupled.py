@@ -198,6 +198,7 @@ class _Dense:
     block = 512
     refinements = 3
     bulk_min = 2000
+    threaded_min = 8192  # unknowns from which products with the inverse use the threads
 
     def __init__(self, problem: Problem, *, reference: bool = False, tol: float = 1e-12,
                  fallback: bool = False, threads: int = 1, **_: object) -> None:
@@ -318,10 +319,12 @@ class _Dense:
     def _apply(self, B: np.ndarray) -> np.ndarray:
         """The current inverse times ``B`` (rows of dead unknowns of ``B`` must be zero)."""
         t0, m = time.perf_counter(), self.m
-        sol = self.buf[:m, :m] @ B
-        if self.k:
-            V = self.V[:m, : self.k]
-            sol += V @ (self.s[: self.k, None] * (V.T @ B))
+        # a product with a large inverse is bound by memory bandwidth: more threads read faster
+        with blas_threads(self.threads if m >= self.threaded_min else 1):
+            sol = self.buf[:m, :m] @ B
+            if self.k:
+                V = self.V[:m, : self.k]
+                sol += V @ (self.s[: self.k, None] * (V.T @ B))
         self.blas_seconds += time.perf_counter() - t0
         return sol
 
@@ -347,7 +350,7 @@ class _Dense:
         self.k = k2
 
     def _flush(self) -> None:
-        """Fold the pending terms into M (one GEMM) and clear dead rows."""
+        """Fold the pending terms into M (GEMMs on column panels) and clear dead columns."""
         if self.k:
             t0 = time.perf_counter()
             m, V = self.m, self.V[: self.m, : self.k]
@@ -356,9 +359,9 @@ class _Dense:
             with blas_threads(self.threads):
                 for j in range(0, m, 2048):  # column panels: no copy of M, small temporaries
                     M[:, j:j + 2048] += Vs @ V[j:j + 2048].T
-            dead = ~self.live
-            M[dead, :] = 0.0
-            M[:, dead] = 0.0
+            # dead columns are cleared (contiguous); dead rows only feed dead entries of
+            # solutions, which are never read
+            M[:, ~self.live] = 0.0
             self.V[:m, : self.k] = 0.0
             self.k = 0
             self.blas_seconds += time.perf_counter() - t0

@@ -26,8 +26,10 @@ from roughslip.errors import NumericalError, SizeLimitError
 #: largest n for which an n x n matrix has fewer than 2^31 entries (32-bit LAPACK is safe)
 LP64_MAX_N = 46340
 #: orders above which the inverse avoids OpenBLAS's dpotrf driver, which segfaults for large
-#: orders (observed here at 52 259; OpenBLAS issues #352 and #2562)
-SWEEP_MIN_N = 32768
+#: orders (observed here at 52 259, and with two threads at 25 698 after other BLAS work in the
+#: process; OpenBLAS issues #352 and #2562). The block sweep is GEMM-based and as fast (25 698:
+#: 172 s by the sweep, 2 threads).
+SWEEP_MIN_N = 16384
 
 _COL_MAJOR, _LOWER, _NO_TRANS, _TRANS = 102, 122, 111, 112
 _LIB = None
