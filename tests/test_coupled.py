@@ -147,6 +147,8 @@ def test_dense_solver_checks_its_memory_first():
             squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=0.25, method="dense")
         tight = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=0.25, tol=1e-13)
     assert tight.method == "cg" and tight.message.startswith("auto chose cg")
+    assert tight.fallback.startswith("auto chose cg") and "GiB" in tight.fallback
+    assert free.fallback == ""
     assert [(e.kind, e.site) for e in tight.events] == [(e.kind, e.site) for e in free.events]
     assert tight.friction_force == pytest.approx(free.friction_force, rel=1e-8)
 

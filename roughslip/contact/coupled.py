@@ -109,6 +109,8 @@ class CoupledResult:
     #: seconds in dense linear algebra (the dense solver's factorisation, products and
     #: updates; 0 for the matrix-free solver)
     blas_seconds: float = 0.0
+    #: why ``auto`` went on matrix-free (the dense inverse did not fit), else ""
+    fallback: str = ""
 
     @property
     def dx(self) -> np.ndarray:
@@ -1068,7 +1070,7 @@ def couple(
         fz0=start.fz, fx0=start.fx, contact0=start.contact, stick0=start.stick,
         fz_peak=peak.fz, fx_peak=peak.fx, stick_peak=peak.stick, contact_peak=peak.contact,
         converged=not message, seconds=time.perf_counter() - t0, solves=solver.solves,
-        blas_seconds=float(getattr(solver, "blas_seconds", 0.0)),
+        blas_seconds=float(getattr(solver, "blas_seconds", 0.0)), fallback=note.rstrip("; "),
         method=method, residual=residual,
         message=note + (message or f"{len(path.events)} events, {path.transient} transient "
                         "state(s)"),

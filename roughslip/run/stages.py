@@ -149,7 +149,8 @@ class _CoupledSample:
                          friction_normal_force=r.normal_force_at_peak,
                          pull_seconds=r.seconds, pull_converged=r.converged,
                          pull_steps=len(r.events), released_bonds=r.released),
-            notes=[f"{r.released} bond(s) released at D_x = 0"],
+            notes=[f"{r.released} bond(s) released at D_x = 0"] + ([r.fallback] if r.fallback
+                                                                  else []),
             contact=r.contact0,
         )
         if np.isfinite(r.residual):  # the worst certified residual of the block solves
