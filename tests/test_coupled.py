@@ -272,10 +272,12 @@ def test_contacts_gained_while_pulling_enter_by_the_chosen_rule():
         squeeze_pull_coupled(h, depth=1.4, gained="sticky")
 
 
-def test_updated_inverse_tracks_solutions_through_set_changes():
+@pytest.mark.parametrize("symv_min", [0, 10**9])
+def test_updated_inverse_tracks_solutions_through_set_changes(symv_min):
     """The dense solver's updated inverse (downdates, bordered additions, growth, compaction,
     pending terms folded in) and its tracked solutions agree with a direct solve of the block
-    to 1e-10 through a random sequence of set changes, from one factorisation."""
+    to 1e-10 through a random sequence of set changes, from one factorisation; with the
+    products by the symmetric kernel (lower triangle) or the general one."""
     from roughslip.contact.coupled import _Dense
     from roughslip.contact.problem import Problem
     from roughslip.elastic.operators import Grid, Material
@@ -285,6 +287,7 @@ def test_updated_inverse_tracks_solutions_through_set_changes():
     d = _Dense(problem, tol=1e-13)
     d.block = 8  # fold pending terms in often
     d.refinements = 0  # the updates alone, without the certification's refinement
+    d.symv_min = symv_min
     rng = np.random.default_rng(11)
     C = rng.random(grid.shape) < 0.6
     S = C & (rng.random(grid.shape) < 0.7)

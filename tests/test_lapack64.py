@@ -86,3 +86,11 @@ def test_panel_rank_k_update_equals_dense(n, k, block):
     lapack64.syrk_panels(got, u, -0.5, block=block)
     low = np.tril_indices(n)
     assert np.allclose(got[low], (c - 0.5 * u @ u.T)[low], rtol=1e-12, atol=1e-12)
+
+
+def test_symv_on_a_leading_block_in_place():
+    a = spd(40, seed=3)
+    x = np.random.default_rng(4).standard_normal(25)
+    assert np.allclose(lapack64.symv(a, x, 25), a[:25, :25] @ x, rtol=1e-12)
+    with pytest.raises(ValueError, match="shape"):
+        lapack64.symv(a, x, 30)

@@ -202,6 +202,7 @@ class _Dense:
     refinements = 3
     bulk_min = 2000
     threaded_min = 8192  # unknowns from which products with the inverse use the threads
+    symv_min = 1024  # unknowns from which products with few columns use the symmetric kernel
 
     def __init__(self, problem: Problem, *, reference: bool = False, tol: float = 1e-12,
                  fallback: bool = False, threads: int = 1, **_: object) -> None:
@@ -322,9 +323,14 @@ class _Dense:
     def _apply(self, B: np.ndarray) -> np.ndarray:
         """The current inverse times ``B`` (rows of dead unknowns of ``B`` must be zero)."""
         t0, m = time.perf_counter(), self.m
-        # a product with a large inverse is bound by memory bandwidth: more threads read faster
+        # a product with a large inverse is bound by memory bandwidth: more threads read
+        # faster, and a few columns go by the symmetric product, which reads half of it
         with blas_threads(self.threads if m >= self.threaded_min else 1):
-            sol = self.buf[:m, :m] @ B
+            if B.shape[1] <= 4 and m >= self.symv_min:
+                sol = np.column_stack([lapack64.symv(self.buf, B[:, j], m)
+                                       for j in range(B.shape[1])])
+            else:
+                sol = self.buf[:m, :m] @ B
             if self.k:
                 V = self.V[:m, : self.k]
                 sol += V @ (self.s[: self.k, None] * (V.T @ B))

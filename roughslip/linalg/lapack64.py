@@ -216,15 +216,20 @@ def _gemm_nt(c: np.ndarray, r0: int, r1: int, j0: int, j1: int, p: np.ndarray, q
              n, q.ctypes.data + 8 * j0, n, 1.0, c.ctypes.data + 8 * (j0 * n + r0), n)
 
 
-def symv(a: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``a @ x`` for symmetric ``a`` of which only the lower triangle is valid."""
+def symv(a: np.ndarray, x: np.ndarray, n: int | None = None) -> np.ndarray:
+    """``a[:n, :n] @ x`` for symmetric ``a[:n, :n]`` of which only the lower triangle is valid
+    (``n`` defaults to the order of ``a``; the leading block is read in place). It reads half
+    the memory of a general product."""
     _check(a)
     x = np.ascontiguousarray(x, dtype=np.float64)
+    lda = a.shape[0]
+    n = lda if n is None else int(n)
+    if x.shape != (n,):
+        raise ValueError(f"x has shape {x.shape}, expected ({n},)")
     lib = _load()
     if lib is None:
-        return blas.dsymv(1.0, a, x, lower=1)
-    n = a.shape[0]
+        return blas.dsymv(1.0, a[:n, :n], x, lower=1)
     y = np.zeros(n)
-    lib.symv(_COL_MAJOR, _LOWER, n, 1.0, a.ctypes.data, n, x.ctypes.data, 1, 0.0, y.ctypes.data,
-             1)
+    lib.symv(_COL_MAJOR, _LOWER, n, 1.0, a.ctypes.data, lda, x.ctypes.data, 1, 0.0,
+             y.ctypes.data, 1)
     return y
