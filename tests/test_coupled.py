@@ -346,9 +346,10 @@ def test_a_slow_rate_is_flat_only_on_the_scale_of_the_pull_so_far():
     assert np.all(np.isfinite(st.at(0.5)[2]))
 
 
-@pytest.mark.parametrize(("seed", "depth"), [(3, 2.5), (5, 3.0)])
+@pytest.mark.parametrize(("seed", "load"), [(3, {"depth": 2.5}), (5, {"depth": 3.0}),
+                                            (5, {"force": 40.0, "pull_control": "force"})])
 def test_bulk_passes_by_cg_then_the_updated_inverse_match_the_reference(monkeypatch, seed,
-                                                                        depth):
+                                                                        load):
     """The squeeze's bulk passes from the geometric overlap run matrix-free above
     ``bulk_min`` unknowns; the inverse is built for the set they leave. Forced on a small
     grid, the path is the reference's (every state factorised afresh, dense sums), event for
@@ -356,10 +357,9 @@ def test_bulk_passes_by_cg_then_the_updated_inverse_match_the_reference(monkeypa
     from roughslip.contact import coupled
 
     h = rough(16, seed=seed)
-    ref = squeeze_pull_coupled(h, depth=depth, lam=0.2, nu=0.25, method="dense",
-                               reference=True)
+    ref = squeeze_pull_coupled(h, **load, lam=0.2, nu=0.25, method="dense", reference=True)
     monkeypatch.setattr(coupled._Dense, "bulk_min", 10)
-    fast = squeeze_pull_coupled(h, depth=depth, lam=0.2, nu=0.25, method="dense")
+    fast = squeeze_pull_coupled(h, **load, lam=0.2, nu=0.25, method="dense")
     assert fast.converged and ref.converged and fast.released == ref.released
     assert [(e.kind, e.site) for e in fast.events] == [(e.kind, e.site) for e in ref.events]
     assert fast.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
