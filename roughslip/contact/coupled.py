@@ -158,6 +158,11 @@ class BlockSolver(Protocol):
     def residual(self) -> float:
         """The worst relative residual of the solves so far."""
 
+    #: seconds in dense linear algebra
+    blas_seconds: float
+    #: why the solver went on matrix-free (the dense inverse did not fit), else ""
+    note: str
+
 
 #: the coupled block solvers, by name (``method`` of :func:`couple`)
 SOLVERS: Registry[type] = Registry("coupled solver")
@@ -307,7 +312,7 @@ class _Dense:
     def _room(self, m: int) -> bool:
         """Whether an inverse for ``m`` unknowns fits in memory (:func:`dense_memory_bytes`).
         If not: refuse, or with :attr:`fallback` drop the inverse and leave a :attr:`note`."""
-        need, have = DENSE_BYTES_PER_UNKNOWN2 * m * m, available_bytes()
+        need, have = _inverse_bytes(m), available_bytes()
         if need <= have:
             return True
         msg = (f"needs ~{need / 2**30:.2f} GiB for {m} unknowns (contact and stick sites) but "
@@ -316,7 +321,7 @@ class _Dense:
             raise MemoryLimitError(
                 f"coupled model, method 'dense': {msg}; use method 'cg' (matrix-free) or "
                 "'auto', a smaller depth or grid, or raise execution.memory_limit_gb")
-        self.note = f"auto chose cg: the dense solver {msg}; "
+        self.note = f"auto chose cg: the dense solver {msg}"
         self.reset()
         return False
 
@@ -449,13 +454,21 @@ class _Dense:
         return True
 
     def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
-        if self.note or (bulk and not self.reference and int(C.sum() + S.sum()) > self.bulk_min):
-            if self.bulk is None:
-                self.bulk = _CG(self.problem, tol=self.tol)
-            self.bulk.prepare(C, S)
-            self.reset()
-            self.mode = "bulk"
-            return
+        bulk = bulk and not self.reference and int(C.sum() + S.sum()) > self.bulk_min
+        if not (self.note or bulk):
+            self._update(C, S)
+            if not self.note:
+                return
+        # matrix-free: the bulk passes, or for good once an inverse did not fit
+        if self.bulk is None:
+            self.bulk = _CG(self.problem, tol=self.tol)
+        self.bulk.prepare(C, S)
+        self.reset()
+        self.mode = "bulk"
+
+    def _update(self, C: np.ndarray, S: np.ndarray) -> None:
+        """Bring the inverse to the unknowns of C and S: updated when few change, afresh
+        otherwise (or when an update loses positive definiteness)."""
         self.mode = "dense"
         want = np.zeros(self.row.size, dtype=bool)
         want[2 * np.flatnonzero(C)] = True
@@ -463,22 +476,14 @@ class _Dense:
         have = self.row >= 0
         gone = np.flatnonzero(have & ~want)
         new = np.flatnonzero(want & ~have)
-        live = int(self.live.sum())
-        if (self.reference or self.buf is None or gone.size + new.size > max(4, live // 3)):
+        ok = not (self.reference or self.buf is None
+                  or gone.size + new.size > max(4, int(self.live.sum()) // 3))
+        # stops at the first failed removal; _add fails only on a non-positive Schur complement
+        ok = ok and all(self._remove(int(self.row[u])) for u in gone)
+        ok = ok and (not new.size or self._add(new))
+        if not ok:
             self._factor(np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1]))
-            if self.note:  # no room for the inverse: matrix-free from here on
-                self.prepare(C, S)
-            return
-        for u in gone:
-            if not self._remove(int(self.row[u])):
-                self._factor(np.flatnonzero(want))
-                return self.prepare(C, S) if self.note else None
-        if new.size:
-            if not self._add(new):
-                self._factor(np.flatnonzero(want))
-            if self.note:
-                return self.prepare(C, S)
-        if (~self.live).sum() > 0.25 * self.m:
+        elif (~self.live).sum() > 0.25 * self.m:
             self._compact(0)
 
     def residual(self) -> float:
@@ -570,6 +575,7 @@ class _CG:
         self.op = problem.operator("zz", "zx", "xx")
         self.solves = 0
         self.worst = 0.0
+        self.blas_seconds, self.note = 0.0, ""  # no dense linear algebra, no fallback
         self.prev: dict[str, np.ndarray] = {}
 
     def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
@@ -657,8 +663,7 @@ class _State:
         raise NumericalError("non-finite forces in the solve of the contact and stick sets")
 
     def _finite(self) -> bool:
-        arrays = (*self.f0, self.g0) + ((*self.f1, self.g1) if self.slope else ())
-        return all(np.all(np.isfinite(a)) for a in arrays)
+        return all(np.all(np.isfinite(a)) for a in (*self.f0, *self.f1, self.g0, self.g1))
 
     def _solve(self, bulk: bool = False) -> None:
         """Solve for the state at D_x = 0 and, with :attr:`slope`, for its rate in D_x (the
@@ -739,14 +744,12 @@ class _State:
         else:
             S[j] = False
 
-    def interval(self, D: float, flat_ok: bool = False) -> tuple[float, float, str, int]:
+    def interval(self, D: float) -> tuple[float, float, str, int]:
         r"""The displacements at which this state is admissible, ``[lo, hi]``, and the event
         (kind, flat index) that ends it at ``hi``, for a state reached at pull displacement
         ``D``. A constraint is flat when its change over the displacement scale
         :math:`\max(D_{\rm scale}, |D|)` is below the tolerance; a violated flat constraint
-        makes the state admissible nowhere (``lo = inf``, ``hi = -inf``), unless ``flat_ok``:
-        then flat constraints are left out (the caller found the state admissible at ``D``,
-        so a flat constraint stays satisfied).
+        makes the state admissible nowhere (``lo = inf``, ``hi = -inf``).
 
         Every constraint is affine, :math:`a + bD \ge 0`: :math:`f_z \ge 0` on C,
         :math:`g \ge 0` off C, :math:`\lambda f_z \mp f_x \ge 0` on S
@@ -773,7 +776,7 @@ class _State:
             a, b = a.ravel(), b.ravel()
             tiny = TIE * scale
             flat = m & (np.abs(b) * Dref <= tiny)
-            if not flat_ok and np.any(flat & (a < -tiny)):
+            if np.any(flat & (a < -tiny)):
                 return math.inf, -math.inf, name, int(np.flatnonzero(flat & (a < -tiny))[0])
             with np.errstate(divide="ignore", invalid="ignore"):
                 root = -a / b
@@ -810,7 +813,11 @@ DENSE_BYTES_PER_UNKNOWN2 = 28
 def dense_memory_bytes(sites: int) -> int:
     """Peak memory of ``method="dense"`` for ``sites`` contact sites, all bonded (bytes):
     ``m = 2 sites`` unknowns."""
-    m = 2 * int(sites)
+    return _inverse_bytes(2 * int(sites))
+
+
+def _inverse_bytes(m: int) -> int:
+    """Peak memory of the dense solver's inverse on ``m`` unknowns (bytes)."""
     return DENSE_BYTES_PER_UNKNOWN2 * m * m
 
 
@@ -913,11 +920,7 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
             # Admissible at D within the value tolerances of every constraint, which the
             # test in D missed: a constraint that changes slowly with D (a gap closing at a
             # small rate, say) puts its root far from D for a violation far below the
-            # solver's residual. Take the state as admissible from D on. A flat constraint
-            # that the interval's scale called violated is within the tolerance of the value
-            # test too, and stays so: leave it out (else hi = -inf).
-            if hi == -math.inf:
-                lo, hi, kind, j = st.interval(D, flat_ok=True)
+            # solver's residual. Take the state as admissible from D on.
             lo = min(lo, D, hi)
         feasible = lo <= hi + tol_d
         if feasible and lo <= D + tol_d and hi >= D - tol_d:
@@ -1035,6 +1038,7 @@ def couple(
             normal_force=0.0, contact_area=0.0, released=0, fz0=z, fx0=z, contact0=geo,
             stick0=geo, fz_peak=z, fx_peak=z, stick_peak=geo, contact_peak=geo,
             converged=True, seconds=time.perf_counter() - t0, solves=0, method=method,
+            residual=0.0,  # nothing to solve
             message="no overlap: no contact", depth=0.0 if depth is None else depth,
             pull_control=pull_control)
     solver = SOLVERS.get(method)(problem, reference=reference, tol=tol, max_iter=max_iter,
@@ -1059,8 +1063,7 @@ def couple(
         except NumericalError as exc:
             raise NumericalError(f"coupled model: {exc}") from None
     residual = solver.residual()
-    note = getattr(solver, "note", "")
-    if note:
+    if solver.note:
         method = "cg"
     message = path.message
     if not message and residual > 10 * tol:
@@ -1076,10 +1079,10 @@ def couple(
         fz0=start.fz, fx0=start.fx, contact0=start.contact, stick0=start.stick,
         fz_peak=peak.fz, fx_peak=peak.fx, stick_peak=peak.stick, contact_peak=peak.contact,
         converged=not message, seconds=time.perf_counter() - t0, solves=solver.solves,
-        blas_seconds=float(getattr(solver, "blas_seconds", 0.0)), fallback=note.rstrip("; "),
-        method=method, residual=residual,
-        message=note + (message or f"{len(path.events)} events, {path.transient} transient "
-                        "state(s)"),
+        blas_seconds=solver.blas_seconds, fallback=solver.note, method=method,
+        residual=residual,
+        message="; ".join(filter(None, [solver.note, message or f"{len(path.events)} events, "
+                                        f"{path.transient} transient state(s)"])),
         states=path.states, depth=float(squeezed_depth), pull_control=pull_control,
     )
 

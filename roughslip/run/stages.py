@@ -143,8 +143,8 @@ class _CoupledSample:
         # one solve gives squeeze and pull: the squeeze has no iteration count of its own
         rec = Record(
             scalars=dict(depth_length=r.depth, normal_force=r.normal_force,
-                         contact_area=r.contact_area, converged=r.converged,
-                         seconds=r.seconds,
+                         contact_area=r.contact_area, residual=r.residual,
+                         converged=r.converged, seconds=r.seconds,
                          friction_force=r.friction_force,
                          friction_normal_force=r.normal_force_at_peak,
                          pull_seconds=r.seconds, pull_converged=r.converged,
@@ -153,8 +153,6 @@ class _CoupledSample:
                                                                   else []),
             contact=r.contact0,
         )
-        if np.isfinite(r.residual):  # the worst certified residual of the block solves
-            rec.scalars["residual"] = r.residual
         f = rec.fields
         if "fz" in want:
             f["fz"] = r.fz0
