@@ -1,13 +1,15 @@
 """Time the coupled model against the decoupled pull on the same scenes.
 
     python scripts/bench_coupled.py [--sizes 64 128] [--areas 0.05 0.175] [--methods auto cg]
+                                    [--slip-law break|coulomb]
 
 Scenes: a self-affine surface (H = 0.8, rms height 1, seed 1, oversampled twice), nu = 0.25,
 lam = 0.2, open grid, at the depth where the frictionless squeeze has the given contact
 fraction. For each: the decoupled exact pull (``auto``) and the coupled model with each
 ``--methods`` solver, their seconds, events, the ratio coupled / decoupled, and the shares of the
 coupled time spent inside FFT calls and in dense linear algebra (BLAS/LAPACK: the dense solver's
-factorisation, products with its inverse and updates). Threads: BLAS and FFT use ``--threads``.
+factorisation, products with its inverse and updates). ``--slip-law coulomb`` times both
+models under the Coulomb law. Threads: BLAS and FFT use ``--threads``.
 """
 
 from __future__ import annotations
@@ -32,9 +34,11 @@ def main() -> None:
     ap.add_argument("--areas", type=float, nargs="+", default=[0.05, 0.175])
     ap.add_argument("--methods", nargs="+", default=["auto"])
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--slip-law", choices=["break", "coulomb"], default="break")
     args = ap.parse_args()
+    law = args.slip_law
     print(f"# cores: {os.cpu_count()}, threads {args.threads}; H = 0.8, nu = 0.25, lam = 0.2, "
-          "open grid")
+          f"open grid, slip law {law}")
     print(f"{'N':>5} {'area':>6} {'sites':>6} {'decoupled s':>12} {'method':>8} "
           f"{'coupled s':>10} {'events':>7} {'solves':>7} {'ratio':>7} {'fft%':>5} {'blas%':>5}")
     for n in args.sizes:
@@ -45,13 +49,13 @@ def main() -> None:
             depth = depth_for_area(solver, area, hi=float(h.max() - h.min()))
             normal = solver.solve(depth=depth)
             t0 = time.perf_counter()
-            dec = pull(normal, lam=0.2)
+            dec = pull(normal, lam=0.2, slip_law=law)
             t_dec = time.perf_counter() - t0
             for method in args.methods:
                 op = problem.operator("zz", "zx", "xx")
                 fft0 = op.fft_seconds + op.with_threads(1).fft_seconds
                 t0 = time.perf_counter()
-                c = couple(problem, depth=depth, lam=0.2, method=method)
+                c = couple(problem, depth=depth, lam=0.2, method=method, slip_law=law)
                 t_c = time.perf_counter() - t0
                 fft = op.fft_seconds + op.with_threads(1).fft_seconds - fft0
                 print(f"{n:>5} {normal.contact_area:>6.3f} {normal.n_contact:>6} "

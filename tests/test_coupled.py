@@ -372,3 +372,95 @@ def test_bulk_passes_by_cg_then_the_updated_inverse_match_the_reference(monkeypa
     assert fast.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
     np.testing.assert_allclose(fast.fz0, ref.fz0, rtol=0, atol=1e-8 * np.abs(ref.fz0).max())
     assert fast.residual <= 1e-11
+
+
+# -- the Coulomb law -----------------------------------------------------------------------------
+def _coulomb_admissible(res, lam):
+    """Every recorded state: the constraints of the break law on contact and stick sites, and
+    on the other contact sites either no tangential force (never bonded) or exactly
+    f_x = +-lam f_z (a slipping bond)."""
+    fscale = max(float(np.abs(s[1]).max()) for s in res.states)
+    slipping = 0
+    for _D, fz, fx, g, C, S in res.states:
+        tol = 1e-8 * fscale
+        assert np.all(fz[C] >= -tol) and np.all(fz[~C] == 0) and np.all(fx[~C] == 0)
+        assert np.all(g[~C] >= -1e-8 * 2.5) and np.all(np.abs(g[C]) <= 1e-8 * 2.5)
+        assert np.all(np.abs(fx[S]) <= lam * fz[S] + tol)
+        P = C & ~S & (fx != 0)
+        assert np.allclose(np.abs(fx[P]), lam * fz[P], rtol=1e-12, atol=1e-12 * fscale)
+        slipping = max(slipping, int(P.sum()))
+    return slipping
+
+
+@pytest.mark.parametrize("nu", [0.0, 0.3])
+def test_coulomb_law_agrees_between_the_solvers_and_the_direct_reference(nu):
+    """Slipping bonds carry f_x = +-lam f_z, which makes the block system non-symmetric: the
+    updated inverse solves it by GMRES on the slip forces, matrix-free CG's solver by GMRES
+    on the whole system, the reference directly (LU of the assembled system, dense sums).
+    Same events, forces to 1e-8; every state admissible; when the last bond slips, every
+    bonded site carries lam f_z."""
+    h = rough(14, seed=5)
+    kw = dict(depth=2.5, lam=0.25, nu=nu, slip_law="coulomb")
+    ref = squeeze_pull_coupled(h, method="dense", reference=True, record_states=True, **kw)
+    inc = squeeze_pull_coupled(h, method="dense", **kw)
+    fft = squeeze_pull_coupled(h, method="cg", tol=1e-13, **kw)
+    assert ref.converged and inc.converged and fft.converged and ref.slip_law == "coulomb"
+    assert len(ref.events) + ref.released > 20
+    for other in (inc, fft):
+        assert [(e.kind, e.site) for e in other.events] == [(e.kind, e.site) for e in ref.events]
+        assert np.allclose(other.dx, ref.dx, rtol=1e-8, atol=1e-12)
+        assert np.allclose(other.fx, ref.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
+        assert np.allclose(other.fz, ref.fz, rtol=1e-8)
+        assert other.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
+        assert other.residual <= 10 * 1e-12
+    assert inc.slip_iterations > 0 and ref.slip_iterations == 0
+    assert _coulomb_admissible(ref, 0.25) > 10
+    _D, fz, fx, _g, C, S = ref.states[-1]  # as the last bond reaches its bound
+    bonded = C & (fx != 0)
+    assert S.sum() == 1 and np.allclose(fx[bonded], 0.25 * fz[bonded], rtol=1e-10)
+    assert ref.fx[-1] == pytest.approx(fx.sum(), rel=1e-12)
+    # bonds released backwards by the squeeze stick again when the pull turns their slip
+    # around, and slip forwards at last: at full sliding every bond pulls with +lam f_z
+    kinds = [e.kind for e in ref.events]
+    assert "stick" in kinds and kinds[-1] == "slip+" and ref.released > 0
+    # a slipping bond keeps its friction: the Coulomb pull force exceeds the break law's
+    brk = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu)
+    assert ref.friction_force > brk.friction_force
+
+
+def test_coulomb_law_under_load_control_and_with_bonded_gains():
+    """The force-held pull and new bonds for gained contacts under the Coulomb law: the
+    updated inverse follows the direct reference event for event, and the force is held."""
+    h = rough(14, seed=7) + sphere((14, 14), radius=25.0)
+    kw = dict(force=12.0, lam=0.3, nu=0.25, pull_control="force", gained="bonded",
+              slip_law="coulomb")
+    ref = squeeze_pull_coupled(h, method="dense", reference=True, record_states=True, **kw)
+    inc = squeeze_pull_coupled(h, method="dense", **kw)
+    assert ref.converged and inc.converged
+    assert [(e.kind, e.site) for e in inc.events] == [(e.kind, e.site) for e in ref.events]
+    assert np.allclose(inc.fx, ref.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
+    assert np.allclose(inc.dz, ref.dz, rtol=1e-8)
+    assert np.allclose(ref.fz, 12.0, rtol=1e-10)
+    assert _coulomb_admissible(ref, 0.3) > 0
+
+
+@pytest.mark.parametrize("heights", ["rough", "sphere"])
+def test_coulomb_law_at_half_poisson_ratio_is_the_decoupled_coulomb_pull(heights):
+    """At nu = 1/2 nothing couples: the slipping bonds carry lam f_z of the frictionless
+    squeeze, and the coupled Coulomb pull is the decoupled one, slip for slip."""
+    h = rough(16) if heights == "rough" else sphere((14, 14), radius=12.0)
+    depth = 1.2 if heights == "rough" else 0.8
+    c = squeeze_pull_coupled(h, depth=depth, lam=0.2, nu=0.5, slip_law="coulomb")
+    normal = squeeze(h, depth=depth, nu=0.5, tol=1e-13)
+    d = pull(normal, lam=0.2, method="inverse", slip_law="coulomb")
+    ev = c.events[1:]
+    assert c.released == 0 and len(ev) == d.steps
+    if heights == "rough":  # on the sphere, symmetric sites tie: the order among them is free
+        assert [e.site for e in ev] == d.broken_site.tolist()
+    assert sorted(e.site for e in ev) == sorted(d.broken_site.tolist())
+    assert np.allclose([e.dx for e in ev], d.dx_lim, rtol=1e-9)
+    assert np.allclose([e.fx for e in ev], d.fx_lim, rtol=1e-9)
+    assert c.friction_force == pytest.approx(d.friction_force, rel=1e-9)
+    assert c.friction_force == pytest.approx(0.2 * normal.normal_force, rel=1e-9)
+    with pytest.raises(InputError, match="slip_law"):
+        squeeze_pull_coupled(h, depth=depth, slip_law="viscous")

@@ -277,6 +277,35 @@ def test_coupled_run_under_load_control_holds_the_force(tmp_path):
     assert not np.allclose(r2.scalars["friction_force"], r.scalars["friction_force"])
 
 
+def test_coupled_run_with_the_coulomb_law_is_the_library_result(tmp_path):
+    """pull.slip_law = "coulomb" with coupling: the run stores what the library computes for
+    the same scene, and its notes count the bonds slipping from the start."""
+    from roughslip.contact.coupled import couple
+    from roughslip.contact.problem import Problem
+    from roughslip.run.scene import Scene
+
+    data = {**CFG, "grid": {"n": 16}, "ensemble": {"samples": 1, "seed": 3},
+            "material": {"nu": 0.25}, "coupling": {"enabled": True},
+            "pull": {"enabled": True, "lam": 0.2, "slip_law": "coulomb"},
+            "output": {"fields": ["pull_curve"]}}
+    cfg = load_config(write_cfg(tmp_path, data))
+    out = tmp_path / "coulomb.h5"
+    run(cfg, out)
+    r = read_run(out)
+    brk = tmp_path / "break.h5"
+    run(load_config(write_cfg(tmp_path, {**data, "pull": {"enabled": True, "lam": 0.2}},
+                              "break.toml")), brk)
+    assert np.all(r.scalars["friction_force"] > read_run(brk).scalars["friction_force"])
+    scene = Scene.from_config(cfg)
+    pb = Problem(scene.surfaces(0).composite, scene.grid, scene.material)
+    depth = float(r.scalars["depth_length"][0, -1])
+    lib = couple(pb, depth=depth, lam=0.2, slip_law="coulomb", tol=1e-10)
+    assert r.scalars["friction_force"][0, -1] == pytest.approx(lib.friction_force, rel=1e-9)
+    with h5py.File(out, "r") as f:
+        notes = json.loads(f["samples/s000000"].attrs["notes"])
+    assert any("slipping at D_x = 0" in n for n in notes)
+
+
 def test_ctrl_c_with_workers_stops_promptly_and_resumes(tmp_path):
     cfg_path = _long_cfg(tmp_path)
     out = tmp_path / "pool.h5"

@@ -32,6 +32,11 @@ The squeeze goes to a depth or to a normal force, and the pull holds either the 
 report's pull) or the normal force, with the depth following (``_State``,
 docs/theory/coupled.rst#coupled-load-control).
 
+Under the Coulomb law a failed bond slips, carrying :math:`f_x = \sigma\lambda f_z` in the
+direction :math:`\sigma` of its force as :math:`f_z` changes (the system is then not
+symmetric: ``_State._solve_many``), and a slipping bond whose slip the pull would turn around
+sticks again where it is (``_State.reversal``; docs/theory/coupled.rst#coupled-coulomb).
+
 Solvers (registered in :data:`SOLVERS`): ``"dense"`` assembles the reduced block from the
 closed-form kernels and keeps its inverse up to date, O(m) per removed unknown, while it fits
 in memory (docs/theory/coupled.rst#coupled-solvers); ``"cg"`` runs conjugate gradients
@@ -60,6 +65,8 @@ from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.threads import blas_threads
 
 TIE = 1e-9
+#: a slipping bond sticks again when its slip rate (per unit pull) opposes its force by more
+RATE_TIE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -69,7 +76,7 @@ class Event:
     dx: float
     fx: float  # total tangential force F_x
     fz: float  # total normal force F_z at the same D_x
-    kind: str  # "start", "slip+", "slip-", "lost", "gained", "release" (at D_x = 0)
+    kind: str  # "start", "slip+", "slip-", "lost", "gained", "stick" (a slipping bond sticks)
     site: int  # flat index (-1 for "start")
     dz: float = math.nan  # the depth D_z at the same D_x (it moves when the force is held)
 
@@ -111,6 +118,10 @@ class CoupledResult:
     blas_seconds: float = 0.0
     #: why ``auto`` went on matrix-free (the dense inverse did not fit), else ""
     fallback: str = ""
+    #: what a failed bond carries: ``"break"`` (nothing) or ``"coulomb"`` (lam f_z)
+    slip_law: str = "break"
+    #: GMRES iterations of the solves with Coulomb slip forces (0 under the break law)
+    slip_iterations: int = 0
 
     @property
     def dx(self) -> np.ndarray:
@@ -152,8 +163,8 @@ class BlockSolver(Protocol):
                    ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """:meth:`solve` for several ``(rz, rx, key)`` at once."""
 
-    def displacement_x(self, fz: np.ndarray, fx: np.ndarray, site: int) -> float:
-        """u_x at one site (flat index)."""
+    def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(u_z, u_x) on the grid for the force fields (f_z, f_x)."""
 
     def residual(self) -> float:
         """The worst relative residual of the solves so far."""
@@ -560,8 +571,22 @@ class _Dense:
             out.append((fz, fx, uz))
         return out
 
-    def displacement_x(self, fz: np.ndarray, fx: np.ndarray, site: int) -> float:
-        return float(self._displacements(fz, fx)[1].ravel()[site])
+    def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self._displacements(fz, fx)
+
+    def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(f_z, f_x) = the current inverse times the right-hand side, uncertified (the inner
+        products of the Coulomb solves, whose result is certified as a whole)."""
+        rows = np.flatnonzero(self.live)
+        ids = self.ids[rows]
+        sites, isx = ids >> 1, (ids & 1).astype(bool)
+        b = np.zeros(self.m)
+        b[rows] = np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
+        x = self._apply(b[:, None])[:, 0]
+        fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
+        fz.ravel()[sites[~isx]] = x[rows[~isx]]
+        fx.ravel()[sites[isx]] = x[rows[isx]]
+        return fz, fx
 
 
 @SOLVERS.register("cg", "matrix-free: warm-started CG on the restricted FFT block operator")
@@ -597,8 +622,8 @@ class _CG:
                    ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         return [self.solve(rz, rx, key) for rz, rx, key in rhs]
 
-    def displacement_x(self, fz: np.ndarray, fx: np.ndarray, site: int) -> float:
-        return float(self.op.apply_block(fz, fx)[1].ravel()[site])
+    def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.op.apply_block(fz, fx)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -621,9 +646,18 @@ class _State:
 
     def __init__(self, solver, base: np.ndarray, lam: float, C: np.ndarray, *,
                  depth: float | None = None, force: float | None = None,
-                 gained: str = "unbonded"):
+                 gained: str = "unbonded", slip_law: str = "break", tol: float = 1e-12):
         self.solver, self.base, self.lam = solver, base, lam
         self.gained = gained
+        self.slip_law, self.tol = slip_law, tol
+        #: slip direction of the sites in C but not in S: +-1, a slipping bond carrying
+        #: f_x = sigma lam f_z (Coulomb law); 0, no tangential force (a broken bond, or a
+        #: contact that never was a bond)
+        self.sigma = np.zeros(base.shape)
+        self.worst = 0.0  # worst relative residual of the solves with slip forces
+        self.u1x: np.ndarray | None = None  # rate of u_x in D_x, with slipping bonds
+        self.gmres_iterations = 0
+        self._warm: dict[str, np.ndarray] = {}
         self.pulling = False  # contacts gained while pulling follow the rule ``gained``
         #: bond offsets: a bond formed at D_x = D_g holds u_x = D_x + o, o = u_x(D_g) - D_g
         self.offset = np.zeros(base.shape)
@@ -667,20 +701,28 @@ class _State:
 
     def _solve(self, bulk: bool = False) -> None:
         """Solve for the state at D_x = 0 and, with :attr:`slope`, for its rate in D_x (the
-        squeeze's corrections at D_x = 0 need no rate: one solve per state)."""
+        squeeze's corrections at D_x = 0 need no rate: one solve per state); with slipping
+        bonds, also the rate of :math:`u_x` (one more FFT product), for :meth:`reversal`."""
+        self._solve_forces(bulk)
+        self.u1x = None
+        if self.slope and (self.C & ~self.S & (self.sigma != 0)).any():
+            self.u1x = self.solver.displacements(*self.f1)[1]
+
+    def _solve_forces(self, bulk: bool) -> None:
         s = self.solver
         s.prepare(self.C, self.S, bulk=bulk)
         slope = self.slope and bool(self.S.any())
         tail = [(self.zero, self.ones, "1")] if slope else []
         if self.force is None:
             ubar = self.base + self.depth
-            sols = s.solve_many([(ubar, self.offset, "0"), *tail])
+            sols = self._solve_many([(ubar, self.offset, "0"), *tail])
             self.f0, self.g0 = sols[0][:2], sols[0][2] - ubar
             self.f1, self.g1 = (sols[1][:2], sols[1][2]) if slope else (
                 (self.zero, self.zero), self.zero)
             self.d0, self.d1 = self.depth, 0.0
             return
-        sols = s.solve_many([(self.base, self.offset, "b"), (self.ones, self.zero, "d"), *tail])
+        sols = self._solve_many([(self.base, self.offset, "b"), (self.ones, self.zero, "d"),
+                                 *tail])
         (fbz, fbx, ub), (fdz, fdx, ud) = sols[0], sols[1]
         f1z, f1x, u1 = sols[2] if slope else (self.zero, self.zero, self.zero)
         sd = float(fdz.sum())
@@ -694,6 +736,139 @@ class _State:
         self.g0 = ub + self.d0 * ud - self.base - self.d0
         self.g1 = u1 + self.d1 * ud - self.d1
         self.scale_g = max(self.scale_g, float(np.max(self.base)) + self.d0)
+
+    def _solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
+                    ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        r"""(f_z, f_x, u_z) on the grid for each right-hand side ``(r_z, r_x, key)``, with the
+        slip forces of the Coulomb law: on the slip sites :math:`P` (in C, not in S,
+        :math:`\sigma \ne 0`), :math:`f_x = \sigma\lambda f_z`.
+
+        With :math:`K` the block on (C, S) that the solver inverts and :math:`H` the
+        displacements on (C, S) of tangential forces on P, the system is
+        :math:`K y + H\,\mathrm{diag}(\sigma\lambda)\,y_z(P) = r`: not symmetric. Its
+        solution is :math:`y = y_0 - K^{-1}H w t` with :math:`y_0 = K^{-1} r` and
+        :math:`t = f_z(P)` the solution of the :math:`|P|`-sized system
+        :math:`(I + E_P^T K^{-1} H w)\,t = E_P^T y_0` (:math:`w = \sigma\lambda`), solved by
+        GMRES warm-started from the last state's slip forces: each iteration one FFT product
+        and one solve with :math:`K`, and the iteration matrix is of the order of
+        :math:`\lambda` times the coupling :math:`G_{zx}/G_{zz}`, so a few iterations suffice.
+        Every solution is certified against the FFT operator on the full system and refined
+        when its residual is above tol. The dense reference solves the non-symmetric system
+        directly instead.
+        """
+        P = self.C & ~self.S & (self.sigma != 0)
+        if not P.any():
+            return self.solver.solve_many(rhs)
+        w = self.lam * self.sigma[P]
+        if getattr(self.solver, "reference", False):
+            return self._solve_direct(rhs, P, w)
+        solve = (self._slip_solve if getattr(self.solver, "mode", "") == "dense"
+                 else self._slip_solve_free)
+        out = []
+        for rz, rx, key in rhs:
+            fz, fx = solve(rz, rx, key, P, w)
+            scale = max(float(np.linalg.norm(np.concatenate([rz[self.C], rx[self.S]]))),
+                        np.finfo(float).tiny)
+            for attempt in range(3):
+                uz, ux = self.solver.displacements(fz, fx)
+                ez, ex = np.where(self.C, rz - uz, 0.0), np.where(self.S, rx - ux, 0.0)
+                res = float(np.linalg.norm(np.concatenate([ez[self.C], ex[self.S]]))) / scale
+                if res <= self.tol or attempt == 2:
+                    break
+                dz, dx = solve(ez, ex, "refine", P, w)
+                fz, fx = fz + dz, fx + dx
+            self.worst = max(self.worst, res)
+            out.append((fz, fx, uz))
+        return out
+
+    def _slip_solve(self, rz: np.ndarray, rx: np.ndarray, key: str, P: np.ndarray,
+                    w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The forces with the slip law on P for one right-hand side (:meth:`_solve_many`)."""
+        from scipy.sparse.linalg import LinearOperator, gmres
+
+        s = self.solver
+        fz0, fx0, _ = s.solve(rz, rx, key)
+
+        def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            fxs = np.zeros(self.base.shape)
+            fxs[P] = w * t
+            return s.apply_inverse(*s.displacements(self.zero, fxs))
+
+        n = int(P.sum())
+        b = fz0[P]
+
+        def matvec(t: np.ndarray) -> np.ndarray:
+            self.gmres_iterations += 1
+            return t + correction(np.ravel(t))[0][P]
+
+        A = LinearOperator((n, n), matvec=matvec, dtype=float)
+        prev = self._warm.get(key)
+        x0 = prev[0][P] if prev is not None else b
+        bnorm = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
+        # a GMRES that stops short shows in the certified residual of the whole solution
+        t, _ = gmres(A, b, x0=x0, rtol=0.0, atol=0.1 * self.tol * bnorm,
+                     restart=min(n, 50), maxiter=max(20, n))
+        fz1, fx1 = correction(t)
+        fz, fx = fz0 - fz1, fx0 - fx1
+        fx[P] = w * fz[P]
+        self._warm[key] = (fz, fx)
+        return fz, fx
+
+    def _slip_solve_free(self, rz: np.ndarray, rx: np.ndarray, key: str, P: np.ndarray,
+                         w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Matrix-free: GMRES on the whole non-symmetric system, one FFT product per
+        iteration, warm-started from the last solution of the same right-hand side."""
+        from scipy.sparse.linalg import LinearOperator, gmres
+
+        C, S = self.C, self.S
+        nc, n = int(C.sum()), int(C.sum() + S.sum())
+
+        def fields(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            fz, fx = np.zeros(self.base.shape), np.zeros(self.base.shape)
+            fz[C] = y[:nc]
+            fx[S] = y[nc:]
+            fx[P] = w * fz[P]
+            return fz, fx
+
+        def matvec(y: np.ndarray) -> np.ndarray:
+            self.gmres_iterations += 1
+            uz, ux = self.solver.displacements(*fields(np.ravel(y)))
+            return np.concatenate([uz[C], ux[S]])
+
+        b = np.concatenate([rz[C], rx[S]])
+        prev = self._warm.get(key)
+        x0 = None if prev is None else np.concatenate([prev[0][C], prev[1][S]])
+        bnorm = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
+        y, _ = gmres(LinearOperator((n, n), matvec=matvec, dtype=float), b, x0=x0, rtol=0.0,
+                     atol=0.1 * self.tol * bnorm, restart=min(n, 200), maxiter=50)
+        self.solver.solves += 1
+        fz, fx = fields(y)
+        self._warm[key] = (fz, fx)
+        return fz, fx
+
+    def _solve_direct(self, rhs: list[tuple[np.ndarray, np.ndarray, str]], P: np.ndarray,
+                      w: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """The reference: the non-symmetric system with the slip forces, assembled by dense
+        sums and solved directly (LU)."""
+        s = self.solver
+        s.solves += len(rhs)
+        ids = np.concatenate([2 * np.flatnonzero(self.C), 2 * np.flatnonzero(self.S) + 1])
+        A = s._entries(ids, ids)
+        pz = np.flatnonzero(P)
+        cols = np.searchsorted(ids[: int(self.C.sum())], 2 * pz)  # f_z(P) among the unknowns
+        A[:, cols] += s._entries(ids, 2 * pz + 1) * w
+        sites, isx = ids >> 1, (ids & 1).astype(bool)
+        B = np.column_stack([np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
+                             for rz, rx, _ in rhs])
+        Y = linalg.solve(A, B, check_finite=False)
+        out = []
+        for k, (rz, _, _) in enumerate(rhs):
+            fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
+            fz.ravel()[sites[~isx]] = Y[~isx, k]
+            fx.ravel()[sites[isx]] = Y[isx, k]
+            fx[P] = w * fz[P]
+            out.append((fz, fx, s.displacements(fz, fx)[0]))
+        return out
 
     def depth_at(self, D: float) -> float:
         """:math:`D_z` at pull displacement ``D``."""
@@ -734,15 +909,40 @@ class _State:
         if kind == "lost":
             C[j] = False
             S[j] = False
+            self.sigma.ravel()[j] = 0.0
+        elif kind == "stick":  # a slipping bond sticks again where it is
+            fz, fx, _ = self.at(D)
+            self.offset.ravel()[j] = self.solver.displacements(fz, fx)[1].ravel()[j] - D
+            S[j] = True
+            self.sigma.ravel()[j] = 0.0
         elif kind == "gained":
             C[j] = True
             if self.pulling and self.gained == "bonded":
                 # a new bond holds the elastic point where it is: no jump in any force
                 fz, fx, _ = self.at(D)
-                self.offset.ravel()[j] = self.solver.displacement_x(fz, fx, j) - D
+                self.offset.ravel()[j] = self.solver.displacements(fz, fx)[1].ravel()[j] - D
                 S[j] = True
-        else:
+        else:  # a bond fails: it breaks, or slips in the direction of its force (Coulomb)
             S[j] = False
+            if self.slip_law == "coulomb":
+                self.sigma.ravel()[j] = 1.0 if kind == "slip+" else -1.0
+
+    def reversal(self) -> int | None:
+        r"""A slipping bond whose slip would run against its force, or None: the one that
+        does so most (the lowest flat index among ties).
+
+        A bond slipping with :math:`f_x = \sigma\lambda f_z` lags behind the rigid surface,
+        :math:`\sigma\,(\partial u_x/\partial D_x - 1) \le 0`. The rate is constant over a
+        state and changes only when the sets change, so a reversal is found at the start of a
+        state, never inside one; such a bond sticks again where it is (its force is
+        continuous: it starts at its bound and moves inwards).
+        """
+        if self.u1x is None:
+            return None
+        P = self.C & ~self.S & (self.sigma != 0)
+        back = np.where(P, self.sigma * (self.u1x - 1.0), -np.inf).ravel()
+        j = int(np.argmax(back))
+        return j if back[j] > RATE_TIE else None
 
     def interval(self, D: float) -> tuple[float, float, str, int]:
         r"""The displacements at which this state is admissible, ``[lo, hi]``, and the event
@@ -868,6 +1068,7 @@ def _squeeze_bonded(st: _State) -> int:
             break
         st.C &= ~neg
         st.S &= ~neg
+        st.sigma[neg] = 0.0
     st.solve()  # the updated inverse from here on (the bulk passes may have used CG)
     seen: set[bytes] = set()
     while (v := st.violation(0.0)) is not None:
@@ -907,7 +1108,9 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
     st.pulling = True
     D = 0.0
     first = True
-    while st.S.any():
+    # until no bond holds; under the Coulomb law also until no slipping bond turns back
+    # (a bond slipping against the pull sticks again, even when every other one slips)
+    while st.S.any() or st.reversal() is not None:
         if len(path.events) + path.transient > limit:
             path.message = f"stopped after {limit} events"
             break
@@ -924,6 +1127,12 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
             lo = min(lo, D, hi)
         feasible = lo <= hi + tol_d
         if feasible and lo <= D + tol_d and hi >= D - tol_d:
+            j_back = st.reversal()
+            if j_back is not None:  # admissible at D, but a slipping bond would turn back
+                record(D, "stick", j_back)
+                st.apply("stick", j_back, D)
+                st.solve()
+                continue
             if not math.isfinite(hi):
                 path.message = "no further event: the remaining bonds never break"
                 break
@@ -953,6 +1162,8 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
 PULL_CONTROLS = ("depth", "force")
 #: how contacts gained during the pull enter (the first is the default)
 GAINED_RULES = ("unbonded", "bonded")
+#: what a failed bond carries (the first is the default)
+SLIP_LAWS = ("break", "coulomb")
 
 
 def _initial_contact(problem: Problem, force: float) -> np.ndarray:
@@ -973,6 +1184,7 @@ def couple(
     lam: float = 0.2,
     pull_control: str = "depth",
     gained: str = "unbonded",
+    slip_law: str = "break",
     method: str = "auto",
     tol: float = 1e-12,
     max_iter: int = 20_000,
@@ -1004,8 +1216,13 @@ def couple(
         default: in the report's model the bonds are the contacts of the squeeze, and the pull
         only breaks them), carrying a normal force and no tangential one; or ``"bonded"``, with
         a new bond that holds the elastic point where it is when the gap closes (so no force
-        jumps) and breaks by the same law. Contacts gained while the squeeze corrects its
+        jumps) and fails by the same law. Contacts gained while the squeeze corrects its
         sets, at :math:`D_x = 0`, always enter unbonded.
+    slip_law : {"break", "coulomb"}
+        What a bond carries once :math:`|f_x|` reaches :math:`\lambda f_z`: nothing
+        (``"break"``, the report's law), or :math:`f_x = \pm\lambda f_z` in the direction
+        of its force, following :math:`f_z` as it changes (``"coulomb"``: the site slips and,
+        the pull being monotonic, does not stick again, as in the decoupled Coulomb law).
     method : str
         ``"auto"`` or a name from :data:`SOLVERS`. The dense solver checks the memory of
         its inverse (:func:`dense_memory_bytes`) before each factorisation: ``dense``
@@ -1026,7 +1243,7 @@ def couple(
     CoupledResult
     """
     t0 = time.perf_counter()
-    geo = _check_couple(problem, depth, force, lam, pull_control, gained)
+    geo = _check_couple(problem, depth, force, lam, pull_control, gained, slip_law)
     depth = None if depth is None else finite(depth, "depth")
     force = None if force is None else finite(force, "force")
     requested = method
@@ -1040,13 +1257,13 @@ def couple(
             converged=True, seconds=time.perf_counter() - t0, solves=0, method=method,
             residual=0.0,  # nothing to solve
             message="no overlap: no contact", depth=0.0 if depth is None else depth,
-            pull_control=pull_control)
+            pull_control=pull_control, slip_law=slip_law)
     solver = SOLVERS.get(method)(problem, reference=reference, tol=tol, max_iter=max_iter,
                                  threads=problem.threads, fallback=requested == "auto")
     limit = max_events if max_events is not None else 20 * int(geo.sum()) + 100
     with blas_threads(1):  # the dense solver raises it for its BLAS-3 work
         st = _State(solver, problem.base, float(lam), geo, depth=depth, force=force,
-                    gained=gained)
+                    gained=gained, slip_law=slip_law, tol=tol)
         try:
             released = _squeeze_bonded(st)
             start = _Snapshot.of(st, 0.0)
@@ -1062,7 +1279,7 @@ def couple(
             path = _pull_events(st, limit, record_states)
         except NumericalError as exc:
             raise NumericalError(f"coupled model: {exc}") from None
-    residual = solver.residual()
+    residual = max(solver.residual(), st.worst)
     if solver.note:
         method = "cg"
     message = path.message
@@ -1080,7 +1297,7 @@ def couple(
         fz_peak=peak.fz, fx_peak=peak.fx, stick_peak=peak.stick, contact_peak=peak.contact,
         converged=not message, seconds=time.perf_counter() - t0, solves=solver.solves,
         blas_seconds=solver.blas_seconds, fallback=solver.note, method=method,
-        residual=residual,
+        residual=residual, slip_law=slip_law, slip_iterations=st.gmres_iterations,
         message="; ".join(filter(None, [solver.note, message or f"{len(path.events)} events, "
                                         f"{path.transient} transient state(s)"])),
         states=path.states, depth=float(squeezed_depth), pull_control=pull_control,
@@ -1088,7 +1305,7 @@ def couple(
 
 
 def _check_couple(problem: Problem, depth: float | None, force: float | None, lam: float,
-                  pull_control: str, gained: str) -> np.ndarray:
+                  pull_control: str, gained: str, slip_law: str) -> np.ndarray:
     """Validate the arguments of :func:`couple`; returns the starting contact set."""
     if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
         raise InputError(f"lam = {lam!r}: must be a finite number > 0")
@@ -1098,6 +1315,8 @@ def _check_couple(problem: Problem, depth: float | None, force: float | None, la
         raise InputError(f"pull_control = {pull_control!r}: must be 'depth' or 'force'")
     if gained not in GAINED_RULES:
         raise InputError(f"gained = {gained!r}: must be 'unbonded' or 'bonded'")
+    if slip_law not in SLIP_LAWS:
+        raise InputError(f"slip_law = {slip_law!r}: must be 'break' or 'coulomb'")
     if depth is not None:
         return problem.overlap(finite(depth, "depth")) > 0
     force = finite(force, "force")
@@ -1114,6 +1333,7 @@ def squeeze_pull_coupled(
     lam: float = 0.2,
     pull_control: str = "depth",
     gained: str = "unbonded",
+    slip_law: str = "break",
     a: float = 1.0,
     E: float = 1.0,
     nu: float = 0.3,
@@ -1134,5 +1354,5 @@ def squeeze_pull_coupled(
         heights, a=a, E=E, nu=nu, boundary=boundary, periodic_kernel=periodic_kernel, fft=fft,
         threads=threads)
     return couple(problem, depth=depth, force=force, lam=lam, pull_control=pull_control,
-                  gained=gained, method=method, tol=tol, max_iter=max_iter,
+                  gained=gained, slip_law=slip_law, method=method, tol=tol, max_iter=max_iter,
                   max_events=max_events, reference=reference, record_states=record_states)

@@ -246,7 +246,8 @@ class PullConfig:
 
     enabled: bool = _f(False, "run the pull stage")
     lam: float = _f(0.2, "local friction coefficient lambda", _positive)
-    slip_law: str = _f("break", "break: a slipped bond carries no force; coulomb: lam f_z",
+    slip_law: str = _f("break", "break: a slipped bond carries no force; coulomb: lam f_z "
+                       "(with coupling: as f_z changes, and a bond turned back sticks again)",
                        choices=SLIP_LAWS)
     method: str = _f("auto", PULL_METHODS.describe(), choices=PULL_METHODS.names())
     tol: float = _f(1e-10, "relative tolerance of the tangential solves", _tol_rule)
@@ -906,9 +907,6 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
                        "applies to depths only; use squeeze.force_unit with forces")
     if cfg.coupling.enabled and not cfg.pull.enabled:
         raise ctx.fail("coupling.enabled", True, "needs pull.enabled = true")
-    if cfg.coupling.enabled and cfg.pull.slip_law != "break":
-        raise ctx.fail("pull.slip_law", cfg.pull.slip_law,
-                       "the coupled model implements the break law only")
     es = cfg.elastic_surface
     tiled = [r for r in ("surface", "elastic_surface") if getattr(cfg, r) is not None
              and getattr(cfg, r).kind == "file" and getattr(cfg, r).tiles]

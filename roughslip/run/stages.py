@@ -135,11 +135,13 @@ class _CoupledSample:
         by = {"force": target} if cfg.control == "force" else {"depth": target}
         try:
             r = couple(pb, **by, lam=cfg.pull.lam, pull_control=cfg.coupling.pull_control,
-                       gained=cfg.coupling.gained, tol=min(cfg.pull.tol, 1e-10))
+                       gained=cfg.coupling.gained, slip_law=cfg.pull.slip_law,
+                       tol=min(cfg.pull.tol, 1e-10))
         except NumericalError as exc:
             raise NumericalError(f"{where}: {exc}") from None
         if cfg.execution.strict and not r.converged:
             raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
+        failed = "slipping" if r.slip_law == "coulomb" else "released"
         # one solve gives squeeze and pull: the squeeze has no iteration count of its own
         rec = Record(
             scalars=dict(depth_length=r.depth, normal_force=r.normal_force,
@@ -149,8 +151,8 @@ class _CoupledSample:
                          friction_normal_force=r.normal_force_at_peak,
                          pull_seconds=r.seconds, pull_converged=r.converged,
                          pull_steps=len(r.events), released_bonds=r.released),
-            notes=[f"{r.released} bond(s) released at D_x = 0"] + ([r.fallback] if r.fallback
-                                                                  else []),
+            notes=[f"{r.released} bond(s) {failed} at D_x = 0"] + ([r.fallback] if r.fallback
+                                                                   else []),
             contact=r.contact0,
         )
         f = rec.fields
