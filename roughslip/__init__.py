@@ -6,7 +6,13 @@ sideways until its contact bonds break (:func:`pull`). The documentation in ``do
 """
 
 from roughslip._version import __version__
-from roughslip.contact.coupled import CoupledResult, couple, squeeze_pull_coupled
+from roughslip.contact.coupled import (
+    CoupledResult,
+    IndentResult,
+    couple,
+    indent,
+    squeeze_pull_coupled,
+)
 from roughslip.contact.problem import Problem
 from roughslip.contact.pull import SlipResult, pull
 from roughslip.contact.squeeze import NormalResult, NormalSolver, squeeze
@@ -29,6 +35,7 @@ __all__ = [
     "CoupledResult",
     "ElasticOperator",
     "Grid",
+    "IndentResult",
     "InputError",
     "Material",
     "MemoryLimitError",
@@ -43,6 +50,7 @@ __all__ = [
     "SlipResult",
     "__version__",
     "couple",
+    "indent",
     "load_config",
     "pull",
     "squeeze",

@@ -2,14 +2,16 @@
 
     python scripts/coupling_effect.py [--sizes 64] [--samples 10] [--nu 0.0 0.25 0.45]
                                       [--depths 8] [--no-hertz] [--out runs/coupling]
+                                      [--slip-law break|coulomb]
 
 The report's own open question ([Report2003] §6.1). For each nu (default 0, 0.25, 0.45) it
 runs the decoupled model (the report's) and the coupled model with exact event tracking on rough
 surfaces (H = 0.8, ``--samples`` samples, ``--depths`` depths 0.3-2 rms, one grid per
 ``--sizes``) and on the Hertz sphere (configs/hertz.toml), and prints the friction exponent alpha
 of F_friction ~ F_n^alpha for both, the mean ratio of the friction forces, and the fraction of
-bonds released already at D_x = 0 under coupling. Prints Markdown (docs/results.md holds the
-output of a run).
+bonds released already at D_x = 0 under coupling (slipping, under ``--slip-law coulomb``, which
+runs both models with the Coulomb law). Prints Markdown (docs/results.md holds the output of a
+run).
 """
 
 from __future__ import annotations
@@ -57,10 +59,12 @@ def main() -> None:
     ap.add_argument("--no-hertz", action="store_true", help="skip the Hertz scene")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "coupling")
+    ap.add_argument("--slip-law", choices=["break", "coulomb"], default="break")
     args = ap.parse_args()
+    law = args.slip_law
     args.out.mkdir(parents=True, exist_ok=True)
     print(f"# cores: {os.cpu_count()}; rough: N = {args.sizes}, {args.samples} samples, "
-          f"H = 0.8, {args.depths} depths 0.3-2 rms; Hertz: N = 64; lambda = 0.2\n")
+          f"H = 0.8, {args.depths} depths 0.3-2 rms; Hertz: N = 64; lambda = 0.2; slip law {law}\n")
     print("| scene | N | nu | alpha decoupled | alpha coupled | F_fric coupled / decoupled "
           "| bonds released at D_x = 0 | seconds (dec / coup) |")
     print("|---|---|---|---|---|---|---|---|")
@@ -77,8 +81,10 @@ def main() -> None:
             paths, secs = {}, {}
             for coupled in (False, True):
                 cfg = load_config(ROOT / "configs" / name, [*base, f"material.nu={nu}",
-                                  f"coupling.enabled={'true' if coupled else 'false'}"])
-                p = args.out / f"{scene}_nu{nu}_{'coupled' if coupled else 'decoupled'}.h5"
+                                  f"coupling.enabled={'true' if coupled else 'false'}",
+                                  f"pull.slip_law='{law}'"])
+                tag = "" if law == "break" else f"_{law}"
+                p = args.out / f"{scene}_nu{nu}{tag}_{'coupled' if coupled else 'decoupled'}.h5"
                 t0 = time.perf_counter()
                 run(cfg, p, workers=args.workers, overwrite=True)
                 secs[coupled] = time.perf_counter() - t0

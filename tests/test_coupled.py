@@ -464,3 +464,98 @@ def test_coulomb_law_at_half_poisson_ratio_is_the_decoupled_coulomb_pull(heights
     assert c.friction_force == pytest.approx(0.2 * normal.normal_force, rel=1e-9)
     with pytest.raises(InputError, match="slip_law"):
         squeeze_pull_coupled(h, depth=depth, slip_law="viscous")
+
+
+# -- frictional indentation ----------------------------------------------------------------------
+def _cylinder(n=64, radius=None):
+    """A parabolic cylinder along y on one row: with a grid periodic in y the fields do not
+    depend on y (plane strain)."""
+    x = np.arange(n) - (n - 1) / 2
+    return (-x**2 / (2 * (radius or n * n / 256)))[None, :]
+
+
+def test_indentation_at_half_poisson_ratio_is_the_frictionless_squeeze():
+    """At nu = 1/2 nothing couples: every site touches and stays stuck with no tangential
+    force, and the normal forces are the frictionless squeeze's at the same depth."""
+    from roughslip.contact.coupled import indent
+    from roughslip.contact.problem import Problem
+
+    h = sphere((14, 14), radius=12.0)
+    r = indent(Problem.from_arrays(h, nu=0.5), depth=0.8, lam=0.2)
+    normal = squeeze(h, depth=0.8, nu=0.5, tol=1e-13)
+    assert r.converged and r.depth == 0.8
+    assert {e.kind for e in r.events} == {"start", "gained", "end"}
+    assert np.array_equal(r.contact, normal.contact) and np.array_equal(r.stick, r.contact)
+    assert np.allclose(r.fz, normal.fz, rtol=0, atol=1e-11 * normal.fz.max())
+    assert np.all(r.fx == 0) and r.normal_force == pytest.approx(normal.normal_force, rel=1e-12)
+    assert np.all(np.diff(r.contact_counts) >= 0) and r.contact_counts[-1] == r.contact.sum()
+
+
+@pytest.mark.parametrize("case", ["sphere", "cylinder"])
+def test_indentation_agrees_between_the_solvers_and_the_direct_reference(case):
+    """Coulomb law during the approach: the updated inverse, matrix-free GMRES and the direct
+    reference follow the same events to 1e-8, every state is admissible, and slip runs the
+    way the theory says: for nu < 1/2 the surface is drawn towards the middle of the contact,
+    so friction pushes it outwards (f_x < 0 on the left, > 0 on the right of a cylinder)."""
+    from roughslip.contact.coupled import indent
+    from roughslip.contact.problem import Problem
+
+    if case == "sphere":
+        pb = Problem.from_arrays(sphere((12, 12), radius=10.0), nu=0.0)
+        kw = dict(depth=0.6, lam=0.1)
+    else:
+        pb = Problem.from_arrays(_cylinder(128), nu=0.0, boundary="periodic")
+        kw = dict(depth=1.0, lam=0.3)
+    ref = indent(pb, method="dense", reference=True, record_states=True, **kw)
+    inc = indent(pb, method="dense", **kw)
+    fft = indent(pb, method="cg", tol=1e-13, **kw)
+    assert ref.converged and inc.converged and fft.converged
+    kinds = [e.kind for e in ref.events]
+    assert kinds.count("gained") > 10 and "slip+" in kinds and "slip-" in kinds
+    for other in (inc, fft):
+        assert [(e.kind, e.site) for e in other.events] == [(e.kind, e.site) for e in ref.events]
+        assert np.allclose(other.dz, ref.dz, rtol=1e-8, atol=1e-12)
+        assert np.allclose(other.fz, ref.fz, rtol=0, atol=1e-8 * ref.fz.max())
+        assert np.allclose(other.fx, ref.fx, rtol=0, atol=1e-8 * ref.fz.max())
+    _coulomb_admissible(ref, kw["lam"])
+    if case == "cylinder":
+        idx = np.flatnonzero(ref.contact[0])
+        mid = (pb.shape[1] - 1) / 2
+        slip = ref.slip[0]
+        assert np.all(slip[idx[idx < mid]] <= 0) and np.all(slip[idx[idx > mid]] >= 0)
+        stuck = np.flatnonzero(ref.stick[0])
+        assert stuck.size and np.all(np.diff(stuck) == 1)  # one central stick zone
+
+
+def test_the_stick_zone_of_a_loaded_cylinder_keeps_its_proportion():
+    """Monotonic loading of a parabolic profile is self-similar in the continuum: the stick
+    zone keeps a constant fraction c/a of the contact. The discrete model holds it to the
+    pixel over the second half of a loading to a = 30 pixels, and each new contact costs a
+    couple of events (no back-and-forth of the slip zone)."""
+    from roughslip.contact.coupled import indent
+    from roughslip.contact.problem import Problem
+
+    r = indent(Problem.from_arrays(_cylinder(512), nu=0.25, boundary="periodic"), depth=1.0,
+               lam=0.2)
+    c, s = r.contact_counts, r.stick_counts
+    kinds = np.array([e.kind for e in r.events])
+    late = (kinds == "gained") & (c >= c[-1] // 2)
+    ratio = s[late] / c[late]
+    assert c[-1] >= 55 and late.sum() >= 14
+    assert np.ptp(ratio) <= 2.0 * 2 / c[-1] + 0.05  # a pixel each side, and a margin
+    assert 0 < ratio.min() and ratio.max() < 1
+    assert len(r.events) <= 4 * (kinds == "gained").sum()
+
+
+def test_indentation_rejects_bad_input():
+    from roughslip.contact.coupled import indent
+    from roughslip.contact.problem import Problem
+
+    pb = Problem.from_arrays(sphere((8, 8), radius=5.0), nu=0.3)
+    for kw, match in (({"depth": -1.0}, "depth"), ({"depth": float("nan")}, "depth"),
+                      ({"depth": 1.0, "lam": 0.0}, "lam"),
+                      ({"depth": 1.0, "slip_law": "glue"}, "slip_law")):
+        with pytest.raises(InputError, match=match):
+            indent(pb, **kw)
+    r = indent(pb, depth=0.0)
+    assert r.normal_force == 0 and r.converged

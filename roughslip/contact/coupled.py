@@ -50,7 +50,7 @@ from __future__ import annotations
 import hashlib
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -671,6 +671,9 @@ class _State:
         self.d0, self.d1 = (depth if depth is not None else math.nan), 0.0
         #: solve for the rate in D_x too (the pull); the squeeze at D_x = 0 needs none
         self.slope = True
+        #: what the loop's parameter D moves: "x", the pull D_x (at a depth or force held);
+        #: "z", the depth D_z itself at D_x = 0 (frictional indentation, :func:`indent`)
+        self.drive = "x"
 
     def hold_depth(self, depth: float) -> None:
         """Switch to displacement control at ``depth`` (then call :meth:`solve`)."""
@@ -711,6 +714,13 @@ class _State:
     def _solve_forces(self, bulk: bool) -> None:
         s = self.solver
         s.prepare(self.C, self.S, bulk=bulk)
+        if self.drive == "z":  # u_z = b + D on C: f = f(b) + D f(1_C), g = u_z - b - D
+            sols = self._solve_many([(self.base, self.offset, "0"),
+                                     (self.ones, self.zero, "1")])
+            self.f0, self.g0 = sols[0][:2], sols[0][2] - self.base
+            self.f1, self.g1 = sols[1][:2], sols[1][2] - 1.0
+            self.d0, self.d1 = 0.0, 1.0
+            return
         slope = self.slope and bool(self.S.any())
         tail = [(self.zero, self.ones, "1")] if slope else []
         if self.force is None:
@@ -874,6 +884,10 @@ class _State:
         """:math:`D_z` at pull displacement ``D``."""
         return self.d0 + self.d1 * D
 
+    def dx_at(self, D: float) -> float:
+        """:math:`D_x` at the loop's parameter ``D`` (0 when the depth is driven)."""
+        return D if self.drive == "x" else 0.0
+
     def at(self, D: float):
         if not math.isfinite(D):
             raise NumericalError(f"the pull reached a non-finite displacement D_x = {D!r}")
@@ -912,7 +926,8 @@ class _State:
             self.sigma.ravel()[j] = 0.0
         elif kind == "stick":  # a slipping bond sticks again where it is
             fz, fx, _ = self.at(D)
-            self.offset.ravel()[j] = self.solver.displacements(fz, fx)[1].ravel()[j] - D
+            self.offset.ravel()[j] = (self.solver.displacements(fz, fx)[1].ravel()[j]
+                                      - self.dx_at(D))
             S[j] = True
             self.sigma.ravel()[j] = 0.0
         elif kind == "gained":
@@ -920,7 +935,8 @@ class _State:
             if self.pulling and self.gained == "bonded":
                 # a new bond holds the elastic point where it is: no jump in any force
                 fz, fx, _ = self.at(D)
-                self.offset.ravel()[j] = self.solver.displacements(fz, fx)[1].ravel()[j] - D
+                self.offset.ravel()[j] = (self.solver.displacements(fz, fx)[1].ravel()[j]
+                                          - self.dx_at(D))
                 S[j] = True
         else:  # a bond fails: it breaks, or slips in the direction of its force (Coulomb)
             S[j] = False
@@ -940,9 +956,12 @@ class _State:
         if self.u1x is None:
             return None
         P = self.C & ~self.S & (self.sigma != 0)
-        back = np.where(P, self.sigma * (self.u1x - 1.0), -np.inf).ravel()
-        j = int(np.argmax(back))
-        return j if back[j] > RATE_TIE else None
+        rigid = 1.0 if self.drive == "x" else 0.0  # the rigid surface's tangential rate
+        back = np.where(P, self.sigma * (self.u1x - rigid), -np.inf).ravel()
+        top = float(back.max())
+        if not top > RATE_TIE:
+            return None
+        return int(np.flatnonzero(back >= top - TIE * max(1.0, top))[0])
 
     def interval(self, D: float) -> tuple[float, float, str, int]:
         r"""The displacements at which this state is admissible, ``[lo, hi]``, and the event
@@ -1001,6 +1020,8 @@ class _State:
 def _argext(a: np.ndarray, mask: np.ndarray, how: str) -> int:
     vals = np.where(mask, a, np.inf if how == "min" else -np.inf).ravel()
     ext = vals.min() if how == "min" else vals.max()
+    if not math.isfinite(ext):  # an infinite extreme (a bond with no normal force left)
+        return int(np.flatnonzero((vals == ext) & mask.ravel())[0])
     close = np.abs(vals - ext) <= TIE * max(abs(ext), np.finfo(float).tiny)
     return int(np.flatnonzero(close & mask.ravel())[0])
 
@@ -1091,15 +1112,19 @@ class _Path:
     peak: _Snapshot
     transient: int = 0
     message: str = ""
+    #: (contact sites, stick sites) at every recorded event
+    counts: list[tuple[int, int]] = field(default_factory=list)
 
 
-def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
-    """Follow the events from D_x = 0 until no bond is left (module docstring)."""
+def _pull_events(st: _State, limit: int, record_states: bool, end: float = math.inf) -> _Path:
+    """Follow the events from D = 0 (module docstring): for a pull until no bond is left, for
+    a driven depth (:func:`indent`) until ``end``."""
     path = _Path([], [] if record_states else None, _Snapshot.of(st, 0.0))
 
     def record(D: float, kind: str, site: int) -> None:
         F_x, F_z = st.totals(D)
-        path.events.append(Event(D, F_x, F_z, kind, site, st.depth_at(D)))
+        path.events.append(Event(st.dx_at(D), F_x, F_z, kind, site, st.depth_at(D)))
+        path.counts.append((int(st.C.sum()), int(st.S.sum())))
         if path.states is not None:
             fz, fx, g = st.at(D)
             path.states.append((D, fz.copy(), fx.copy(), g.copy(), st.C.copy(), st.S.copy()))
@@ -1110,7 +1135,7 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
     first = True
     # until no bond holds; under the Coulomb law also until no slipping bond turns back
     # (a bond slipping against the pull sticks again, even when every other one slips)
-    while st.S.any() or st.reversal() is not None:
+    while (D < end if math.isfinite(end) else st.S.any() or st.reversal() is not None):
         if len(path.events) + path.transient > limit:
             path.message = f"stopped after {limit} events"
             break
@@ -1127,12 +1152,20 @@ def _pull_events(st: _State, limit: int, record_states: bool) -> _Path:
             lo = min(lo, D, hi)
         feasible = lo <= hi + tol_d
         if feasible and lo <= D + tol_d and hi >= D - tol_d:
-            j_back = st.reversal()
-            if j_back is not None:  # admissible at D, but a slipping bond would turn back
+            # admissible at D, but a slipping bond would turn back: it sticks again, unless
+            # an event is due at D itself (a bound reached at once), which goes first (it
+            # changes the rates: a new contact that sticks and at once slips would otherwise
+            # turn the whole slip zone back and forth)
+            j_back = st.reversal() if hi > D + tol_d else None
+            if j_back is not None:
                 record(D, "stick", j_back)
                 st.apply("stick", j_back, D)
                 st.solve()
                 continue
+            if hi > end:  # the driven depth reaches its end before the next event
+                D = end
+                record(D, "end", -1)
+                break
             if not math.isfinite(hi):
                 path.message = "no further event: the remaining bonds never break"
                 break
@@ -1323,6 +1356,124 @@ def _check_couple(problem: Problem, depth: float | None, force: float | None, la
     if force < 0:
         raise InputError(f"force = {force:g}: must be >= 0")
     return _initial_contact(problem, force) if force > 0 else np.zeros(problem.shape, bool)
+
+
+@dataclass(frozen=True)
+class IndentResult:
+    """Outcome of :func:`indent` (fields indexed ``[iy, ix]``, at the final depth)."""
+
+    depth: float
+    normal_force: float
+    tangential_force: float  # F_x: zero for a surface symmetric in x
+    events: list[Event]  # Event.dz is the depth of each event (Event.dx = 0)
+    contact_counts: np.ndarray  # contact sites at every event
+    stick_counts: np.ndarray  # stick sites at every event
+    fz: np.ndarray
+    fx: np.ndarray
+    contact: np.ndarray
+    stick: np.ndarray
+    slip: np.ndarray  # slip direction (+1, -1) of slipping sites, 0 elsewhere
+    converged: bool
+    seconds: float
+    solves: int
+    method: str
+    residual: float
+    slip_law: str = "coulomb"
+    message: str = ""
+    #: with ``record_states=True``: (D_z, f_z, f_x, gap, contact, stick) at every event
+    states: list | None = None
+
+    @property
+    def dz(self) -> np.ndarray:
+        return np.array([e.dz for e in self.events])
+
+
+def indent(
+    problem: Problem,
+    *,
+    depth: float,
+    lam: float = 0.2,
+    slip_law: str = "coulomb",
+    method: str = "auto",
+    tol: float = 1e-12,
+    max_iter: int = 20_000,
+    max_events: int | None = None,
+    reference: bool = False,
+    record_states: bool = False,
+) -> IndentResult:
+    r"""Frictional indentation: the rigid surface approaches from first touch to ``depth``,
+    with no tangential motion (:math:`D_x = 0`), under the coupled model
+    (docs/theory/coupled.rst#coupled-indentation).
+
+    Every site sticks where it touches (a bond holding the elastic point where it met the
+    rigid surface), and the bonds fail by the slip law as the normal forces and the coupling
+    load them: under ``"coulomb"`` they slip with :math:`f_x = \pm\lambda f_z` and stick
+    again when their slip would reverse; under ``"break"`` they carry nothing after. The
+    events are found exactly as in the pull, with the depth as the parameter: every force is
+    affine in :math:`D_z` between events. This is the setting of Spence's frictional Hertz
+    problem; on a profile that does not depend on y, on a grid periodic in y, it is the plane
+    (cylinder) problem.
+
+    Parameters
+    ----------
+    problem : Problem
+    depth : float
+        Final penetration :math:`D_z` from first touch.
+    lam : float
+        Local friction coefficient.
+    slip_law : {"coulomb", "break"}
+    method, tol, max_iter, reference, record_states
+        As in :func:`couple`.
+    max_events : int, optional
+        Stop after this many events (default ``20 x overlap sites + 100``).
+
+    Returns
+    -------
+    IndentResult
+    """
+    t0 = time.perf_counter()
+    if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
+        raise InputError(f"lam = {lam!r}: must be a finite number > 0")
+    if slip_law not in SLIP_LAWS:
+        raise InputError(f"slip_law = {slip_law!r}: must be 'break' or 'coulomb'")
+    depth = finite(depth, "depth")
+    if depth < 0:
+        raise InputError(f"depth = {depth:g}: must be >= 0")
+    requested, method = method, _choose_solver(method)
+    solver = SOLVERS.get(method)(problem, reference=reference, tol=tol, max_iter=max_iter,
+                                 threads=problem.threads, fallback=requested == "auto")
+    top = problem.base >= 0.0  # the highest pixels touch at D_z = 0
+    limit = max_events if max_events is not None else \
+        20 * int((problem.overlap(depth) > 0).sum()) + 100
+    with blas_threads(1):
+        st = _State(solver, problem.base, float(lam), top, depth=0.0, gained="bonded",
+                    slip_law=slip_law, tol=tol)
+        st.drive = "z"
+        st.scale_g = max(depth, float(np.finfo(float).tiny))
+        try:
+            st.solve()
+            path = _pull_events(st, limit, record_states, end=depth)
+        except NumericalError as exc:
+            raise NumericalError(f"coupled indentation: {exc}") from None
+    D = path.events[-1].dz
+    fz, fx, _ = st.at(D)
+    residual = max(solver.residual(), st.worst)
+    message = path.message or (f"worst block-solve residual {residual:.2e}"
+                               if residual > 10 * tol else "")
+    for name, arr in (("fz", fz), ("fx", fx)):
+        if not np.all(np.isfinite(arr)):
+            raise NumericalError(f"coupled indentation: non-finite {name}")
+    counts = np.array(path.counts, dtype=np.int64).reshape(-1, 2)
+    return IndentResult(
+        depth=float(D), normal_force=float(fz.sum()), tangential_force=float(fx.sum()),
+        events=path.events, contact_counts=counts[:, 0], stick_counts=counts[:, 1],
+        fz=fz, fx=fx, contact=st.C.copy(), stick=st.S.copy(),
+        slip=np.where(st.C & ~st.S, st.sigma, 0.0).astype(np.int8), converged=not message,
+        seconds=time.perf_counter() - t0, solves=solver.solves,
+        method="cg" if solver.note else method, residual=residual, slip_law=slip_law,
+        message="; ".join(filter(None, [solver.note, message or f"{len(path.events)} events, "
+                                        f"{path.transient} transient state(s)"])),
+        states=path.states)
 
 
 def squeeze_pull_coupled(
