@@ -559,3 +559,9 @@ def test_indentation_rejects_bad_input():
             indent(pb, **kw)
     r = indent(pb, depth=0.0)
     assert r.normal_force == 0 and r.converged
+    # on a periodic grid the depth is measured from the mean plane: it has a limit
+    per = Problem.from_arrays(_cylinder(32), nu=0.3, boundary="periodic")
+    too_deep = per.depth_limit() + 0.1
+    for call in (indent, squeeze_pull_coupled):
+        with pytest.raises(InputError, match="max\\(h\\) - mean\\(h\\)"):
+            call(per, depth=too_deep)

@@ -1351,7 +1351,7 @@ def _check_couple(problem: Problem, depth: float | None, force: float | None, la
     if slip_law not in SLIP_LAWS:
         raise InputError(f"slip_law = {slip_law!r}: must be 'break' or 'coulomb'")
     if depth is not None:
-        return problem.overlap(finite(depth, "depth")) > 0
+        return problem.overlap(problem.check_depth(depth)) > 0
     force = finite(force, "force")
     if force < 0:
         raise InputError(f"force = {force:g}: must be >= 0")
@@ -1436,7 +1436,7 @@ def indent(
         raise InputError(f"lam = {lam!r}: must be a finite number > 0")
     if slip_law not in SLIP_LAWS:
         raise InputError(f"slip_law = {slip_law!r}: must be 'break' or 'coulomb'")
-    depth = finite(depth, "depth")
+    depth = problem.check_depth(depth)
     if depth < 0:
         raise InputError(f"depth = {depth:g}: must be >= 0")
     requested, method = method, _choose_solver(method)

@@ -162,6 +162,17 @@ class Problem:
         periodic grids (the force diverges as the mean gap closes), infinite on open ones."""
         return self.hmax - self.hmean if self.grid.boundary == "periodic" else math.inf
 
+    def check_depth(self, depth: float) -> float:
+        """``depth`` as a float, checked: finite, and below :meth:`depth_limit`."""
+        depth = finite(depth, "depth")
+        if depth >= self.depth_limit():
+            raise InputError(
+                f"depth = {depth:g}: on a periodic grid displacement control needs "
+                f"depth < max(h) - mean(h) = {self.depth_limit():g} (the force diverges "
+                "as the mean gap closes); use load control (force=...) instead"
+            )
+        return depth
+
     # -- operators ---------------------------------------------------------------------------
     def operator(self, *components: str) -> ElasticOperator:
         """The convolution operator, with the spectra of ``components`` built (once)."""

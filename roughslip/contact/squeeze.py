@@ -215,13 +215,7 @@ class NormalSolver:
             raise InputError("give exactly one of depth and force")
         pb = self.problem
         if depth is not None:
-            depth = finite(depth, "depth")
-            if depth >= pb.depth_limit():
-                raise InputError(
-                    f"depth = {depth:g}: on a periodic grid displacement control needs "
-                    f"depth < max(h) - mean(h) = {pb.depth_limit():g} (the force diverges "
-                    "as the mean gap closes); use load control (force=...) instead"
-                )
+            depth = pb.check_depth(depth)
         else:
             force = finite(force, "force")
             if force < 0:
