@@ -55,6 +55,7 @@ from typing import Protocol
 
 import numpy as np
 from scipy import linalg
+from scipy.sparse.linalg import LinearOperator, gmres
 
 from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem, finite
@@ -657,7 +658,8 @@ class _State:
         self.worst = 0.0  # worst relative residual of the solves with slip forces
         self.u1x: np.ndarray | None = None  # rate of u_x in D_x, with slipping bonds
         self.gmres_iterations = 0
-        self._warm: dict[str, np.ndarray] = {}
+        #: the last forces (f_z, f_x) with slip by right-hand side: GMRES's starting points
+        self._warm: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.pulling = False  # contacts gained while pulling follow the rule ``gained``
         #: bond offsets: a bond formed at D_x = D_g holds u_x = D_x + o, o = u_x(D_g) - D_g
         self.offset = np.zeros(base.shape)
@@ -794,8 +796,6 @@ class _State:
     def _slip_solve(self, rz: np.ndarray, rx: np.ndarray, key: str, P: np.ndarray,
                     w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The forces with the slip law on P for one right-hand side (:meth:`_solve_many`)."""
-        from scipy.sparse.linalg import LinearOperator, gmres
-
         s = self.solver
         fz0, fx0, _ = s.solve(rz, rx, key)
 
@@ -828,8 +828,6 @@ class _State:
                          w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Matrix-free: GMRES on the whole non-symmetric system, one FFT product per
         iteration, warm-started from the last solution of the same right-hand side."""
-        from scipy.sparse.linalg import LinearOperator, gmres
-
         C, S = self.C, self.S
         nc, n = int(C.sum()), int(C.sum() + S.sum())
 
@@ -948,7 +946,9 @@ class _State:
         does so most (the lowest flat index among ties).
 
         A bond slipping with :math:`f_x = \sigma\lambda f_z` lags behind the rigid surface,
-        :math:`\sigma\,(\partial u_x/\partial D_x - 1) \le 0`. The rate is constant over a
+        :math:`\sigma\,(\partial u_x/\partial D - v) \le 0` with :math:`v` the rigid
+        surface's tangential rate (1 in a pull, 0 when the depth is driven). The rate is
+        constant over a
         state and changes only when the sets change, so a reversal is found at the start of a
         state, never inside one; such a bond sticks again where it is (its force is
         continuous: it starts at its bound and moves inwards).
