@@ -238,6 +238,14 @@ def test_auto_records_its_choice(rough_contact):
     assert "auto chose inverse" in res.message
     assert choose_method(10) == "literal"
     assert choose_method(10**6, memory=2**30) == "cg"
+    # the Coulomb law has the inverse only: auto takes it for a tiny contact too (it chose
+    # the literal algorithm, which then refused the law)
+    assert choose_method(10, slip_law="coulomb") == "inverse"
+    tiny = squeeze(sphere((9, 9), radius=20.0), depth=0.02, tol=1e-13)
+    assert 0 < tiny.n_contact <= 12
+    res = pull(tiny, slip_law="coulomb")
+    assert res.method == "inverse"
+    assert res.friction_force == pytest.approx(0.2 * tiny.normal_force, rel=1e-12)
 
 
 def test_memory_guard_refuses_the_inverse(rough_contact):

@@ -722,14 +722,17 @@ def bond_spectrum(normal: NormalResult, *, rtol: float = 1e-2, threads: int | No
     return lo, hi
 
 
-def choose_method(n: int, memory: int | None = None) -> str:
+def choose_method(n: int, memory: int | None = None, slip_law: str = "break") -> str:
     """The exact method ``"auto"`` picks for ``n`` bonds given ``memory`` bytes.
 
     The inverse (~n^3 flops, ~n^2 doubles) whenever it fits in memory and the LAPACK can
     index it (measured on 2 cores: 41 s for 13 074 bonds; for 3 271 bonds 1.2 s against
     141 s for one warm-started CG solve per break); otherwise the matrix-free exact method.
-    Tiny contacts use the literal algorithm.
+    Tiny contacts use the literal algorithm. The Coulomb law has the inverse only, which
+    checks its memory itself.
     """
+    if slip_law == "coulomb":
+        return "inverse"
     memory = available_bytes() if memory is None else memory
     if n <= 12:
         return "literal"
@@ -811,7 +814,7 @@ def pull(
         return _Curve(b, early_stop).result(t0, method, converged=True,
                                             message="no contact: nothing to pull",
                                             slip_law=slip_law)
-    chosen = choose_method(b.n) if impl.run is None else method
+    chosen = choose_method(b.n, slip_law=slip_law) if impl.run is None else method
     impl = METHODS.get(chosen)
     if slip_law not in impl.laws:
         laws = [n for n in METHODS if METHODS.get(n).run is None or slip_law in

@@ -907,6 +907,13 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
                        "applies to depths only; use squeeze.force_unit with forces")
     if cfg.coupling.enabled and not cfg.pull.enabled:
         raise ctx.fail("coupling.enabled", True, "needs pull.enabled = true")
+    if cfg.pull.enabled and not cfg.coupling.enabled:
+        pm = PULL_METHODS.get(cfg.pull.method)
+        if pm.run is not None and cfg.pull.slip_law not in pm.laws:
+            laws = [n for n in PULL_METHODS.names() if PULL_METHODS.get(n).run is None
+                    or cfg.pull.slip_law in PULL_METHODS.get(n).laws]
+            raise ctx.fail("pull.method", cfg.pull.method,
+                           f"slip_law = {cfg.pull.slip_law!r} needs one of {', '.join(laws)}")
     es = cfg.elastic_surface
     tiled = [r for r in ("surface", "elastic_surface") if getattr(cfg, r) is not None
              and getattr(cfg, r).kind == "file" and getattr(cfg, r).tiles]
