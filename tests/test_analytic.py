@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from roughslip.contact import analytic as A
@@ -40,3 +41,20 @@ def test_cattaneo_mindlin_limits_and_the_mindlin_stiffness():
     assert slope == pytest.approx(A.mindlin_bonded_punch_stiffness(a, E, nu), rel=1e-14)
     G = A.shear_modulus(E, 0.5)
     assert A.mindlin_bonded_punch_stiffness(a, E, 0.5) == pytest.approx(16 / 3 * G * a)
+
+
+def test_plane_indentation_stick_ratio_converges_and_spans_no_stick_to_full_stick():
+    """The stick fraction of the frictional plane indentation in the uncoupled-pressure limit:
+    the collocation converges (n = 40 and 80 give the same Richardson value to 5e-4), c/a
+    grows with lam / beta, with no stick zone at lam / beta = 0.2 and a stuck contact at 3."""
+    from roughslip.contact.analytic import plane_indentation_stick_ratio
+
+    ratios = [0.4, 0.6, 1.0, 1.5]
+    k80 = [plane_indentation_stick_ratio(r) for r in ratios]
+    k40 = [plane_indentation_stick_ratio(r, n=40) for r in ratios]
+    assert np.allclose(k40, k80, rtol=0, atol=5e-4)
+    assert np.all(np.diff(k80) > 0) and 0 < k80[0] and k80[-1] < 1
+    assert plane_indentation_stick_ratio(0.2) == 0.0
+    assert plane_indentation_stick_ratio(3.0) == 1.0
+    with pytest.raises(ValueError, match="lam_over_beta"):
+        plane_indentation_stick_ratio(-1.0)
