@@ -151,6 +151,25 @@ def test_dense_solver_checks_its_memory_first():
     assert free.fallback == ""
     assert [(e.kind, e.site) for e in tight.events] == [(e.kind, e.site) for e in free.events]
     assert tight.friction_force == pytest.approx(free.friction_force, rel=1e-8)
+    # the same under the Coulomb law: the matrix-free path solves the slip forces by GMRES on
+    # the whole system, and the indentation falls back in the same way
+    kw = dict(depth=2.5, lam=0.25, nu=0.25, slip_law="coulomb")
+    free = squeeze_pull_coupled(h, **kw)
+    with memory.limited(0.5 * need / 2**30):
+        tight = squeeze_pull_coupled(h, tol=1e-13, **kw)
+    from roughslip.contact.coupled import indent
+    from roughslip.contact.problem import Problem
+
+    pb = Problem.from_arrays(h, nu=0.25)
+    with memory.limited(0.02 * need / 2**30):  # the indentation grows its inverse from one site
+        ind_tight = indent(pb, depth=2.5, lam=0.25, tol=1e-13)
+    ind_free = indent(pb, depth=2.5, lam=0.25)
+    assert tight.method == "cg" and free.method == "dense" and ind_tight.method == "cg"
+    assert [(e.kind, e.site) for e in tight.events] == [(e.kind, e.site) for e in free.events]
+    assert tight.friction_force == pytest.approx(free.friction_force, rel=1e-8)
+    assert [(e.kind, e.site) for e in ind_tight.events] == \
+        [(e.kind, e.site) for e in ind_free.events]
+    assert np.allclose(ind_tight.fx, ind_free.fx, rtol=0, atol=1e-8 * ind_free.fz.max())
 
 
 @pytest.mark.parametrize(("seed", "depth_rms"), [(1, 2.0), (6, 3.0), (39, 4.0)])
