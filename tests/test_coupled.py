@@ -14,6 +14,17 @@ from roughslip.errors import InputError
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
 
 
+def _assert_same_path(other, ref):
+    """The same events as the reference, and the same pull curve to 1e-8 (the solvers'
+    agreement criterion throughout)."""
+    assert [(e.kind, e.site) for e in other.events] == [(e.kind, e.site) for e in ref.events]
+    assert np.allclose(other.dx, ref.dx, rtol=1e-8, atol=1e-12)
+    assert np.allclose(other.fx, ref.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
+    assert np.allclose(other.fz, ref.fz, rtol=1e-8)
+    assert np.allclose(other.dz, ref.dz, rtol=1e-8)
+    assert other.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
+
+
 def rough(n=14, seed=3):
     return self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(seed, 0),
                        oversample=2)
@@ -204,11 +215,7 @@ def test_force_held_pull_agrees_between_solvers_and_holds_the_force(nu):
     assert ref.converged and inc.converged and fft.converged
     assert len(ref.events) + ref.released > 20  # releases at D_x = 0 are decisions too
     for other in (inc, fft):
-        assert [(e.kind, e.site) for e in other.events] == [(e.kind, e.site) for e in ref.events]
-        assert np.allclose(other.dx, ref.dx, rtol=1e-8, atol=1e-12)
-        assert np.allclose(other.fx, ref.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
-        assert np.allclose(other.dz, ref.dz, rtol=1e-8)
-        assert other.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
+        _assert_same_path(other, ref)
     assert np.allclose(ref.fz, F, rtol=1e-10)  # the force is held
     assert ref.normal_force == pytest.approx(F, rel=1e-12)
     assert np.ptp(ref.dz) > 1e-6 * ref.depth  # ... and the depth moves
@@ -426,11 +433,7 @@ def test_coulomb_law_agrees_between_the_solvers_and_the_direct_reference(nu):
     assert ref.converged and inc.converged and fft.converged and ref.slip_law == "coulomb"
     assert len(ref.events) + ref.released > 20
     for other in (inc, fft):
-        assert [(e.kind, e.site) for e in other.events] == [(e.kind, e.site) for e in ref.events]
-        assert np.allclose(other.dx, ref.dx, rtol=1e-8, atol=1e-12)
-        assert np.allclose(other.fx, ref.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
-        assert np.allclose(other.fz, ref.fz, rtol=1e-8)
-        assert other.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
+        _assert_same_path(other, ref)
         assert other.residual <= 10 * 1e-12
     assert inc.slip_iterations > 0 and ref.slip_iterations == 0
     assert _coulomb_admissible(ref, 0.25) > 10
@@ -555,7 +558,8 @@ def test_the_stick_zone_of_a_loaded_cylinder_is_the_continuum_one(ratio):
     At nu = 0.49 (beta lam < 5e-4) and a period of about 900 contact half-widths (the period
     biases c/a by about 1.7 a/L), the discrete model holds c/a to a pixel at each end of the
     stick zone over the second half of a loading to a = 37 pixels, its median within a pixel
-    of the continuum value, and each new contact costs a couple of events."""
+    of the continuum value, and each new contact costs a couple of events (not the 24 of a
+    slip zone sticking and slipping again at every new contact)."""
     from roughslip.contact.analytic import plane_indentation_stick_ratio
     from roughslip.contact.coupled import indent
     from roughslip.contact.problem import Problem
@@ -568,9 +572,11 @@ def test_the_stick_zone_of_a_loaded_cylinder_is_the_continuum_one(ratio):
     kinds = np.array([e.kind for e in r.events])
     late = (kinds == "gained") & (c >= c[-1] // 2)
     frac = s[late] / c[late]
-    pixel = 2 / c[-1]  # one site at each end of the stick zone
+    pixel = 2 / c[-1]  # one site at each end of the stick zone, at the end of the loading
     assert c[-1] >= 70 and late.sum() >= 15
-    assert np.ptp(frac) <= 2 * pixel + 0.01
+    # each end of the stick zone within a site of its place: a spread of two such steps, at
+    # the smallest contact of the window
+    assert np.ptp(frac) <= 2 * (2 / c[late].min())
     assert abs(np.median(frac) - plane_indentation_stick_ratio(ratio)) <= pixel
     assert len(r.events) <= 4 * (kinds == "gained").sum()
 

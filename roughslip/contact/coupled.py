@@ -59,6 +59,7 @@ from scipy.sparse.linalg import LinearOperator, gmres
 
 from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem, finite
+from roughslip.contact.pull import check_friction
 from roughslip.errors import InputError, MemoryLimitError, NumericalError
 from roughslip.linalg import lapack64
 from roughslip.linalg.cg import cg
@@ -647,7 +648,8 @@ class _State:
 
     def __init__(self, solver, base: np.ndarray, lam: float, C: np.ndarray, *,
                  depth: float | None = None, force: float | None = None,
-                 gained: str = "unbonded", slip_law: str = "break", tol: float = 1e-12):
+                 gained: str = "unbonded", slip_law: str = "break", tol: float = 1e-12,
+                 drive: str = "x"):
         self.solver, self.base, self.lam = solver, base, lam
         self.gained = gained
         self.slip_law, self.tol = slip_law, tol
@@ -674,8 +676,9 @@ class _State:
         #: solve for the rate in D_x too (the pull); the squeeze at D_x = 0 needs none
         self.slope = True
         #: what the loop's parameter D moves: "x", the pull D_x (at a depth or force held);
-        #: "z", the depth D_z itself at D_x = 0 (frictional indentation, :func:`indent`)
-        self.drive = "x"
+        #: "z", the depth D_z itself at D_x = 0, up to ``depth`` (frictional indentation,
+        #: :func:`indent`; ``depth`` then only sets the gap scale)
+        self.drive = drive
 
     def hold_depth(self, depth: float) -> None:
         """Switch to displacement control at ``depth`` (then call :meth:`solve`)."""
@@ -1195,8 +1198,43 @@ def _pull_events(st: _State, limit: int, record_states: bool, end: float = math.
 PULL_CONTROLS = ("depth", "force")
 #: how contacts gained during the pull enter (the first is the default)
 GAINED_RULES = ("unbonded", "bonded")
-#: what a failed bond carries (the first is the default)
-SLIP_LAWS = ("break", "coulomb")
+
+
+def _make_solver(problem: Problem, method: str, reference: bool, tol: float,
+                 max_iter: int) -> tuple[BlockSolver, str]:
+    """The block solver for ``method`` (``auto`` starts dense and may fall back to CG) and
+    the name of its class."""
+    name = _choose_solver(method)
+    solver = SOLVERS.get(name)(problem, reference=reference, tol=tol, max_iter=max_iter,
+                               threads=problem.threads, fallback=method == "auto")
+    return solver, name
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """How a coupled solve ended: the worst residual, whether it converged, the message, and
+    the solver that finished it."""
+
+    residual: float
+    converged: bool
+    message: str
+    method: str
+
+    @classmethod
+    def of(cls, solver, st: _State, path: _Path, method: str, tol: float) -> _Outcome:
+        residual = max(solver.residual(), st.worst)
+        problem = path.message or (f"worst block-solve residual {residual:.2e}"
+                                   if residual > 10 * tol else "")
+        summary = problem or f"{len(path.events)} events, {path.transient} transient state(s)"
+        return cls(residual, not problem, "; ".join(filter(None, [solver.note, summary])),
+                   "cg" if solver.note else method)
+
+
+def _check_finite(where: str, **fields: np.ndarray) -> None:
+    """A non-finite result field is an error, never a silent NaN."""
+    for name, arr in fields.items():
+        if not np.all(np.isfinite(arr)):
+            raise NumericalError(f"{where}: non-finite {name}")
 
 
 def _initial_contact(problem: Problem, force: float) -> np.ndarray:
@@ -1279,20 +1317,17 @@ def couple(
     geo = _check_couple(problem, depth, force, lam, pull_control, gained, slip_law)
     depth = None if depth is None else finite(depth, "depth")
     force = None if force is None else finite(force, "force")
-    requested = method
-    method = _choose_solver(method)
     if not geo.any():
         z = np.zeros(problem.shape)
         return CoupledResult(
             friction_force=0.0, normal_force_at_peak=0.0, peak_dx=0.0, events=[],
             normal_force=0.0, contact_area=0.0, released=0, fz0=z, fx0=z, contact0=geo,
             stick0=geo, fz_peak=z, fx_peak=z, stick_peak=geo, contact_peak=geo,
-            converged=True, seconds=time.perf_counter() - t0, solves=0, method=method,
-            residual=0.0,  # nothing to solve
+            converged=True, seconds=time.perf_counter() - t0, solves=0,
+            method=_choose_solver(method), residual=0.0,  # nothing to solve
             message="no overlap: no contact", depth=0.0 if depth is None else depth,
             pull_control=pull_control, slip_law=slip_law)
-    solver = SOLVERS.get(method)(problem, reference=reference, tol=tol, max_iter=max_iter,
-                                 threads=problem.threads, fallback=requested == "auto")
+    solver, method = _make_solver(problem, method, reference, tol, max_iter)
     limit = max_events if max_events is not None else 20 * int(geo.sum()) + 100
     with blas_threads(1):  # the dense solver raises it for its BLAS-3 work
         st = _State(solver, problem.base, float(lam), geo, depth=depth, force=force,
@@ -1312,44 +1347,33 @@ def couple(
             path = _pull_events(st, limit, record_states)
         except NumericalError as exc:
             raise NumericalError(f"coupled model: {exc}") from None
-    residual = max(solver.residual(), st.worst)
-    if solver.note:
-        method = "cg"
-    message = path.message
-    if not message and residual > 10 * tol:
-        message = f"worst block-solve residual {residual:.2e}"
     peak = path.peak
-    for name, arr in (("fz", start.fz), ("fx", start.fx), ("fz at peak", peak.fz)):
-        if not np.all(np.isfinite(arr)):
-            raise NumericalError(f"coupled model: non-finite {name}")
+    _check_finite("coupled model", fz=start.fz, fx=start.fx, **{"fz at peak": peak.fz})
+    out = _Outcome.of(solver, st, path, method, tol)
     return CoupledResult(
         friction_force=float(peak.fx_total), normal_force_at_peak=float(peak.fz_total),
         peak_dx=float(peak.dx), events=path.events, normal_force=float(start.fz.sum()),
         contact_area=float(start.contact.sum()) / start.contact.size, released=released,
         fz0=start.fz, fx0=start.fx, contact0=start.contact, stick0=start.stick,
         fz_peak=peak.fz, fx_peak=peak.fx, stick_peak=peak.stick, contact_peak=peak.contact,
-        converged=not message, seconds=time.perf_counter() - t0, solves=solver.solves,
-        blas_seconds=solver.blas_seconds, fallback=solver.note, method=method,
-        residual=residual, slip_law=slip_law, slip_iterations=st.gmres_iterations,
-        message="; ".join(filter(None, [solver.note, message or f"{len(path.events)} events, "
-                                        f"{path.transient} transient state(s)"])),
-        states=path.states, depth=float(squeezed_depth), pull_control=pull_control,
+        converged=out.converged, seconds=time.perf_counter() - t0, solves=solver.solves,
+        blas_seconds=solver.blas_seconds, fallback=solver.note, method=out.method,
+        residual=out.residual, slip_law=slip_law, slip_iterations=st.gmres_iterations,
+        message=out.message, states=path.states, depth=float(squeezed_depth),
+        pull_control=pull_control,
     )
 
 
 def _check_couple(problem: Problem, depth: float | None, force: float | None, lam: float,
                   pull_control: str, gained: str, slip_law: str) -> np.ndarray:
     """Validate the arguments of :func:`couple`; returns the starting contact set."""
-    if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
-        raise InputError(f"lam = {lam!r}: must be a finite number > 0")
+    check_friction(lam, slip_law)
     if (depth is None) == (force is None):
         raise InputError("give exactly one of depth and force")
     if pull_control not in PULL_CONTROLS:
         raise InputError(f"pull_control = {pull_control!r}: must be 'depth' or 'force'")
     if gained not in GAINED_RULES:
         raise InputError(f"gained = {gained!r}: must be 'unbonded' or 'bonded'")
-    if slip_law not in SLIP_LAWS:
-        raise InputError(f"slip_law = {slip_law!r}: must be 'break' or 'coulomb'")
     if depth is not None:
         return problem.overlap(problem.check_depth(depth)) > 0
     force = finite(force, "force")
@@ -1432,24 +1456,17 @@ def indent(
     IndentResult
     """
     t0 = time.perf_counter()
-    if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
-        raise InputError(f"lam = {lam!r}: must be a finite number > 0")
-    if slip_law not in SLIP_LAWS:
-        raise InputError(f"slip_law = {slip_law!r}: must be 'break' or 'coulomb'")
+    check_friction(lam, slip_law)
     depth = problem.check_depth(depth)
     if depth < 0:
         raise InputError(f"depth = {depth:g}: must be >= 0")
-    requested, method = method, _choose_solver(method)
-    solver = SOLVERS.get(method)(problem, reference=reference, tol=tol, max_iter=max_iter,
-                                 threads=problem.threads, fallback=requested == "auto")
+    solver, method = _make_solver(problem, method, reference, tol, max_iter)
     top = problem.base >= 0.0  # the highest pixels touch at D_z = 0
     limit = max_events if max_events is not None else \
         20 * int((problem.overlap(depth) > 0).sum()) + 100
     with blas_threads(1):
-        st = _State(solver, problem.base, float(lam), top, depth=0.0, gained="bonded",
-                    slip_law=slip_law, tol=tol)
-        st.drive = "z"
-        st.scale_g = max(depth, float(np.finfo(float).tiny))
+        st = _State(solver, problem.base, float(lam), top, depth=depth, gained="bonded",
+                    slip_law=slip_law, tol=tol, drive="z")
         try:
             st.solve()
             path = _pull_events(st, limit, record_states, end=depth)
@@ -1457,23 +1474,16 @@ def indent(
             raise NumericalError(f"coupled indentation: {exc}") from None
     D = path.events[-1].dz
     fz, fx, _ = st.at(D)
-    residual = max(solver.residual(), st.worst)
-    message = path.message or (f"worst block-solve residual {residual:.2e}"
-                               if residual > 10 * tol else "")
-    for name, arr in (("fz", fz), ("fx", fx)):
-        if not np.all(np.isfinite(arr)):
-            raise NumericalError(f"coupled indentation: non-finite {name}")
+    _check_finite("coupled indentation", fz=fz, fx=fx)
+    out = _Outcome.of(solver, st, path, method, tol)
     counts = np.array(path.counts, dtype=np.int64).reshape(-1, 2)
     return IndentResult(
         depth=float(D), normal_force=float(fz.sum()), tangential_force=float(fx.sum()),
         events=path.events, contact_counts=counts[:, 0], stick_counts=counts[:, 1],
         fz=fz, fx=fx, contact=st.C.copy(), stick=st.S.copy(),
-        slip=np.where(st.C & ~st.S, st.sigma, 0.0).astype(np.int8), converged=not message,
-        seconds=time.perf_counter() - t0, solves=solver.solves,
-        method="cg" if solver.note else method, residual=residual, slip_law=slip_law,
-        message="; ".join(filter(None, [solver.note, message or f"{len(path.events)} events, "
-                                        f"{path.transient} transient state(s)"])),
-        states=path.states)
+        slip=np.where(st.C & ~st.S, st.sigma, 0.0).astype(np.int8), converged=out.converged,
+        seconds=time.perf_counter() - t0, solves=solver.solves, method=out.method,
+        residual=out.residual, slip_law=slip_law, message=out.message, states=path.states)
 
 
 def squeeze_pull_coupled(

@@ -722,6 +722,21 @@ def bond_spectrum(normal: NormalResult, *, rtol: float = 1e-2, threads: int | No
     return lo, hi
 
 
+def check_friction(lam: float, slip_law: str) -> None:
+    """Raise :class:`InputError` unless ``lam`` is a finite number > 0 and ``slip_law`` one of
+    :data:`SLIP_LAWS` (the pull, the coupled model and the indentation share the rule)."""
+    if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
+        raise InputError(f"lam = {lam!r}: must be a finite number > 0")
+    if slip_law not in SLIP_LAWS:
+        raise InputError(f"slip_law = {slip_law!r}: must be 'break' or 'coulomb'")
+
+
+def methods_for(slip_law: str) -> list[str]:
+    """The pull methods that accept ``slip_law`` (``auto`` chooses among them)."""
+    return [n for n in METHODS.names() if METHODS.get(n).run is None
+            or slip_law in METHODS.get(n).laws]
+
+
 def choose_method(n: int, memory: int | None = None, slip_law: str = "break") -> str:
     """The exact method ``"auto"`` picks for ``n`` bonds given ``memory`` bytes.
 
@@ -795,10 +810,7 @@ def pull(
     SlipResult
     """
     t0 = time.perf_counter()
-    if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
-        raise InputError(f"lam = {lam!r}: must be a finite number > 0")
-    if slip_law not in SLIP_LAWS:
-        raise InputError(f"slip_law = {slip_law!r}: must be 'break' or 'coulomb'")
+    check_friction(lam, slip_law)
     impl = METHODS.get(method)
     if not 0 < tol < 1:
         raise InputError(f"tol = {tol!r}: must satisfy 0 < tol < 1")
@@ -817,10 +829,8 @@ def pull(
     chosen = choose_method(b.n, slip_law=slip_law) if impl.run is None else method
     impl = METHODS.get(chosen)
     if slip_law not in impl.laws:
-        laws = [n for n in METHODS if METHODS.get(n).run is None or slip_law in
-                METHODS.get(n).laws]
-        raise InputError(f"slip_law = {slip_law!r} supports methods {', '.join(laws)}, not "
-                         f"{chosen!r}")
+        raise InputError(f"slip_law = {slip_law!r} supports methods "
+                         f"{', '.join(methods_for(slip_law))}, not {chosen!r}")
     if impl.dense:
         # Dense linear algebra gets the threads, and the certification's FFTs run on one
         # thread beside it; FFT-bound CG loops keep BLAS single-threaded (competing FFTW and

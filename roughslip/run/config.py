@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from roughslip.contact.pull import METHODS as PULL_METHODS
-from roughslip.contact.pull import SLIP_LAWS
+from roughslip.contact.pull import SLIP_LAWS, methods_for
 from roughslip.contact.squeeze import METHODS as SQUEEZE_METHODS
 from roughslip.errors import ConfigError
 from roughslip.run import schema
@@ -908,10 +908,8 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
     if cfg.coupling.enabled and not cfg.pull.enabled:
         raise ctx.fail("coupling.enabled", True, "needs pull.enabled = true")
     if cfg.pull.enabled and not cfg.coupling.enabled:
-        pm = PULL_METHODS.get(cfg.pull.method)
-        if pm.run is not None and cfg.pull.slip_law not in pm.laws:
-            laws = [n for n in PULL_METHODS.names() if PULL_METHODS.get(n).run is None
-                    or cfg.pull.slip_law in PULL_METHODS.get(n).laws]
+        laws = methods_for(cfg.pull.slip_law)
+        if cfg.pull.method not in laws:
             raise ctx.fail("pull.method", cfg.pull.method,
                            f"slip_law = {cfg.pull.slip_law!r} needs one of {', '.join(laws)}")
     es = cfg.elastic_surface
