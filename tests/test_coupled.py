@@ -101,6 +101,7 @@ def test_coupling_is_felt_at_zero_pull():
     assert abs(res.events[0].fx) > 1e-6 * res.normal_force
     kinds = {e.kind for e in res.events}
     assert "slip+" in kinds
+    assert 0 < res.squeeze_seconds < res.seconds  # the time until the pull starts, a part
 
 
 def test_no_contact_and_bad_input():

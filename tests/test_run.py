@@ -241,6 +241,10 @@ def test_coupled_run_end_to_end(tmp_path):
     assert np.all(np.isnan(r.scalars["iterations"]))
     assert np.all(r.scalars["residual"] <= 1e-10)
     assert np.all(np.isnan(r.scalars["pull_error_estimate"]))
+    # one solve gives both: the squeeze's time and the pull's are its two parts, not its total
+    # stored twice
+    sq, pl = r.scalars["seconds"], r.scalars["pull_seconds"]
+    assert np.all(sq > 0) and np.all(pl > 0) and not np.array_equal(sq, pl)
     # nu = 1/2: no coupling, the decoupled path is used and the run says so
     half = {**data, "material": {"nu": 0.5}}
     r2 = CliRunner().invoke(cli, ["run", str(write_cfg(tmp_path, half, "half.toml")), "-o",

@@ -103,10 +103,13 @@ class CoupledResult:
     stick_peak: np.ndarray
     contact_peak: np.ndarray
     converged: bool
-    seconds: float
+    seconds: float  # the whole solve: squeeze, release at D_x = 0 and pull
     solves: int
     method: str
     message: str = ""
+    #: of :attr:`seconds`, those until the pull starts (the squeeze and the release of the
+    #: bonds it overloads at D_x = 0)
+    squeeze_seconds: float = math.nan
     #: worst relative residual of the block solves against the FFT operator (both solvers)
     residual: float = math.nan
     #: D_z after the squeeze (given, or found under load control)
@@ -1324,6 +1327,7 @@ def couple(
             normal_force=0.0, contact_area=0.0, released=0, fz0=z, fx0=z, contact0=geo,
             stick0=geo, fz_peak=z, fx_peak=z, stick_peak=geo, contact_peak=geo,
             converged=True, seconds=time.perf_counter() - t0, solves=0,
+            squeeze_seconds=time.perf_counter() - t0,
             method=_choose_solver(method), residual=0.0,  # nothing to solve
             message="no overlap: no contact", depth=0.0 if depth is None else depth,
             pull_control=pull_control, slip_law=slip_law)
@@ -1336,6 +1340,7 @@ def couple(
             released = _squeeze_bonded(st)
             start = _Snapshot.of(st, 0.0)
             squeezed_depth = st.depth_at(0.0)
+            t_squeeze = time.perf_counter() - t0
             # the pull holds what it is asked to: switch the control if the squeeze used the
             # other one (the state at D_x = 0 is the same); the pull needs the rates in D_x
             if pull_control == "depth" and force is not None:
@@ -1357,7 +1362,8 @@ def couple(
         fz0=start.fz, fx0=start.fx, contact0=start.contact, stick0=start.stick,
         fz_peak=peak.fz, fx_peak=peak.fx, stick_peak=peak.stick, contact_peak=peak.contact,
         converged=out.converged, seconds=time.perf_counter() - t0, solves=solver.solves,
-        blas_seconds=solver.blas_seconds, fallback=solver.note, method=out.method,
+        squeeze_seconds=t_squeeze, blas_seconds=solver.blas_seconds, fallback=solver.note,
+        method=out.method,
         residual=out.residual, slip_law=slip_law, slip_iterations=st.gmres_iterations,
         message=out.message, states=path.states, depth=float(squeezed_depth),
         pull_control=pull_control,

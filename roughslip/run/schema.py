@@ -54,11 +54,11 @@ COLUMNS: tuple[Column, ...] = (
            "against the FFT operator)"),
     Column("converged", "squeeze", "1 when the squeeze met its tolerance", "flag"),
     Column("seconds", "squeeze", "squeeze wall-clock time (a measurement, differs between "
-           "runs)"),
+           "runs; coupled model: the part of its solve before the pull starts)"),
     Column("friction_force", "pull", "static friction force: the peak of the pull curve"),
     Column("friction_normal_force", "pull", "normal force of the pulled state"),
     Column("pull_seconds", "pull", "pull wall-clock time (a measurement, differs between "
-           "runs)"),
+           "runs; coupled model: the rest of its solve)"),
     Column("pull_converged", "pull", "1 when every pull solve met its tolerance", "flag"),
     Column("pull_steps", "pull", "bonds broken (or sites slipped, or coupled events) until "
            "the pull stopped", "count"),

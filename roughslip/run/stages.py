@@ -142,14 +142,15 @@ class _CoupledSample:
         if cfg.execution.strict and not r.converged:
             raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
         failed = "slipping" if r.slip_law == "coulomb" else "released"
-        # one solve gives squeeze and pull: the squeeze has no iteration count of its own
+        # one solve gives squeeze and pull: the squeeze has no iteration count of its own, and
+        # its time is the part of the solve before the pull starts
         rec = Record(
             scalars=dict(depth_length=r.depth, normal_force=r.normal_force,
                          contact_area=r.contact_area, residual=r.residual,
-                         converged=r.converged, seconds=r.seconds,
+                         converged=r.converged, seconds=r.squeeze_seconds,
                          friction_force=r.friction_force,
                          friction_normal_force=r.normal_force_at_peak,
-                         pull_seconds=r.seconds, pull_converged=r.converged,
+                         pull_seconds=r.seconds - r.squeeze_seconds, pull_converged=r.converged,
                          pull_steps=len(r.events), released_bonds=r.released),
             notes=[f"{r.released} bond(s) {failed} at D_x = 0"] + ([r.fallback] if r.fallback
                                                                    else []),
