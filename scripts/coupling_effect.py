@@ -2,7 +2,7 @@
 
     python scripts/coupling_effect.py [--sizes 64] [--samples 10] [--nu 0.0 0.25 0.45]
                                       [--depths 8] [--no-hertz] [--out runs/coupling]
-                                      [--slip-law break|coulomb]
+                                      [--slip-law break|coulomb] [--resume]
 
 The report's own open question ([Report2003] §6.1). For each nu (default 0, 0.25, 0.45) it
 runs the decoupled model (the report's) and the coupled model with exact event tracking on rough
@@ -11,7 +11,9 @@ surfaces (H = 0.8, ``--samples`` samples, ``--depths`` depths 0.3-2 rms, one gri
 of F_friction ~ F_n^alpha for both, the mean ratio of the friction forces, and the fraction of
 bonds released already at D_x = 0 under coupling (slipping, under ``--slip-law coulomb``, which
 runs both models with the Coulomb law). Prints Markdown (docs/results.md holds the output of a
-run).
+run). ``--resume`` continues the run files an interrupted invocation with the same options left
+in ``--out`` (their completed samples are kept; the seconds column then counts this
+invocation's work only).
 """
 
 from __future__ import annotations
@@ -60,6 +62,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "coupling")
     ap.add_argument("--slip-law", choices=["break", "coulomb"], default="break")
+    ap.add_argument("--resume", action="store_true",
+                    help="continue the run files of an interrupted invocation")
     args = ap.parse_args()
     law = args.slip_law
     args.out.mkdir(parents=True, exist_ok=True)
@@ -86,7 +90,8 @@ def main() -> None:
                 tag = "" if law == "break" else f"_{law}"
                 p = args.out / f"{scene}_nu{nu}{tag}_{'coupled' if coupled else 'decoupled'}.h5"
                 t0 = time.perf_counter()
-                run(cfg, p, workers=args.workers, overwrite=True)
+                resume = args.resume and p.exists()
+                run(cfg, p, workers=args.workers, resume=resume, overwrite=not resume)
                 secs[coupled] = time.perf_counter() - t0
                 paths[coupled] = p
             fd = fit_files([paths[False]])[0].fit
