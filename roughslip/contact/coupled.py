@@ -514,6 +514,28 @@ class _Dense:
         self.cache = {}
 
     # -- solutions -----------------------------------------------------------------------------
+    def _layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The live rows, the site of each, and whether it holds f_x (else f_z)."""
+        rows = np.flatnonzero(self.live)
+        ids = self.ids[rows]
+        return rows, ids >> 1, (ids & 1).astype(bool)
+
+    def _to_rows(self, rz: np.ndarray, rx: np.ndarray, layout) -> np.ndarray:
+        """The right-hand side on the rows (zero on dead rows)."""
+        rows, sites, isx = layout
+        b = np.zeros(self.m)
+        b[rows] = np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
+        return b
+
+    def _to_fields(self, x: np.ndarray, layout, shape: tuple[int, ...]
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """The solution on the rows as force fields (f_z, f_x)."""
+        rows, sites, isx = layout
+        fz, fx = np.zeros(shape), np.zeros(shape)
+        fz.ravel()[sites[~isx]] = x[rows[~isx]]
+        fx.ravel()[sites[isx]] = x[rows[isx]]
+        return fz, fx
+
     def _displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(u_z, u_x) on the grid: FFT, or dense sums for the reference."""
         if not self.reference:
@@ -539,13 +561,11 @@ class _Dense:
             out = self.bulk.solve_many(rhs)
             self.worst = max(self.worst, self.bulk.worst)
             return out
-        rows = np.flatnonzero(self.live)
-        ids = self.ids[rows]
-        sites, isx = ids >> 1, (ids & 1).astype(bool)
+        layout = self._layout()
+        rows, sites, isx = layout
         bs, xs, todo = [], [], []
         for k, (rz, rx, key) in enumerate(rhs):
-            b = np.zeros(self.m)
-            b[rows] = np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
+            b = self._to_rows(rz, rx, layout)
             hit = self.cache.get(key)
             if hit is not None and np.array_equal(hit[0], b):
                 xs.append(hit[1])
@@ -561,9 +581,7 @@ class _Dense:
         for (rz, rx, key), b, x in zip(rhs, bs, xs, strict=True):
             scale = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
             for attempt in range(self.refinements + 1):
-                fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
-                fz.ravel()[sites[~isx]] = x[rows[~isx]]
-                fx.ravel()[sites[isx]] = x[rows[isx]]
+                fz, fx = self._to_fields(x, layout, rz.shape)
                 uz, ux = self._displacements(fz, fx)
                 r = np.zeros(self.m)
                 r[rows] = b[rows] - np.where(isx, ux.ravel()[sites], uz.ravel()[sites])
@@ -582,16 +600,9 @@ class _Dense:
     def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(f_z, f_x) = the current inverse times the right-hand side, uncertified (the inner
         products of the Coulomb solves, whose result is certified as a whole)."""
-        rows = np.flatnonzero(self.live)
-        ids = self.ids[rows]
-        sites, isx = ids >> 1, (ids & 1).astype(bool)
-        b = np.zeros(self.m)
-        b[rows] = np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
-        x = self._apply(b[:, None])[:, 0]
-        fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
-        fz.ravel()[sites[~isx]] = x[rows[~isx]]
-        fx.ravel()[sites[isx]] = x[rows[isx]]
-        return fz, fx
+        layout = self._layout()
+        x = self._apply(self._to_rows(rz, rx, layout)[:, None])[:, 0]
+        return self._to_fields(x, layout, rz.shape)
 
 
 @SOLVERS.register("cg", "matrix-free: warm-started CG on the restricted FFT block operator")
@@ -683,6 +694,11 @@ class _State:
         #: :func:`indent`; ``depth`` then only sets the gap scale)
         self.drive = drive
 
+    @property
+    def slipping(self) -> np.ndarray:
+        """The slipping bonds: contact sites off the stick set with a slip direction."""
+        return self.C & ~self.S & (self.sigma != 0)
+
     def hold_depth(self, depth: float) -> None:
         """Switch to displacement control at ``depth`` (then call :meth:`solve`)."""
         self.depth, self.force = depth, None
@@ -716,7 +732,7 @@ class _State:
         bonds, also the rate of :math:`u_x` (one more FFT product), for :meth:`reversal`."""
         self._solve_forces(bulk)
         self.u1x = None
-        if self.slope and (self.C & ~self.S & (self.sigma != 0)).any():
+        if self.slope and self.slipping.any():
             self.u1x = self.solver.displacements(*self.f1)[1]
 
     def _solve_forces(self, bulk: bool) -> None:
@@ -774,7 +790,7 @@ class _State:
         when its residual is above tol. The dense reference solves the non-symmetric system
         directly instead.
         """
-        P = self.C & ~self.S & (self.sigma != 0)
+        P = self.slipping
         if not P.any():
             return self.solver.solve_many(rhs)
         w = self.lam * self.sigma[P]
@@ -929,23 +945,24 @@ class _State:
             S[j] = False
             self.sigma.ravel()[j] = 0.0
         elif kind == "stick":  # a slipping bond sticks again where it is
-            fz, fx, _ = self.at(D)
-            self.offset.ravel()[j] = (self.solver.displacements(fz, fx)[1].ravel()[j]
-                                      - self.dx_at(D))
-            S[j] = True
+            self._bond_here(j, D)
             self.sigma.ravel()[j] = 0.0
         elif kind == "gained":
             C[j] = True
             if self.pulling and self.gained == "bonded":
-                # a new bond holds the elastic point where it is: no jump in any force
-                fz, fx, _ = self.at(D)
-                self.offset.ravel()[j] = (self.solver.displacements(fz, fx)[1].ravel()[j]
-                                          - self.dx_at(D))
-                S[j] = True
+                self._bond_here(j, D)
         else:  # a bond fails: it breaks, or slips in the direction of its force (Coulomb)
             S[j] = False
             if self.slip_law == "coulomb":
                 self.sigma.ravel()[j] = 1.0 if kind == "slip+" else -1.0
+
+    def _bond_here(self, j: int, D: float) -> None:
+        """Bond site ``j`` at the elastic point where it is at ``D``: its offset makes the
+        bond hold :math:`u_x = D_x + o` from here, so no force jumps."""
+        fz, fx, _ = self.at(D)
+        ux = self.solver.displacements(fz, fx)[1]
+        self.offset.ravel()[j] = ux.ravel()[j] - self.dx_at(D)
+        self.S.ravel()[j] = True
 
     def reversal(self) -> int | None:
         r"""A slipping bond whose slip would run against its force, or None: the one that
@@ -961,7 +978,7 @@ class _State:
         """
         if self.u1x is None:
             return None
-        P = self.C & ~self.S & (self.sigma != 0)
+        P = self.slipping
         rigid = 1.0 if self.drive == "x" else 0.0  # the rigid surface's tangential rate
         back = np.where(P, self.sigma * (self.u1x - rigid), -np.inf).ravel()
         top = float(back.max())
@@ -1203,6 +1220,11 @@ PULL_CONTROLS = ("depth", "force")
 GAINED_RULES = ("unbonded", "bonded")
 
 
+def _event_limit(max_events: int | None, overlap: np.ndarray) -> int:
+    """``max_events``, by default 20 events per site of the geometric overlap, plus 100."""
+    return max_events if max_events is not None else 20 * int(overlap.sum()) + 100
+
+
 def _make_solver(problem: Problem, method: str, reference: bool, tol: float,
                  max_iter: int) -> tuple[BlockSolver, str]:
     """The block solver for ``method`` (``auto`` starts dense and may fall back to CG) and
@@ -1295,8 +1317,8 @@ def couple(
     slip_law : {"break", "coulomb"}
         What a bond carries once :math:`|f_x|` reaches :math:`\lambda f_z`: nothing
         (``"break"``, the report's law), or :math:`f_x = \pm\lambda f_z` in the direction
-        of its force, following :math:`f_z` as it changes (``"coulomb"``: the site slips and,
-        the pull being monotonic, does not stick again, as in the decoupled Coulomb law).
+        of its force, following :math:`f_z` as it changes (``"coulomb"``; a slipping bond
+        whose slip the pull would turn around sticks again where it is, event ``"stick"``).
     method : str
         ``"auto"`` or a name from :data:`SOLVERS`. The dense solver checks the memory of
         its inverse (:func:`dense_memory_bytes`) before each factorisation: ``dense``
@@ -1332,7 +1354,7 @@ def couple(
             message="no overlap: no contact", depth=0.0 if depth is None else depth,
             pull_control=pull_control, slip_law=slip_law)
     solver, method = _make_solver(problem, method, reference, tol, max_iter)
-    limit = max_events if max_events is not None else 20 * int(geo.sum()) + 100
+    limit = _event_limit(max_events, geo)
     with blas_threads(1):  # the dense solver raises it for its BLAS-3 work
         st = _State(solver, problem.base, float(lam), geo, depth=depth, force=force,
                     gained=gained, slip_law=slip_law, tol=tol)
@@ -1468,8 +1490,7 @@ def indent(
         raise InputError(f"depth = {depth:g}: must be >= 0")
     solver, method = _make_solver(problem, method, reference, tol, max_iter)
     top = problem.base >= 0.0  # the highest pixels touch at D_z = 0
-    limit = max_events if max_events is not None else \
-        20 * int((problem.overlap(depth) > 0).sum()) + 100
+    limit = _event_limit(max_events, problem.overlap(depth) > 0)
     with blas_threads(1):
         st = _State(solver, problem.base, float(lam), top, depth=depth, gained="bonded",
                     slip_law=slip_law, tol=tol, drive="z")
