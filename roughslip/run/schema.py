@@ -62,10 +62,11 @@ COLUMNS: tuple[Column, ...] = (
     Column("pull_converged", "pull", "1 when every pull solve met its tolerance", "flag"),
     Column("pull_steps", "pull", "bonds broken (or sites slipped, or coupled events) until "
            "the pull stopped", "count"),
-    Column("pull_error_estimate", "pull", "estimate (not a bound) of the relative error of "
-           "friction_force: batch-size sensitivity for method 'batch'; with "
-           "pull.error_estimate, Lanczos condition estimate x certified residual for the exact "
-           "methods; NaN when not estimated"),
+    Column("pull_error_estimate", "pull", "with pull.error_estimate: estimate of the relative "
+           "error of friction_force by one refinement step on the peak state (exact break-law "
+           "methods; within a factor 2 of the true error on the verify scenes; it does not "
+           "see the error of the normal forces f_z), 0 for the Coulomb law; NaN when not "
+           "estimated and for method 'batch', which has no estimate"),
     Column("released_bonds", "coupled", "coupled model: contact sites whose bond is released "
            "at D_x = 0", "count"),
 )

@@ -95,11 +95,10 @@ class _DecoupledSample:
             raise NumericalError(f"{where}: pull: {exc}") from None
         if cfg.execution.strict and not s.converged:
             raise ConvergenceError(f"{where}: pull did not converge: {s.message}")
-        estimated = s.method == "batch" or pl.error_estimate
         rec.scalars.update(friction_force=s.friction_force,
                            friction_normal_force=s.normal_force, pull_seconds=s.seconds,
                            pull_converged=s.converged, pull_steps=s.steps)
-        if estimated:
+        if pl.error_estimate:  # NaN for the batch method, which has none
             rec.scalars["pull_error_estimate"] = s.error_estimate
         if "fx" in want:
             rec.fields["fx"] = s.fx_at_peak
