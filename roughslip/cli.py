@@ -18,7 +18,7 @@ from typing import Any
 import click
 
 from roughslip._version import __version__
-from roughslip.errors import RoughslipError
+from roughslip.errors import RoughslipError, VerificationError
 
 
 def _fail(message: str, code: int) -> None:
@@ -291,24 +291,34 @@ def bursts_cmd(files, min_tail, as_json, plot_path):
 
 
 @cli.command("verify")
-@click.option("--quick", is_flag=True, help="Small sizes and two tolerances (under a minute).")
-@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
-              help="Write error against run time, log-log (needs the plot extra).")
+@click.option("--quick", is_flag=True, help="Small sizes (about ten seconds).")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print JSON (the points of the diagrams and the checks of the estimates).")
+@click.option("--plot", "plot_path", type=click.Path(),
+              help="Write the work-precision diagrams: one PNG per scene into this folder, or "
+                   "one grid if it ends in .png, .pdf or .svg (needs the plot extra).")
 @click.option("--quiet", is_flag=True, help="No progress lines.")
 @handle_errors
 def verify_cmd(quick, as_json, plot_path, quiet):
-    """Errors against exact solutions and run times, per scene, resolution and method."""
+    """Errors against exact solutions and run times (work-precision), and every error estimate
+    against the true error. Exits with 1 when an estimate breaks the relation it claims."""
     from roughslip.analysis import verify
 
     def say(msg: str) -> None:
         if not quiet:
             click.echo(f"roughslip: verify: {msg}", err=True)
 
-    rows = verify.study(quick=quick, progress=say)
-    click.echo(verify.to_json(rows) if as_json else verify.format_table(rows))
+    result = verify.study(quick=quick, progress=say)
+    click.echo(verify.to_json(result) if as_json else verify.format_table(result))
     if plot_path:
-        verify.plot(rows, plot_path)
+        for p in verify.plot(result, plot_path):
+            say(f"wrote {p}")
+    broken = [c for c in result.checks if c.holds is False]
+    if broken:
+        c = broken[0]
+        raise VerificationError(f"verify: {len(broken)} estimate(s) break their claim, e.g. "
+                             f"{c.name} ({c.kind}) of {c.scene} {c.method} {c.resolution} "
+                             f"tol {c.tol:g}: {c.estimate:.2e} against {c.error:.2e}")
 
 
 @cli.command("plot")

@@ -14,6 +14,7 @@ NumericalError         1     a NaN or inf appeared inside a computation
 MemoryLimitError       2     the estimated peak memory exceeds what is available
 SizeLimitError         2     a problem too large for a library's index range (32-bit LAPACK)
 WorkerError            1     a worker process died (killed, out of memory)
+VerificationError      1     ``verify``: an estimate broke the relation it claims
 =====================  ====  ==========================================================
 """
 
@@ -71,6 +72,13 @@ class SizeLimitError(RoughslipError):
 
 class WorkerError(RoughslipError):
     """A worker process died; completed samples are kept."""
+
+    exit_code = 1
+
+
+class VerificationError(RoughslipError):
+    """``roughslip verify`` found an error estimate that breaks the relation it claims, or a
+    tight reference that did not converge."""
 
     exit_code = 1
 

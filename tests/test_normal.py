@@ -255,3 +255,32 @@ def test_solver_reuse_records_work():
     r = s.solve(depth=0.5)
     assert r.convolutions >= r.iterations > 0 and r.fft_seconds > 0 and r.seconds > 0
     assert r.grid.shape == (32, 32) and r.material.nu == 0.3
+
+
+# ------------------------------------------------------------------------------ error estimate
+
+
+@pytest.mark.parametrize("control", ["depth", "force"])
+@pytest.mark.parametrize("method", ["pk", "active-set"])
+def test_squeeze_correction_recovers_the_tight_solution(control, method):
+    """f + delta is far closer to the tight solution than f (same contact set): the correction
+    is the error of the loose solve, to the correction solve's tolerance."""
+    from roughslip.analysis.verify import hertz_scene
+    from roughslip.contact.estimates import squeeze_correction, squeeze_error_estimate
+
+    heights, h, depth, _ = hertz_scene(16)
+    kw = {"depth": depth} if control == "depth" else {"force": 0.01}
+    ref = squeeze(heights, a=h, nu=0.0, tol=1e-13, **kw)
+    loose = squeeze(heights, a=h, nu=0.0, method=method, tol=1e-5, **kw)
+    assert np.array_equal(loose.contact, ref.contact)
+    delta = squeeze_correction(loose)
+    err = np.linalg.norm(loose.fz - ref.fz)
+    assert err > 1e-12 * np.linalg.norm(ref.fz)
+    assert np.linalg.norm(loose.fz + delta - ref.fz) < 0.05 * err
+    assert np.all(delta[~loose.contact] == 0)
+    est = squeeze_error_estimate(loose)
+    if control == "force":
+        assert est == 0.0 and abs(delta.sum()) < 1e-12 * loose.normal_force  # F_n is held
+    else:
+        true = abs(loose.normal_force - ref.normal_force) / ref.normal_force
+        assert true / 2 <= est <= 2 * true

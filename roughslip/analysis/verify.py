@@ -1,8 +1,17 @@
-r"""Exact solutions, and the error-against-run-time study (``roughslip verify``).
+r"""Exact solutions, work-precision diagrams, and every error estimate checked against the truth
+(``roughslip verify``; docs/methods.rst#error-vs-time).
 
-Each scene compares a computed quantity with a closed form (docs/methods.rst#exact-solutions) at
-several resolutions,
-solver tolerances and methods, and records the error and the run time:
+Each scene is solved in two series, each a line per method:
+
+``resolution``
+    At a tight tolerance (1e-10) and a growing resolution: the discretisation error against
+    the closed form (docs/methods.rst#exact-solutions). For the rough pull, which has none, the
+    method's error against the exact pull of the same grid.
+``tolerance``
+    At one resolution and a tolerance from 1e-2 to 1e-10: the solver's error against a solve of
+    the same discrete problem at tolerance 1e-13 (the *tight reference*).
+
+The scenes:
 
 ``hertz``
     Rigid sphere, apex on a pixel corner: total force :math:`F = \tfrac43 E^*R^{1/2}d^{3/2}`
@@ -15,8 +24,18 @@ solver tolerances and methods, and records the error and the run time:
 ``cattaneo``
     Cattaneo–Mindlin: Coulomb tangential force at :math:`\delta = \delta_s/2`.
 ``pull``
-    A small rough contact: each exact pull method against the report's literal algorithm, and
-    the approximate ``batch`` method with its stated error estimate.
+    A rough contact (H = 0.8): each pull method against the exact pull (``inverse`` at tol
+    1e-13), by grid size and by tolerance.
+
+Timings are medians over repeats after one warm-up run: at least three, and as many as it
+takes for their sum to reach ``budget`` seconds (at most 50), so that millisecond solves rise
+above the timer's noise.
+
+Every estimate the product reports is compared with the true error of the same solve
+(:class:`Check`): the squeeze's ``residual``, the pull's ``error_estimate`` and
+``error_bound``, and the absence of an estimate for the ``batch`` pull. Relative errors below
+:data:`FLOOR` are at the level of rounding and of the tight reference: they are drawn at the
+floor and compared as equal.
 
 The depth of the Hertz scene is the true approach of the apex: with the apex on a pixel corner
 the highest pixel sits :math:`h^2/4R` below it (``depth = d + max(heights)``).
@@ -26,34 +45,174 @@ from __future__ import annotations
 
 import json
 import math
+import statistics
 import time
-from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
 from roughslip.contact import analytic
-from roughslip.contact.pull import coulomb_force_at, pull
-from roughslip.contact.squeeze import squeeze
+from roughslip.contact.estimates import squeeze_correction
+from roughslip.contact.pull import SlipResult, coulomb_force_at, pull
+from roughslip.contact.squeeze import NormalResult, squeeze
+from roughslip.errors import VerificationError
 from roughslip.surfaces.synthetic import punch as punch_shape
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sinusoid, sphere
 
+#: relative errors below this are rounding (and the tight reference's own error)
+FLOOR = 1e-14
+#: tolerance of the resolution series, and of the tight references
+RES_TOL, REF_TOL = 1e-10, 1e-13
+#: the tolerance series
+TOLS = (1e-2, 1e-4, 1e-6, 1e-8, 1e-10)
+#: the quantity each scene's diagram shows
+PRIMARY = {"hertz": "normal force", "punch": "normal force", "wavy": "crest pressure",
+           "cattaneo": "tangential force", "pull": "friction force"}
+SERIES = ("resolution", "tolerance")
+#: what each kind of estimate claims, and so the relation :meth:`Check.holds` tests
+KINDS = {
+    "estimate": "within a factor 10 of the true error (both below the floor counts as equal)",
+    "bound": "at least the true error",
+    "indicator": "a measure of convergence, not of the error: no relation is claimed",
+    "none": "the method reports no estimate",
+}
+
 
 @dataclass(frozen=True)
-class Row:
-    """One measurement: relative error of ``quantity`` against its exact value."""
+class Point:
+    """One solve of a work-precision diagram.
+
+    ``error`` is the signed relative error of ``quantity`` against ``truth`` (the closed form,
+    or the tight reference of the same discrete problem); ``seconds`` the median of
+    ``repeats`` timed runs.
+    """
 
     scene: str
     quantity: str
     method: str
+    series: str
     resolution: str
+    size: float
     tol: float
-    error: float  # signed relative error
+    error: float
+    truth: str
     seconds: float
+    repeats: int
     converged: bool
+    residual: float = math.nan
+    iterations: int = -1
+
+    @property
+    def at_floor(self) -> bool:
+        """The error is below :data:`FLOOR`: exact to rounding."""
+        return abs(self.error) < FLOOR
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        return {**asdict(self), "at_floor": self.at_floor}
+
+
+@dataclass(frozen=True)
+class Check:
+    """An error estimate the product reports, against the true error of the same solve.
+
+    ``kind`` is a key of :data:`KINDS`; ``error`` the true relative error (absolute value) of
+    ``quantity``.
+    """
+
+    scene: str
+    method: str
+    series: str
+    resolution: str
+    tol: float
+    name: str
+    kind: str
+    quantity: str
+    estimate: float
+    error: float
+
+    @property
+    def ratio(self) -> float:
+        """Estimate over true error, both raised to :data:`FLOOR`; NaN without an estimate."""
+        if not math.isfinite(self.estimate):
+            return math.nan
+        return max(self.estimate, FLOOR) / max(self.error, FLOOR)
+
+    @property
+    def holds(self) -> bool | None:
+        """The relation its kind claims (:data:`KINDS`); None for an indicator."""
+        if self.kind == "indicator":
+            return None
+        if self.kind == "none":
+            return math.isnan(self.estimate)
+        if self.kind == "bound":
+            return self.ratio >= 1.0
+        return 0.1 <= self.ratio <= 10.0
+
+    def as_dict(self) -> dict:
+        return {**asdict(self), "ratio": self.ratio, "holds": self.holds}
+
+
+@dataclass
+class Study:
+    """The points of the diagrams and the checks of the estimates."""
+
+    points: list[Point] = field(default_factory=list)
+    checks: list[Check] = field(default_factory=list)
+
+    def __iadd__(self, other: Study) -> Study:
+        self.points += other.points
+        self.checks += other.checks
+        return self
+
+    def scenes(self) -> list[str]:
+        return list(dict.fromkeys(p.scene for p in self.points))
+
+    def line(self, scene: str, series: str, method: str,
+             quantity: str | None = None) -> list[Point]:
+        """The points of one line of a diagram, in their order: growing resolution, or
+        tightening tolerance."""
+        quantity = quantity or PRIMARY[scene]
+        pts = [p for p in self.points if (p.scene, p.series, p.method, p.quantity)
+               == (scene, series, method, quantity)]
+        if series == "resolution":
+            return sorted(pts, key=lambda p: p.size)
+        return sorted(pts, key=lambda p: -p.tol)
+
+    def methods(self, scene: str, series: str) -> list[str]:
+        return list(dict.fromkeys(p.method for p in self.points
+                                  if (p.scene, p.series) == (scene, series)))
+
+    def as_dict(self) -> dict:
+        return {"floor": FLOOR, "primary": PRIMARY, "kinds": KINDS,
+                "points": [p.as_dict() for p in self.points],
+                "checks": [c.as_dict() for c in self.checks]}
+
+
+# ------------------------------------------------------------------------------ timing
+
+
+def timed(fn: Callable[[], object], budget: float) -> tuple[object, float, int]:
+    """``(result, median seconds, repeats)`` of ``fn`` after one untimed warm-up run.
+
+    At least three timed runs, and more until their sum reaches ``budget`` (at most 50).
+    """
+    fn()
+    times: list[float] = []
+    out = None
+    while len(times) < 3 or (sum(times) < budget and len(times) < 50):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return out, statistics.median(times), len(times)
+
+
+def _rel(got: float, want: float) -> float:
+    return (got - want) / want
+
+
+# ------------------------------------------------------------------------------ squeeze scenes
 
 
 def hertz_scene(a_over_h: int, R: float = 1.0, d: float = 1 / 16
@@ -73,146 +232,384 @@ def hertz_scene(a_over_h: int, R: float = 1.0, d: float = 1 / 16
     return heights, h, d + float(heights.max()), ac
 
 
-def _hertz(ah: int, method: str, tol: float) -> list[Row]:
-    R, d, E, nu = 1.0, 1 / 16, 1.0, 0.0
+@dataclass(frozen=True)
+class _SqueezeScene:
+    """A squeeze scene at one resolution: ``solve(method, tol)`` and its exact values."""
+
+    name: str
+    label: str
+    size: float
+    solve: Callable[[str, float], NormalResult]
+    exact: Callable[[NormalResult], dict[str, float]]  # quantity -> exact value
+    measure: Callable[[NormalResult], dict[str, float]]  # quantity -> computed value
+    shared_reference: bool = True  # all methods solve the same discrete problem
+
+
+def _hertz(ah: int) -> _SqueezeScene:
+    R, d = 1.0, 1 / 16
     heights, h, depth, ac = hertz_scene(ah, R, d)
-    t0 = time.perf_counter()
-    r = squeeze(heights, depth=depth, a=h, E=E, nu=nu, method=method, tol=tol)
-    dt = time.perf_counter() - t0
-    F = analytic.hertz(R, d, E, nu).force
-    a_eq = math.sqrt(r.n_contact * h * h / math.pi)
-    res = f"a/h={ah}"
-    return [Row("hertz", "normal force", method, res, tol, (r.normal_force - F) / F, dt,
-                r.converged),
-            Row("hertz", "contact radius", method, res, tol, (a_eq - ac) / ac, dt, r.converged)]
+    F = analytic.hertz(R, d, 1.0, 0.0).force
+    return _SqueezeScene(
+        "hertz", f"a/h={ah}", ah,
+        lambda m, tol: squeeze(heights, depth=depth, a=h, E=1.0, nu=0.0, method=m, tol=tol),
+        lambda r: {"normal force": F, "contact radius": ac},
+        lambda r: {"normal force": r.normal_force,
+                   "contact radius": math.sqrt(r.n_contact * h * h / math.pi)})
 
 
-def _punch(ah: int, method: str, tol: float) -> list[Row]:
+def _punch(ah: int) -> _SqueezeScene:
     radius, d = 1.0, 1e-3
     h = radius / ah
     n = 2 * ah + 2
-    t0 = time.perf_counter()
-    r = squeeze(punch_shape((n, n), radius=radius, a=h), depth=d, a=h, E=1.0, nu=0.0,
-                method=method, tol=tol)
-    dt = time.perf_counter() - t0
-    a_eq = math.sqrt(r.n_contact * h * h / math.pi)
-    F = analytic.flat_punch_force(a_eq, d, E=1.0, nu=0.0)
-    return [Row("punch", "normal force", method, f"a/h={ah}", tol, (r.normal_force - F) / F, dt,
-                r.converged)]
+    heights = punch_shape((n, n), radius=radius, a=h)
+    return _SqueezeScene(
+        "punch", f"a/h={ah}", ah,
+        lambda m, tol: squeeze(heights, depth=d, a=h, E=1.0, nu=0.0, method=m, tol=tol),
+        lambda r: {"normal force": analytic.flat_punch_force(
+            math.sqrt(r.n_contact * h * h / math.pi), d, E=1.0, nu=0.0)},
+        lambda r: {"normal force": r.normal_force})
 
 
-def _wavy(n: int, kind: str, tol: float) -> list[Row]:
+def _wavy(n: int) -> _SqueezeScene:
     amp, lam, ratio = 0.01, 1.0, 0.6
     a = lam / n
     heights = sinusoid((4, n), amplitude=amp, wavelength=lam, a=a)
-    p_star = analytic.westergaard(0.0, amp, lam, E=1.0, nu=0.0).p_star
-    pbar = ratio * p_star
+    pbar = ratio * analytic.westergaard(0.0, amp, lam, E=1.0, nu=0.0).p_star
     exact = analytic.westergaard(pbar, amp, lam, E=1.0, nu=0.0)
-    t0 = time.perf_counter()
-    r = squeeze(heights, force=pbar * 4 * n * a * a, a=a, E=1.0, nu=0.0, boundary="periodic",
-                periodic_kernel=kind, tol=tol)
-    dt = time.perf_counter() - t0
-    crest = exact.crest_pressure
-    got = r.fz[:, 0].mean() / a**2
-    frac = exact.contact_fraction
-    res = f"lambda/h={n}"
-    return [Row("wavy", "crest pressure", f"pk/{kind}", res, tol, (got - crest) / crest, dt,
-                r.converged),
-            Row("wavy", "contact fraction", f"pk/{kind}", res, tol,
-                (r.contact_area - frac) / frac, dt, r.converged)]
+
+    def solve(method: str, tol: float) -> NormalResult:
+        kind = method.split("/")[1]
+        return squeeze(heights, force=pbar * 4 * n * a * a, a=a, E=1.0, nu=0.0,
+                       boundary="periodic", periodic_kernel=kind, tol=tol)
+
+    return _SqueezeScene(
+        "wavy", f"lambda/h={n}", n, solve,
+        lambda r: {"crest pressure": exact.crest_pressure,
+                   "contact fraction": exact.contact_fraction},
+        lambda r: {"crest pressure": float(r.fz[:, 0].mean()) / a**2,
+                   "contact fraction": r.contact_area},
+        shared_reference=False)
 
 
-def _cattaneo(ah: int, tol: float) -> list[Row]:
+def _reference(solve: Callable[[], NormalResult | SlipResult], what: str):
+    r = solve()
+    if not r.converged:
+        raise VerificationError(f"verify: the tight reference of {what} did not converge "
+                             f"(tol {REF_TOL:g})")
+    return r
+
+
+def _squeeze_series(make: Callable[[int], _SqueezeScene], methods: Sequence[str],
+                    sizes: Sequence[int], tol_size: int, budget: float) -> Study:
+    out = Study()
+    for size in sizes:
+        sc = make(size)
+        for m in methods:
+            r, sec, rep = timed(lambda sc=sc, m=m: sc.solve(m, RES_TOL), budget)
+            got, exact = sc.measure(r), sc.exact(r)
+            for q, want in exact.items():
+                out.points.append(Point(sc.name, q, m, "resolution", sc.label, size, RES_TOL,
+                                        _rel(got[q], want), "exact solution", sec, rep,
+                                        r.converged, r.residual, r.iterations))
+    sc = make(tol_size)
+    q = PRIMARY[sc.name]
+    ref = None
+    for m in methods:
+        if ref is None or not sc.shared_reference:
+            ref_method = "pk" if sc.shared_reference else m
+            ref = _reference(lambda rm=ref_method: sc.solve(rm, REF_TOL),
+                             f"{sc.name} {sc.label}")
+            want = sc.measure(ref)[q]
+        for tol in TOLS:
+            r, sec, rep = timed(lambda m=m, tol=tol: sc.solve(m, tol), budget)
+            err = _rel(sc.measure(r)[q], want)
+            out.points.append(Point(sc.name, q, m, "tolerance", sc.label, tol_size, tol, err,
+                                    "tight reference", sec, rep, r.converged, r.residual,
+                                    r.iterations))
+            out.checks.append(Check(sc.name, m, "tolerance", sc.label, tol,
+                                    "squeeze residual", "indicator", q, r.residual, abs(err)))
+            delta = squeeze_correction(r)
+            refined = replace(r, fz=r.fz + delta, normal_force=float((r.fz + delta).sum()))
+            got, better = sc.measure(r)[q], sc.measure(refined)[q]
+            out.checks.append(Check(sc.name, m, "tolerance", sc.label, tol,
+                                    "squeeze_correction", "estimate", q,
+                                    abs(got - better) / abs(better), abs(err)))
+    return out
+
+
+# ------------------------------------------------------------------------------ pull scenes
+
+
+def _cattaneo_state(ah: int):
     nu, lam, R, d = 0.3, 0.3, 1.0, 1 / 16
     heights, h, depth, ac = hertz_scene(ah, R, d)
-    t0 = time.perf_counter()
-    normal = squeeze(heights, depth=depth, a=h, nu=nu, tol=tol)
-    res = pull(normal, lam=lam, slip_law="coulomb", tol=max(tol, 1e-12))
-    dt = time.perf_counter() - t0
+    normal = squeeze(heights, depth=depth, a=h, nu=nu, tol=1e-12)
     P = normal.normal_force
-    cm = analytic.cattaneo_mindlin(P, ac, lam, nu=nu)
-    q = float(coulomb_force_at(res, 0.5 * cm.delta_s))
-    q_exact = cm.force(0.5 * cm.delta_s)
-    return [Row("cattaneo", "tangential force", "coulomb/inverse", f"a/h={ah}", tol,
-                (q - q_exact) / (lam * P), dt, normal.converged and res.converged)]
+    return normal, lam, analytic.cattaneo_mindlin(P, ac, lam, nu=nu)
 
 
-def _pull_methods(n: int, tol: float) -> list[Row]:
+def _cattaneo(sizes: Sequence[int], tol_size: int, budget: float) -> Study:
+    """The Coulomb pull of a Hertz contact at :math:`\\delta_s/2` (the squeeze, at tol 1e-12,
+    is not timed)."""
+    out, method, q = Study(), "coulomb/inverse", "tangential force"
+
+    def solve(normal, lam, tol):
+        return pull(normal, lam=lam, slip_law="coulomb", tol=tol)
+
+    def force(res, lam, cm):
+        return float(coulomb_force_at(res, 0.5 * cm.delta_s))
+
+    for ah in sizes:
+        normal, lam, cm = _cattaneo_state(ah)
+        res, sec, rep = timed(lambda n=normal, lam=lam: solve(n, lam, RES_TOL), budget)
+        err = (force(res, lam, cm) - cm.force(0.5 * cm.delta_s)) / (lam * normal.normal_force)
+        out.points.append(Point("cattaneo", q, method, "resolution", f"a/h={ah}", ah, RES_TOL,
+                                err, "exact solution", sec, rep, res.converged, res.residual))
+    normal, lam, cm = _cattaneo_state(tol_size)
+    ref = _reference(lambda: solve(normal, lam, REF_TOL), "cattaneo")
+    for tol in TOLS:
+        res, sec, rep = timed(lambda tol=tol: solve(normal, lam, tol), budget)
+        err = (force(res, lam, cm) - force(ref, lam, cm)) / (lam * normal.normal_force)
+        label = f"a/h={tol_size}"
+        out.points.append(Point("cattaneo", q, method, "tolerance", label, tol_size, tol, err,
+                                "tight reference", sec, rep, res.converged, res.residual))
+        est = pull(normal, lam=lam, slip_law="coulomb", tol=tol, estimate_error=True)
+        f_err = abs(_rel(est.friction_force, ref.friction_force))
+        out.checks.append(Check("cattaneo", method, "tolerance", label, tol,
+                                "pull error_estimate", "estimate", "friction force",
+                                est.error_estimate, f_err))
+    return out
+
+
+PULL_METHODS = ("literal", "cg", "inverse", "batch")
+
+
+def rough_contact(n: int) -> NormalResult:
+    """The rough contact of the ``pull`` scene: H = 0.8, rms 1, depth 1.5, squeezed to 1e-12."""
     h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(7, 0), oversample=2)
-    normal = squeeze(h, depth=1.5, tol=1e-12)
-    t0 = time.perf_counter()
-    ref = pull(normal, method="literal", tol=1e-12)
-    t_ref = time.perf_counter() - t0
-    rows = [Row("pull", "friction force", "literal", f"N={n}", 1e-12, 0.0, t_ref,
-                ref.converged)]
-    for method in ("inverse", "cg", "batch"):
-        t0 = time.perf_counter()
-        r = pull(normal, method=method, tol=tol, batch_size=8)
-        dt = time.perf_counter() - t0
-        err = (r.friction_force - ref.friction_force) / ref.friction_force
-        rows.append(Row("pull", "friction force", method, f"N={n}", tol, err, dt, r.converged))
-        if method == "batch":
-            rows.append(Row("pull", "batch error estimate", method, f"N={n}", tol,
-                            r.error_estimate, dt, r.converged))
-    return rows
+    return squeeze(h, depth=1.5, tol=1e-12)
 
 
-def study(quick: bool = False, progress: Callable[[str], None] | None = None) -> list[Row]:
-    """Run the verification study (``quick``: small sizes, two tolerances, under a minute)."""
+def _pull_point(normal: NormalResult, ref: SlipResult, method: str, series: str, n: int,
+                tol: float, budget: float) -> Study:
+    out = Study()
+    res, sec, rep = timed(lambda: pull(normal, method=method, tol=tol, batch_size=8), budget)
+    err = _rel(res.friction_force, ref.friction_force)
+    label = f"N={n}"
+    out.points.append(Point("pull", "friction force", method, series, label, n, tol, err,
+                            "exact pull", sec, rep, res.converged, res.residual, res.solves))
+    est = pull(normal, method=method, tol=tol, batch_size=8, estimate_error=True)
+    if method == "batch":
+        out.checks.append(Check("pull", method, series, label, tol, "pull error_estimate",
+                                "none", "friction force", est.error_estimate, abs(err)))
+    else:
+        for name, kind, value in (("pull error_estimate", "estimate", est.error_estimate),
+                                  ("pull error_bound", "bound", est.error_bound)):
+            out.checks.append(Check("pull", method, series, label, tol, name, kind,
+                                    "friction force", value, abs(err)))
+    return out
+
+
+def _pull(sizes: Sequence[int], tol_size: int, budget: float) -> Study:
+    out = Study()
+    for n in sizes:
+        normal = rough_contact(n)
+        ref = _reference(lambda normal=normal: pull(normal, method="inverse", tol=REF_TOL),
+                         f"the pull at N={n}")
+        for m in PULL_METHODS:
+            out += _pull_point(normal, ref, m, "resolution", n, RES_TOL, budget)
+    normal = rough_contact(tol_size)
+    ref = _reference(lambda: pull(normal, method="inverse", tol=REF_TOL),
+                     f"the pull at N={tol_size}")
+    for m in PULL_METHODS:
+        for tol in TOLS:
+            out += _pull_point(normal, ref, m, "tolerance", tol_size, tol, budget)
+    return out
+
+
+# ------------------------------------------------------------------------------ the study
+
+
+def study(quick: bool = False, progress: Callable[[str], None] | None = None,
+          budget: float | None = None) -> Study:
+    """Run the verification study.
+
+    Parameters
+    ----------
+    quick : bool
+        Small sizes (about half a minute on 2 cores) instead of the full study.
+    progress : callable, optional
+        Called with a line per scene.
+    budget : float, optional
+        Timed seconds per point (default 0.03 quick, 0.3 full; :func:`timed`).
+    """
     say = progress or (lambda s: None)
-    rows: list[Row] = []
-    ahs = (8, 16) if quick else (8, 16, 32, 64)
-    tols = (1e-6, 1e-10) if quick else (1e-4, 1e-6, 1e-8, 1e-10)
-    for ah in ahs:
-        for method in ("pk", "active-set"):
-            for tol in tols:
-                say(f"hertz a/h={ah} {method} tol={tol:g}")
-                rows += _hertz(ah, method, tol)
-                rows += _punch(ah, method, tol)
-    for n in ((32, 64) if quick else (32, 64, 128, 256)):
-        for kind in ("pixel", "continuous"):
-            say(f"wavy lambda/h={n} {kind}")
-            rows += _wavy(n, kind, 1e-10)
-    for ah in ((8, 16) if quick else (8, 16, 32)):
-        say(f"cattaneo a/h={ah}")
-        rows += _cattaneo(ah, 1e-10)
-    for n in ((32,) if quick else (32, 48, 64)):
-        say(f"pull methods N={n}")
-        rows += _pull_methods(n, 1e-10)
-    return rows
+    budget = (0.03 if quick else 0.3) if budget is None else budget
+    out = Study()
+    ahs = (8, 16, 32) if quick else (8, 16, 32, 64)
+    say("hertz")
+    out += _squeeze_series(_hertz, ("pk", "active-set"), ahs, 16 if quick else 32, budget)
+    say("punch")
+    out += _squeeze_series(_punch, ("pk", "active-set"), ahs, 16 if quick else 32, budget)
+    say("wavy")
+    out += _squeeze_series(_wavy, ("pk/pixel", "pk/continuous"),
+                           (32, 64, 128) if quick else (32, 64, 128, 256), 64, budget)
+    say("cattaneo")
+    out += _cattaneo((8, 16) if quick else (8, 16, 32), 16, budget)
+    say("pull")
+    out += _pull((32, 48) if quick else (32, 48, 64, 96), 32 if quick else 64, budget)
+    return out
 
 
-def format_table(rows: list[Row]) -> str:
-    """Fixed-width text table of the study."""
-    head = f"{'scene':<9} {'quantity':<21} {'method':<16} {'resolution':<12} {'tol':>7} " \
-           f"{'rel. error':>11} {'seconds':>8} {'conv':>5}"
-    lines = [head]
-    for r in rows:
-        lines.append(f"{r.scene:<9} {r.quantity:<21} {r.method:<16} {r.resolution:<12} "
-                     f"{r.tol:>7.0e} {r.error:>+11.3e} {r.seconds:>8.3f} "
-                     f"{'yes' if r.converged else 'NO':>5}")
+# ------------------------------------------------------------------------------ output
+
+
+def format_table(s: Study) -> str:
+    """The points and the checks as two fixed-width text tables."""
+    lines = [f"{'scene':<9} {'quantity':<17} {'method':<16} {'series':<10} {'resolution':<12} "
+             f"{'tol':>7} {'rel. error':>11} {'seconds':>9} {'runs':>4} {'conv':>4}"]
+    for p in s.points:
+        lines.append(f"{p.scene:<9} {p.quantity:<17} {p.method:<16} {p.series:<10} "
+                     f"{p.resolution:<12} {p.tol:>7.0e} {p.error:>+11.3e} {p.seconds:>9.2e} "
+                     f"{p.repeats:>4} {'yes' if p.converged else 'NO':>4}")
+    lines += ["", f"estimates against the true error (floor {FLOOR:g}; kinds: "
+              + "; ".join(f"{k}: {v}" for k, v in KINDS.items()) + ")",
+              f"{'scene':<9} {'method':<16} {'series':<10} {'resolution':<12} {'tol':>7} "
+              f"{'estimate of':<20} {'kind':<8} {'estimate':>10} {'true error':>10} "
+              f"{'ratio':>9} {'holds':>5}"]
+    for c in s.checks:
+        lines.append(f"{c.scene:<9} {c.method:<16} {c.series:<10} {c.resolution:<12} "
+                     f"{c.tol:>7.0e} {c.name:<20} {c.kind:<8} {c.estimate:>10.2e} "
+                     f"{c.error:>10.2e} {c.ratio:>9.2g} {_yes(c.holds):>5}")
     return "\n".join(lines)
 
 
-def to_json(rows: list[Row]) -> str:
-    return json.dumps([r.as_dict() for r in rows], indent=1)
+def _yes(flag: bool | None) -> str:
+    return "-" if flag is None else "yes" if flag else "NO"
 
 
-def plot(rows: list[Row], path: str) -> None:
-    """Log-log error against run time, one panel per scene."""
-    from roughslip.analysis.plotting import finish_axes, pyplot, save
+def to_json(s: Study) -> str:
+    """Everything the diagrams and the tables show, as JSON."""
+    return json.dumps(s.as_dict(), indent=1)
+
+
+def summarize_checks(s: Study) -> list[dict]:
+    """Per estimate and kind: how many checks, how many hold, and the range of the ratio."""
+    groups: dict[tuple[str, str, str], list[Check]] = {}
+    for c in s.checks:
+        groups.setdefault((c.name, c.kind, c.scene), []).append(c)
+    rows = []
+    for (name, kind, scene), cs in groups.items():
+        ratios = [c.ratio for c in cs if math.isfinite(c.ratio)]
+        rows.append({"estimate": name, "kind": kind, "scene": scene,
+                     "methods": sorted({c.method for c in cs}), "checks": len(cs),
+                     "hold": sum(c.holds for c in cs),
+                     "ratio_min": min(ratios) if ratios else math.nan,
+                     "ratio_max": max(ratios) if ratios else math.nan})
+    return rows
+
+
+def _log_ticks(axis, lo: float, hi: float) -> None:
+    """Labelled major ticks at 1, 2 and 5 per decade, thinned to powers of ten (and then to
+    every other one) until at most seven remain: a short axis still gets labels, and labels
+    never collide."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+
+    k0, k1 = math.floor(math.log10(lo)), math.ceil(math.log10(hi))
+    for subs, step in (((1, 2, 5), 1), ((1,), 1), ((1,), 2), ((1,), 3), ((1,), 4)):
+        ticks = [m * 10.0**k for k in range(k0, k1 + 1) if k % step == 0 for m in subs]
+        ticks = [t for t in ticks if lo <= t * (1 + 1e-9) and t <= hi * (1 + 1e-9)]
+        if len(ticks) <= 7:
+            break
+
+    def label(t: float, _pos: int) -> str:
+        k = math.floor(math.log10(t) + 1e-9)
+        m = round(t / 10.0**k)
+        return f"$10^{{{k}}}$" if m == 1 else f"${m}\\times10^{{{k}}}$"
+
+    axis.set_major_locator(FixedLocator(ticks))
+    axis.set_major_formatter(FuncFormatter(label))
+    axis.set_minor_formatter(NullFormatter())
+
+
+def _panel(ax, s: Study, scene: str, series: str) -> None:
+    markers = "osD^v<>"
+    floor_hit = False
+    for i, m in enumerate(s.methods(scene, series)):
+        pts = s.line(scene, series, m)
+        if not pts:
+            continue
+        x = np.array([p.seconds for p in pts])
+        y = np.array([max(abs(p.error), FLOOR) for p in pts])
+        color, mk = f"C{i}", markers[i % len(markers)]
+        ax.plot(x, y, "-", color=color, lw=1.2, alpha=0.8)
+        floor = np.array([p.at_floor for p in pts])
+        floor_hit |= bool(floor.any())
+        ax.plot(x[~floor], y[~floor], mk, color=color, ms=5,
+                label=m if (~floor).any() else None)
+        if floor.any():
+            ax.plot(x[floor], y[floor], mk, color=color, ms=5, mfc="none",
+                    label=None if (~floor).any() else m)
+
+        def tag(p: Point) -> str:
+            return p.resolution.split("=")[1] if series == "resolution" else f"{p.tol:.0e}"
+
+        # the ends say which way the line runs; ends that coincide get one label
+        apart = math.hypot(math.log10(x[-1] / x[0]), math.log10(y[-1] / y[0])) > 0.3
+        ends = [(0, tag(pts[0])), (len(pts) - 1, tag(pts[-1]))] if apart else [
+            (0, f"{tag(pts[0])} to {tag(pts[-1])}")]
+        for j, text in ends:
+            ax.annotate(text, (x[j], y[j]), textcoords="offset points", xytext=(4, 4),
+                        fontsize=7, color=color)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    if floor_hit:
+        ax.axhline(FLOOR, color="0.4", ls="--", lw=0.8,
+                   label=f"floor {FLOOR:.0e}: exact to rounding (open)")
+    pts = [p for p in s.points if (p.scene, p.series) == (scene, series)]
+    ax.set_xlim(*ax.get_xlim())  # freeze the autoscaled limits before placing ticks
+    ax.set_ylim(*ax.get_ylim())
+    _log_ticks(ax.xaxis, *ax.get_xlim())
+    _log_ticks(ax.yaxis, *ax.get_ylim())
+    what = pts[0].truth if pts else ""
+    if series == "resolution":
+        fixed, legend = f"tol {RES_TOL:g}", pts[0].resolution.split("=")[0] if pts else ""
+    else:
+        fixed, legend = (pts[0].resolution if pts else ""), "tol"
+    ax.set_title(f"{scene}: by {series} ({fixed}), against the {what}", fontsize=9)
+    ax.set_xlabel("run time [s] (median of repeats)", fontsize=8)
+    ax.set_ylabel(f"|relative error| of the {PRIMARY[scene]}", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=7, loc="best", title=f"labels: {legend}", title_fontsize=7)
+
+
+def plot_scene(s: Study, scene: str, path: str | Path) -> Path:
+    """The work-precision diagram of one scene: by resolution (left), by tolerance (right)."""
+    from roughslip.analysis.plotting import pyplot, save
 
     plt = pyplot()
-    scenes = list(dict.fromkeys(r.scene for r in rows))
-    fig, axes = plt.subplots(1, len(scenes), figsize=(4.2 * len(scenes), 3.8), squeeze=False)
-    for ax, sc in zip(axes[0], scenes, strict=True):
-        sel = [r for r in rows if r.scene == sc and r.error != 0]
-        keys = list(dict.fromkeys((r.quantity, r.method) for r in sel))
-        for q, m in keys:
-            pts = sorted((r.seconds, abs(r.error)) for r in sel if (r.quantity, r.method) == (q, m))
-            if pts:
-                x, y = np.array(pts).T
-                ax.loglog(x, y, "o-", ms=4, label=f"{q}, {m}")
-        ax.set_title(sc)
-        finish_axes(ax, "run time [s]", "|relative error|", fontsize=6)
-    save(plt, fig, path)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.9))
+    for ax, series in zip(axes, SERIES, strict=True):
+        _panel(ax, s, scene, series)
+    return save(plt, fig, path)
+
+
+def plot(s: Study, path: str | Path) -> list[Path]:
+    """Work-precision diagrams: one file per scene in the folder ``path``
+    (``verify-<scene>.png``), or all scenes as one grid when ``path`` ends in ``.png``,
+    ``.pdf`` or ``.svg``."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    path = Path(path)
+    scenes = s.scenes()
+    if path.suffix.lower() in (".png", ".pdf", ".svg"):
+        plt = pyplot()
+        fig, axes = plt.subplots(len(scenes), 2, figsize=(10, 3.9 * len(scenes)),
+                                 squeeze=False)
+        for row, scene in zip(axes, scenes, strict=True):
+            for ax, series in zip(row, SERIES, strict=True):
+                _panel(ax, s, scene, series)
+        return [save(plt, fig, path)]
+    path.mkdir(parents=True, exist_ok=True)
+    return [plot_scene(s, scene, path / f"verify-{scene}.png") for scene in scenes]
