@@ -326,12 +326,14 @@ def verify_cmd(quick, as_json, plot_path, quiet):
 @click.option("-o", "--output", "out", help="Output prefix (default: the run file's name).")
 @click.option("--sample", type=int, help="Sample for the maps and the pull curve.")
 @click.option("--depth-index", type=int, help="Depth index for the maps and the pull curve.")
+@click.option("--solves", is_flag=True,
+              help="Also plot the solves per depth: residuals, errors, iterations, seconds.")
 @handle_errors
-def plot_cmd(path, out, sample, depth_index):
+def plot_cmd(path, out, sample, depth_index, solves):
     """Friction law, F_n(D_z), contact/stick maps and a pull curve as PNG files."""
     from roughslip.analysis.plotting import plot_run
 
-    for p in plot_run(path, out, sample, depth_index):
+    for p in plot_run(path, out, sample, depth_index, solves=solves):
         click.echo(str(p))
 
 

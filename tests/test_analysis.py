@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -274,10 +275,11 @@ def test_plot_run_and_fit_and_verify(tmp_path, quick_rows):
         "output": {"fields": ["contact", "fz", "fx", "stick", "pull_curve"]}}))
     out = tmp_path / "r.h5"
     run(load_config(cfg_path), out)
-    r = CliRunner().invoke(cli, ["plot", str(out), "-o", str(tmp_path / "fig")])
+    r = CliRunner().invoke(cli, ["plot", str(out), "-o", str(tmp_path / "fig"), "--solves"])
     assert r.exit_code == 0, r.output
     names = sorted(p.name for p in tmp_path.glob("fig_*.png"))
-    assert names == ["fig_friction.png", "fig_maps.png", "fig_normal.png", "fig_pull.png"]
+    assert names == ["fig_friction.png", "fig_maps.png", "fig_normal.png", "fig_pull.png",
+                     "fig_solves.png"]
     assert all(_png_ok(p) for p in tmp_path.glob("fig_*.png"))
     r = CliRunner().invoke(cli, ["fit", str(out), "--plot", str(tmp_path / "fit.png")])
     assert r.exit_code == 0 and _png_ok(tmp_path / "fit.png")
@@ -288,3 +290,46 @@ def test_plot_run_and_fit_and_verify(tmp_path, quick_rows):
         ["hertz", "punch", "wavy", "cattaneo", "pull"])]
     assert all(_png_ok(p) for p in written)
     assert math.isfinite(fit_files([out])[0].fit.alpha)
+
+
+# ------------------------------------------------------------------------------ a run's solves
+
+
+def test_inspect_shows_the_solves_per_depth_and_the_error_against_hertz(tmp_path):
+    """A sphere run on an open grid has a closed form: inspect gives its normal force's error
+    per depth, which is the discretisation error of docs/methods.rst#hertz (below 2e-3 for
+    contact radii of 3.5 pixels and more), next to residuals, iterations and seconds."""
+    from roughslip.analysis.summary import closed_form, solves_table
+    from roughslip.contact.analytic import hertz
+    from roughslip.run.executor import run
+    from roughslip.run.store import read_run
+
+    out = tmp_path / "hertz.h5"
+    cfg = load_config(Path(__file__).parents[1] / "configs" / "hertz.toml",
+                      ["pull.error_estimate=true"])
+    run(cfg, out)
+    data = read_run(out)
+    name, F = closed_form(data)
+    assert name == "Hertz" and F.shape == (1, 8) and np.all(np.isfinite(F))
+    d = data.scalars["depth_length"][0] - data.surface(0).max()
+    assert F[0, 3] == hertz(1.0, d[3], 1.0, 0.3).force
+    rows = solves_table(data)
+    assert len(rows) == 8
+    for r in rows:
+        assert 0 < r["normal_force_error"] < 2e-3
+        assert 0 < r["residual"] <= 1e-10 and r["iterations"] > 0 and r["seconds"] > 0
+        assert 0 <= r["pull_error_estimate"] < 1e-12  # inverse: rounding
+    text = CliRunner().invoke(cli, ["inspect", str(out)]).output
+    assert "solves per depth" in text and "F_n vs Hertz" in text and "pull est. err" in text
+
+
+def test_inspect_has_no_closed_form_for_rough_runs():
+    """A format-1 rough run: no closed form, the solves still tabulated."""
+    from roughslip.analysis.summary import closed_form, solves_table
+    from roughslip.run.store import read_run
+
+    data = read_run(Path(__file__).parent / "data" / "run_v1_demo.h5")
+    assert closed_form(data) is None
+    rows = solves_table(data)
+    assert all(math.isnan(r["normal_force_error"]) for r in rows)
+    assert all(r["residual"] > 0 and r["seconds"] > 0 for r in rows)

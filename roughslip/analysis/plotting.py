@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,41 @@ def save(plt, fig, path: str | Path) -> Path:
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return Path(path)
+
+
+def log_ticks(axis) -> None:
+    """Labelled major ticks on a log axis at 1, 2 and 5 per decade (every digit on a range too
+    short for two of those), thinned to powers of ten, and then to every other one, until at
+    most seven remain: a short axis still gets labels, and labels never collide."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+
+    ax = axis.axes
+    if axis is ax.xaxis:  # freeze the autoscaled limits: the ticks are placed for them
+        ax.set_xlim(*ax.get_xlim())
+    else:
+        ax.set_ylim(*ax.get_ylim())
+    lo, hi = sorted(axis.get_view_interval())
+    k0, k1 = math.floor(math.log10(lo)), math.ceil(math.log10(hi))
+
+    def within(subs: tuple[int, ...], step: int) -> list[float]:
+        ticks = [m * 10.0**k for k in range(k0, k1 + 1) if k % step == 0 for m in subs]
+        return [t for t in ticks if lo <= t * (1 + 1e-9) and t <= hi * (1 + 1e-9)]
+
+    ticks = within(tuple(range(1, 10)), 1)
+    if len(ticks) > 7:
+        for subs, step in (((1, 2, 5), 1), ((1,), 1), ((1,), 2), ((1,), 3), ((1,), 5)):
+            ticks = within(subs, step)
+            if len(ticks) <= 7:
+                break
+
+    def label(t: float, _pos: int) -> str:
+        k = math.floor(math.log10(t) + 1e-9)
+        m = round(t / 10.0**k)
+        return f"$10^{{{k}}}$" if m == 1 else f"${m}\\times10^{{{k}}}$"
+
+    axis.set_major_locator(FixedLocator(ticks))
+    axis.set_major_formatter(FuncFormatter(label))
+    axis.set_minor_formatter(NullFormatter())
 
 
 def finish_axes(ax, xlabel: str, ylabel: str, fontsize: int = 8) -> None:
@@ -75,12 +111,83 @@ def _loglog_with_fit(ax, x, y, xlabel, ylabel, title):
     ax.legend(fontsize=8)
 
 
+def plot_solves(run, stem: Path) -> Path:
+    """The run's own error against run time, per depth: residual and errors (left),
+    iterations (middle), seconds (right); every sample as a point, the worst or median as a
+    line. Written to ``<stem>_solves.png``."""
+    from roughslip.analysis.summary import closed_form, solves_table
+
+    plt = pyplot()
+    rows = solves_table(run)
+    x = np.asarray(run.axis, dtype=float)
+    sel = run.complete
+    unit = length_unit(run) if run.axis_unit == "length" else None
+    xlabel = (f"{run.axis_name.replace('_', ' ')} "
+              f"({unit or run.axis_unit})" if (unit or run.axis_unit) else run.axis_name)
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
+
+    def scatter(ax, name, color):
+        if name in run.scalars:
+            v = np.asarray(run.scalars[name][sel], dtype=float)
+            for row in v:
+                ok = np.isfinite(row) & (row > 0)
+                ax.plot(x[ok], row[ok], ".", color=color, alpha=0.35, ms=3)
+
+    def line(ax, key, style, color, label):
+        y = np.array([r[key] for r in rows])
+        ok = np.isfinite(y) & (y > 0)
+        if ok.any():
+            ax.plot(x[ok], y[ok], style, color=color, label=label, ms=4)
+        return bool(ok.any())
+
+    ax = axes[0]
+    scatter(ax, "residual", "C0")
+    line(ax, "residual", "o-", "C0", "squeeze residual (worst)")
+    scatter(ax, "pull_error_estimate", "C1")
+    line(ax, "pull_error_estimate", "s-", "C1", "pull: estimated error (worst)")
+    exact = closed_form(run)
+    if exact is not None:
+        line(ax, "normal_force_error", "D-", "C3", f"$F_n$ against {exact[0]} (worst)")
+    ax.set_yscale("log")
+    ax.set_ylabel("relative residual or error")
+    ax.set_title("residual and error", fontsize=9)
+    ax = axes[1]
+    scatter(ax, "iterations", "C0")
+    line(ax, "iterations", "o-", "C0", "squeeze (mean)")
+    ax.set_ylabel("iterations")
+    ax.set_title("squeeze iterations", fontsize=9)
+    ax = axes[2]
+    scatter(ax, "seconds", "C0")
+    line(ax, "seconds", "o-", "C0", "squeeze (median)")
+    scatter(ax, "pull_seconds", "C1")
+    line(ax, "pull_seconds", "s-", "C1", "pull (median)")
+    ax.set_yscale("log")
+    ax.set_ylabel("wall-clock seconds")
+    ax.set_title("run time (a measurement: differs between runs)", fontsize=9)
+    for ax in axes:
+        if np.all(x > 0):
+            ax.set_xscale("log")
+            log_ticks(ax.xaxis)
+        if ax.get_yscale() == "log":
+            log_ticks(ax.yaxis)
+        ax.set_xlabel(xlabel)
+        ax.grid(True, which="major", alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
+    title = run.config_dict().get("title") or run.path.name
+    n = run.n_complete
+    fig.suptitle(f"{title}: the solves of {n} sample{'s' if n != 1 else ''}"
+                 + (" (points: each sample)" if n > 1 else ""), fontsize=10)
+    return save(plt, fig, stem.parent / f"{stem.name}_solves.png")
+
+
 def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None = None,
-             depth_index: int | None = None) -> list[Path]:
+             depth_index: int | None = None, solves: bool = False) -> list[Path]:
     """Write the friction law, F_n(D_z), contact/stick maps and a pull curve as PNGs.
 
     Files are named ``<out>_friction.png``, ``_normal.png``, ``_maps.png``, ``_pull.png``
-    (``out`` defaults to the run file without its suffix). Returns the paths written.
+    and, with ``solves``, ``_solves.png`` (:func:`plot_solves`); ``out`` defaults to the run
+    file without its suffix. Returns the paths written.
     """
     plt = pyplot()
     run = read_run(path)
@@ -137,6 +244,8 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
             cfg = run.config_dict()
             written.append(_pull_figure(plt, stem, cfg, dx, fx, f"sample {s}, depth index {k}",
                                         unit))
+    if solves:
+        written.append(plot_solves(run, stem))
     return written
 
 

@@ -35,6 +35,109 @@ def length_unit(run) -> str | None:
     return run.config_dict().get("units", {}).get("length")
 
 
+def closed_form(run) -> tuple[str, np.ndarray] | None:
+    r"""The exact normal force at each depth of each complete sample, when the run's scene has
+    a closed form: ``(name, F)`` with ``F`` of shape ``(complete samples, depths)``, NaN where
+    the closed form does not apply; None for other scenes.
+
+    ``sphere``
+        Hertz, :math:`F = \tfrac43E^*R^{1/2}d^{3/2}` with the apex approach
+        :math:`d = D_z - \max h` (the apex lies at height 0, the highest pixel below it), while
+        the contact radius :math:`\sqrt{Rd}` stays within 40 % of the grid's smaller side
+        from its centre.
+    ``punch``
+        Boussinesq, :math:`F = 2aE^*D_z` with :math:`a` the radius of the pixel count.
+
+    Only for an open grid, one rigid surface against a flat elastic one, and no coupling (the
+    coupled model changes the normal force unless :math:`\nu = 1/2`).
+    """
+    from roughslip.contact.analytic import flat_punch_force, hertz
+
+    cfg = run.config_dict()
+    s, mat = cfg.get("surface", {}), cfg.get("material", {})
+    kind = s.get("kind")
+    coupled = cfg.get("coupling", {}).get("enabled", False) and mat.get("nu") != 0.5
+    if (kind not in ("sphere", "punch") or cfg.get("grid", {}).get("boundary") != "open"
+            or cfg.get("elastic_surface") or coupled or run.n_complete == 0
+            or run.axis_name != "depth"):
+        return None
+    sel = run.complete
+    depth = np.asarray(run.scalars["depth_length"][sel], dtype=float)
+    E, nu = float(mat["E"]), float(mat["nu"])
+    out = np.full(depth.shape, np.nan)
+    for row, sample in enumerate(run.sample_index[sel]):
+        h = run.surface(int(sample))
+        pixel = float(run.attrs.get("pixel_size", cfg["grid"].get("pixel_size", 1.0)))
+        reach = 0.4 * min(h.shape) * pixel
+        for k, dz in enumerate(depth[row]):
+            if kind == "sphere":
+                d = dz - float(h.max())
+                if d > 0 and np.sqrt(float(s["radius"]) * d) <= reach:
+                    out[row, k] = hertz(float(s["radius"]), d, E, nu).force
+            else:
+                n = run.scalars["contact_area"][sel][row, k] * h.size
+                out[row, k] = flat_punch_force(float(np.sqrt(n / np.pi)) * pixel, dz, E, nu)
+    return ("Hertz" if kind == "sphere" else "flat punch"), out
+
+
+def solves_table(run) -> list[dict[str, float]]:
+    """Per depth (or load): the record of the solves over the complete samples.
+
+    Worst squeeze residual, mean iterations, median squeeze and pull seconds, worst pull
+    error estimate (``pull.error_estimate``), and the worst relative error of the normal
+    force against the closed form (:func:`closed_form`), each NaN where the run has none.
+    """
+    sel = run.complete
+    exact = closed_form(run)
+
+    def col(name: str) -> np.ndarray:
+        if name not in run.scalars:
+            return np.full((int(sel.sum()), len(run.axis)), np.nan)
+        return np.asarray(run.scalars[name][sel], dtype=float)
+
+    def over(values: np.ndarray, fn) -> float:
+        v = values[~np.isnan(values)]
+        return float(fn(v)) if v.size else float("nan")
+
+    fn_err = (np.abs(col("normal_force") - exact[1]) / exact[1] if exact is not None
+              else col("normal_force") * np.nan)
+    rows = []
+    for k, x in enumerate(run.axis):
+        rows.append({"axis": float(x),
+                     "residual": over(col("residual")[:, k], np.max),
+                     "iterations": over(col("iterations")[:, k], np.mean),
+                     "seconds": over(col("seconds")[:, k], np.median),
+                     "pull_seconds": over(col("pull_seconds")[:, k], np.median),
+                     "pull_error_estimate": over(col("pull_error_estimate")[:, k], np.max),
+                     "normal_force_error": over(fn_err[:, k], np.max)})
+    return rows
+
+
+def _format_solves(run, axis_label: str) -> list[str]:
+    rows = solves_table(run)
+    exact = closed_form(run)
+    has = {k: any(np.isfinite(r[k]) for r in rows) for k in rows[0]}
+    cols = [("residual", "sq. residual", "{:>12.2e}"), ("iterations", "iters", "{:>6.1f}"),
+            ("seconds", "sq. seconds", "{:>11.3g}"), ("pull_seconds", "pull seconds",
+                                                      "{:>12.3g}"),
+            ("pull_error_estimate", "pull est. err", "{:>13.2e}"),
+            ("normal_force_error", f"F_n vs {exact[0] if exact else ''}", "{:>14.2e}")]
+    cols = [c for c in cols if has[c[0]]]
+    what = "worst residual, mean iterations and median seconds over the samples"
+    if has["pull_error_estimate"]:
+        what += "; the pull's estimated error given the squeeze's f_z (worst)"
+    if has["normal_force_error"]:
+        what += f"; F_n against the {exact[0]} closed form (worst: the discretisation error)"
+    w = max(12, len(axis_label))
+    lines = [f"  solves per depth: {what}",
+             f"  {axis_label:>{w}} " + " ".join(f"{t:>{len(f.format(0.0))}}" for _, t, f in cols)]
+    for r in rows:
+        lines.append(f"  {r['axis']:>{w}.5g} " + " ".join(
+            f.format(r[k]) if np.isfinite(r[k]) else f"{'-':>{len(f.format(0.0))}}"
+            for k, _, f in cols))
+    return lines
+
+
 def summarize(path: str | Path) -> str:
     """Config, progress, per-depth means +- standard errors, and convergence problems."""
     run = read_run(path)
@@ -100,4 +203,5 @@ def summarize(path: str | Path) -> str:
     if parts:
         problems.append("  " + "; ".join(parts))
     lines.extend(problems)
+    lines.extend(_format_solves(run, axis_label))
     return "\n".join(lines)

@@ -509,30 +509,9 @@ def summarize_checks(s: Study) -> list[dict]:
     return rows
 
 
-def _log_ticks(axis, lo: float, hi: float) -> None:
-    """Labelled major ticks at 1, 2 and 5 per decade, thinned to powers of ten (and then to
-    every other one) until at most seven remain: a short axis still gets labels, and labels
-    never collide."""
-    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
-
-    k0, k1 = math.floor(math.log10(lo)), math.ceil(math.log10(hi))
-    for subs, step in (((1, 2, 5), 1), ((1,), 1), ((1,), 2), ((1,), 3), ((1,), 4)):
-        ticks = [m * 10.0**k for k in range(k0, k1 + 1) if k % step == 0 for m in subs]
-        ticks = [t for t in ticks if lo <= t * (1 + 1e-9) and t <= hi * (1 + 1e-9)]
-        if len(ticks) <= 7:
-            break
-
-    def label(t: float, _pos: int) -> str:
-        k = math.floor(math.log10(t) + 1e-9)
-        m = round(t / 10.0**k)
-        return f"$10^{{{k}}}$" if m == 1 else f"${m}\\times10^{{{k}}}$"
-
-    axis.set_major_locator(FixedLocator(ticks))
-    axis.set_major_formatter(FuncFormatter(label))
-    axis.set_minor_formatter(NullFormatter())
-
-
 def _panel(ax, s: Study, scene: str, series: str) -> None:
+    from roughslip.analysis.plotting import log_ticks
+
     markers = "osD^v<>"
     floor_hit = False
     for i, m in enumerate(s.methods(scene, series)):
@@ -567,10 +546,8 @@ def _panel(ax, s: Study, scene: str, series: str) -> None:
         ax.axhline(FLOOR, color="0.4", ls="--", lw=0.8,
                    label=f"floor {FLOOR:.0e}: exact to rounding (open)")
     pts = [p for p in s.points if (p.scene, p.series) == (scene, series)]
-    ax.set_xlim(*ax.get_xlim())  # freeze the autoscaled limits before placing ticks
-    ax.set_ylim(*ax.get_ylim())
-    _log_ticks(ax.xaxis, *ax.get_xlim())
-    _log_ticks(ax.yaxis, *ax.get_ylim())
+    log_ticks(ax.xaxis)
+    log_ticks(ax.yaxis)
     what = pts[0].truth if pts else ""
     if series == "resolution":
         fixed, legend = f"tol {RES_TOL:g}", pts[0].resolution.split("=")[0] if pts else ""

@@ -95,7 +95,8 @@ class SlipResult:
         level for ``"inverse"``); the Coulomb law gives 0 (its friction force
         :math:`\sum_i s_i\lambda f_{z,i}` does not depend on the tangential solves). The
         approximate ``"batch"`` method has none (NaN): its error is a staircase in the batch
-        size that no cheap comparison estimates.
+        size that no cheap comparison estimates. Every estimate here is of the pull given
+        the squeeze's normal forces, whose own error it does not include.
     error_bound : float
         With ``estimate_error=True``: :math:`\hat\kappa\,\rho`, the condition estimate
         times the worst relative residual ``residual`` (see :func:`bond_spectrum`), an
@@ -679,6 +680,10 @@ def refinement_estimate(normal: NormalResult, result: SlipResult, *,
         break order other than the exact one, the estimate was 0.49-1.74 times the true
         error wherever that exceeded 1e-13. With ``"inverse"`` both lie at the rounding
         level (below 3e-15).
+
+        It is the error of the pull *given* the normal forces :math:`f_z`: the squeeze's
+        error enters the friction force through :math:`\lambda f_z` and is not in it (the
+        squeeze has an estimate of its own, :func:`roughslip.contact.estimates.squeeze_correction`).
 
     Returns
     -------
