@@ -3,7 +3,7 @@
 Math is typeset by a MathJax copy installed with the docs extra (sphinx-mathjax-offline) and
 served from ``_static``: no page loads anything from the network. The configuration and CLI
 references are generated from the code (docs/_ext/roughslip_docs.py, sphinx-click), and
-the error-against-run-time figure is made at build time by ``roughslip verify --quick --plot``.
+the work-precision diagrams are made at build time by ``roughslip verify --quick --plot``.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ extensions = [
     "roughslip_docs",
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
-exclude_patterns = ["_build", "_generated/*.txt"]
+exclude_patterns = ["_build", "_generated/*.txt", "_generated/*.rst"]
 myst_heading_anchors = 3
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False

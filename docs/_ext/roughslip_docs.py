@@ -3,7 +3,7 @@
 ``.. roughslip-config::`` renders every section and key of the run configuration from the
 schema in :mod:`roughslip.run.config` (type, default, rule, description), so the reference cannot
 drift from what ``load_config`` accepts. At build start the error-against-run-time figure and
-table of ``roughslip verify --quick`` are made into ``docs/_generated/``.
+tables of ``roughslip verify --quick`` are made into ``docs/_generated/``.
 """
 
 from __future__ import annotations
@@ -129,14 +129,36 @@ class SchemaReference(SphinxDirective):
 
 
 def make_verify_figure(app) -> None:
-    """``roughslip verify --quick --plot``: the figure and table the methods page shows."""
+    """``roughslip verify --quick --json --plot``: the work-precision diagrams, the points as
+    JSON, and the table of estimates against the truth that the methods page shows. A broken
+    claim (exit status 1) fails the build."""
+    import json
+    import math
+
+    from roughslip.analysis.verify import summarize_checks
+
     GENERATED.mkdir(exist_ok=True)
-    png, table = GENERATED / "verify_quick.png", GENERATED / "verify_quick.txt"
     out = subprocess.run([sys.executable, "-m", "roughslip", "verify", "--quick", "--quiet",
-                          "--plot", str(png)], capture_output=True, text=True, check=False)
+                          "--json", "--plot", str(GENERATED / "verify")],
+                         capture_output=True, text=True, check=False)
     if out.returncode != 0:
         raise RuntimeError(f"roughslip verify --quick failed: {out.stderr.strip()}")
-    table.write_text(out.stdout)
+    (GENERATED / "verify_quick.json").write_text(out.stdout)
+    data = json.loads(out.stdout)
+
+    def ratio(r):
+        lo, hi = r["ratio_min"], r["ratio_max"]
+        return "-" if math.isnan(lo) else f"{lo:.2g} to {hi:.2g}"
+
+    lines = [".. list-table::", "   :header-rows: 1", "   :widths: 26 10 10 24 10 20", "",
+             "   * - estimate", "     - kind", "     - scene", "     - methods",
+             "     - claim holds", "     - estimate / true error"]
+    for r in summarize_checks(data["checks"]):
+        holds = "no claim" if r["kind"] == "indicator" else f"{r['hold']} of {r['checks']}"
+        lines += [f"   * - {r['estimate']}", f"     - {r['kind']}", f"     - {r['scene']}",
+                  f"     - {', '.join(r['methods'])}", f"     - {holds}",
+                  f"     - {ratio(r)}"]
+    (GENERATED / "verify_checks.rst").write_text("\n".join(lines) + "\n")
 
 
 _PAGE_LABEL = re.compile(r"docs/([\w/]+)\.(?:rst|md)#([\w-]+)")

@@ -493,17 +493,18 @@ def to_json(s: Study) -> str:
     return json.dumps(s.as_dict(), indent=1)
 
 
-def summarize_checks(s: Study) -> list[dict]:
-    """Per estimate and kind: how many checks, how many hold, and the range of the ratio."""
-    groups: dict[tuple[str, str, str], list[Check]] = {}
-    for c in s.checks:
-        groups.setdefault((c.name, c.kind, c.scene), []).append(c)
+def summarize_checks(checks: Sequence[dict]) -> list[dict]:
+    """Per estimate, kind and scene (of :meth:`Check.as_dict` rows, as ``--json`` prints
+    them): the methods, how many checks, how many hold, and the range of the ratio."""
+    groups: dict[tuple[str, str, str], list[dict]] = {}
+    for c in checks:
+        groups.setdefault((c["name"], c["kind"], c["scene"]), []).append(c)
     rows = []
     for (name, kind, scene), cs in groups.items():
-        ratios = [c.ratio for c in cs if math.isfinite(c.ratio)]
+        ratios = [c["ratio"] for c in cs if math.isfinite(c["ratio"])]
         rows.append({"estimate": name, "kind": kind, "scene": scene,
-                     "methods": sorted({c.method for c in cs}), "checks": len(cs),
-                     "hold": sum(c.holds for c in cs),
+                     "methods": sorted({c["method"] for c in cs}), "checks": len(cs),
+                     "hold": sum(c["holds"] is True for c in cs),
                      "ratio_min": min(ratios) if ratios else math.nan,
                      "ratio_max": max(ratios) if ratios else math.nan})
     return rows
