@@ -41,6 +41,8 @@ html_theme = "alabaster"
 html_static_path: list[str] = []  # the theme's files and the MathJax copy only
 html_show_sphinx = False  # no footer links to outside sites
 html_theme_options = {"description": "static friction of rough elastic surfaces",
-                      "fixed_sidebar": True}
+                      "fixed_sidebar": True,
+                      # wide enough for two-panel figures and five-column tables
+                      "page_width": "1180px", "body_max_width": "none"}
 html_sidebars = {"**": ["about.html", "navigation.html", "searchbox.html"]}
 suppress_warnings = ["myst.header"]

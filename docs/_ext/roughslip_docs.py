@@ -148,7 +148,7 @@ def make_verify_figure(app) -> None:
 
     def ratio(r):
         lo, hi = r["ratio_min"], r["ratio_max"]
-        return "-" if math.isnan(lo) else f"{lo:.2g} to {hi:.2g}"
+        return "(no estimate)" if math.isnan(lo) else f"{lo:.2g} to {hi:.2g}"
 
     lines = [".. list-table::", "   :header-rows: 1", "   :widths: 26 10 10 24 10 20", "",
              "   * - estimate", "     - kind", "     - scene", "     - methods",

@@ -33,10 +33,10 @@ def save(plt, fig, path: str | Path) -> Path:
     return Path(path)
 
 
-def log_ticks(axis) -> None:
-    """Labelled major ticks on a log axis at 1, 2 and 5 per decade (every digit on a range too
-    short for two of those), thinned to powers of ten, and then to every other one, until at
-    most seven remain: a short axis still gets labels, and labels never collide."""
+def log_ticks(axis, most: int = 6) -> None:
+    """Labelled major ticks on a log axis, never closer than a fifth of its span: powers of ten
+    first, then 2 and 5, then the other digits, so that a short axis still gets labels and
+    labels never collide."""
     from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
 
     ax = axis.axes
@@ -46,24 +46,25 @@ def log_ticks(axis) -> None:
         ax.set_ylim(*ax.get_ylim())
     lo, hi = sorted(axis.get_view_interval())
     k0, k1 = math.floor(math.log10(lo)), math.ceil(math.log10(hi))
-
-    def within(subs: tuple[int, ...], step: int) -> list[float]:
-        ticks = [m * 10.0**k for k in range(k0, k1 + 1) if k % step == 0 for m in subs]
-        return [t for t in ticks if lo <= t * (1 + 1e-9) and t <= hi * (1 + 1e-9)]
-
-    ticks = within(tuple(range(1, 10)), 1)
-    if len(ticks) > 7:
-        for subs, step in (((1, 2, 5), 1), ((1,), 1), ((1,), 2), ((1,), 3), ((1,), 5)):
-            ticks = within(subs, step)
-            if len(ticks) <= 7:
-                break
+    span = math.log10(hi / lo)
+    gap = span / (most - 1)
+    picked: list[float] = []
+    for digits in ((1,), (2, 5), (3, 4, 6, 7, 8, 9)):
+        for t in (m * 10.0**k for k in range(k0, k1 + 1) for m in digits):
+            if not (lo <= t * (1 + 1e-9) and t <= hi * (1 + 1e-9)):
+                continue
+            if all(abs(math.log10(t / p)) >= gap * (1 - 1e-9) for p in picked):
+                picked.append(t)
+    if len(picked) > most:  # powers of ten alone, thinned to every n-th
+        step = math.ceil(len(picked) / most)
+        picked = [10.0**k for k in range(k0, k1 + 1) if k % step == 0 and lo <= 10.0**k <= hi]
 
     def label(t: float, _pos: int) -> str:
         k = math.floor(math.log10(t) + 1e-9)
         m = round(t / 10.0**k)
         return f"$10^{{{k}}}$" if m == 1 else f"${m}\\times10^{{{k}}}$"
 
-    axis.set_major_locator(FixedLocator(ticks))
+    axis.set_major_locator(FixedLocator(sorted(picked)))
     axis.set_major_formatter(FuncFormatter(label))
     axis.set_minor_formatter(NullFormatter())
 
