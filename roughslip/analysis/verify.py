@@ -26,6 +26,9 @@ The scenes:
 ``pull``
     A rough contact (H = 0.8): each pull method against the exact pull (``inverse`` at tol
     1e-13), by grid size and by tolerance.
+``coupled``
+    The coupled model on the Hertz contact: at :math:`\nu = 1/2` against the decoupled pull,
+    which it equals exactly; at :math:`\nu = 0.3` against its dense solve at tol 1e-13.
 
 Timings are medians over repeats after one warm-up run: at least three, and as many as it
 takes for their sum to reach ``budget`` seconds (at most 50), so that millisecond solves rise
@@ -55,6 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from roughslip.contact import analytic
+from roughslip.contact.coupled import couple
 from roughslip.contact.estimates import squeeze_correction
 from roughslip.contact.problem import Problem
 from roughslip.contact.pull import SlipResult, coulomb_force_at, pull
@@ -71,7 +75,8 @@ RES_TOL, REF_TOL = 1e-10, 1e-13
 TOLS = (1e-2, 1e-4, 1e-6, 1e-8, 1e-10)
 #: the quantity each scene's diagram shows
 PRIMARY = {"hertz": "normal force", "punch": "normal force", "wavy": "crest pressure",
-           "cattaneo": "tangential force", "pull": "friction force"}
+           "cattaneo": "tangential force", "pull": "friction force",
+           "coupled": "friction force"}
 SERIES = ("resolution", "tolerance")
 #: what each kind of estimate claims, and so the relation :meth:`Check.holds` tests
 KINDS = {
@@ -432,6 +437,53 @@ def _pull(sizes: Sequence[int], tol_size: int, budget: float) -> Study:
     return out
 
 
+def _coupled(sizes: Sequence[int], tol_size: int, budget: float) -> Study:
+    """The coupled model on the Hertz contact (lambda = 0.3).
+
+    By resolution at :math:`\nu = 1/2`, where :math:`G_{zx} = 0` and the coupled pull is the
+    decoupled one exactly: against the ``inverse`` pull at tol 1e-13 of the same grid. By
+    tolerance at :math:`\nu = 0.3` (break and Coulomb laws): against the dense solver at tol
+    1e-13. The coupled solve is timed whole (bonded squeeze, releases and pull)."""
+    out, lam, q = Study(), 0.3, "friction force"
+    methods = (("dense", "break"), ("cg", "break"), ("dense", "coulomb"))
+
+    def name(method: str, law: str) -> str:
+        return f"{method}/{law}"
+
+    for ah in sizes:
+        heights, h, depth, _ = hertz_scene(ah)
+        pb = Problem.from_arrays(heights, a=h, E=1.0, nu=0.5)
+        normal = squeeze(pb, depth=depth, tol=1e-13)
+        ref = _reference(lambda n=normal: pull(n, lam=lam, method="inverse", tol=REF_TOL),
+                         f"the decoupled pull at a/h={ah}")
+        for method in ("dense", "cg"):
+            res, sec, rep = timed(lambda pb=pb, d=depth, m=method: couple(
+                pb, depth=d, lam=lam, method=m, tol=RES_TOL), budget)
+            out.points.append(Point("coupled", q, name(method, "break"), "resolution",
+                                    f"a/h={ah}", ah, RES_TOL,
+                                    _rel(res.friction_force, ref.friction_force),
+                                    "decoupled pull (nu = 1/2)", sec, rep, res.converged,
+                                    res.residual, res.solves))
+    heights, h, depth, _ = hertz_scene(tol_size)
+    pb = Problem.from_arrays(heights, a=h, E=1.0, nu=0.3)
+    label = f"a/h={tol_size}"
+    refs = {law: _reference(lambda law=law: couple(pb, depth=depth, lam=lam, method="dense",
+                                                   tol=REF_TOL, slip_law=law),
+                            f"the coupled {law} pull") for law in ("break", "coulomb")}
+    for method, law in methods:
+        for tol in TOLS:
+            res, sec, rep = timed(lambda m=method, law=law, tol=tol: couple(
+                pb, depth=depth, lam=lam, method=m, tol=tol, slip_law=law), budget)
+            err = _rel(res.friction_force, refs[law].friction_force)
+            out.points.append(Point("coupled", q, name(method, law), "tolerance", label,
+                                    tol_size, tol, err, "tight reference", sec, rep,
+                                    res.converged, res.residual, res.solves))
+            out.checks.append(Check("coupled", name(method, law), "tolerance", label, tol,
+                                    "coupled residual", "indicator", q, res.residual,
+                                    abs(err)))
+    return out
+
+
 # ------------------------------------------------------------------------------ the study
 
 
@@ -463,6 +515,8 @@ def study(quick: bool = False, progress: Callable[[str], None] | None = None,
     out += _cattaneo((8, 16) if quick else (8, 16, 32), 16, budget)
     say("pull")
     out += _pull((32, 48) if quick else (32, 48, 64, 96), 32 if quick else 64, budget)
+    say("coupled")
+    out += _coupled((4, 6) if quick else (4, 6, 8, 12), 6, budget)
     return out
 
 
