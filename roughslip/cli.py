@@ -291,7 +291,8 @@ def bursts_cmd(files, min_tail, as_json, plot_path):
 
 
 @cli.command("verify")
-@click.option("--quick", is_flag=True, help="Small sizes (about ten seconds).")
+@click.option("--quick", is_flag=True,
+              help="Small sizes (about half a minute on 2 cores).")
 @click.option("--json", "as_json", is_flag=True,
               help="Print JSON (the points of the diagrams and the checks of the estimates).")
 @click.option("--plot", "plot_path", type=click.Path(),

@@ -29,6 +29,9 @@ Residual (dimensionless, reported as ``residual``)
     the worst gap error in contact and the worst penetration off contact, relative to the
     overlap scale :math:`D_z = \max_i \bar u_i`. Forces are non-negative by construction, and
     under load control :math:`\sum f = F_n` holds to round-off (reported as ``force_error``).
+    It measures convergence, not the error of the forces: on the verify scenes it is 0.26 to
+    :math:`10^4` times that error (docs/methods.rst#estimates-against-truth);
+    :func:`roughslip.contact.estimates.squeeze_correction` estimates the error itself.
 
 Periodic grids
     The symbol has :math:`\hat K(0)=0` (docs/theory/boundaries.rst#periodic-boundary): a uniform
