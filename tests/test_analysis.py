@@ -353,3 +353,26 @@ def test_inspect_has_no_closed_form_for_rough_runs():
     rows = solves_table(data)
     assert all(math.isnan(r["normal_force_error"]) for r in rows)
     assert all(r["residual"] > 0 and r["seconds"] > 0 for r in rows)
+
+
+def test_inspect_says_a_batch_run_has_no_estimate_and_hides_estimates_not_asked_for(tmp_path):
+    from roughslip.analysis.summary import solves_table, summarize
+    from roughslip.run.config import dumps_toml
+    from roughslip.run.executor import run
+    from roughslip.run.store import read_run
+
+    cfg_path = tmp_path / "b.toml"
+    cfg_path.write_text(dumps_toml({
+        "grid": {"n": 24}, "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1.0},
+        "squeeze": {"depths": [1.0, 2.0], "depth_unit": "rms"},
+        "pull": {"enabled": True, "method": "batch", "error_estimate": True},
+        "ensemble": {"samples": 2}}))
+    out = tmp_path / "b.h5"
+    run(load_config(cfg_path), out)
+    text = summarize(out)
+    assert "biased low, with no error estimate" in text
+    assert all(math.isnan(r["pull_error_estimate"]) for r in solves_table(read_run(out)))
+    # a format-1 file stored 0 for an estimate nobody asked for: not shown as an estimate
+    old = read_run(Path(__file__).parent / "data" / "run_v1_load.h5")
+    assert all(math.isnan(r["pull_error_estimate"]) for r in solves_table(old))
+    assert "pull est. err" not in summarize(old.path)

@@ -14,6 +14,7 @@ configuration asks for (``output.fields``), computed only when asked for.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -98,7 +99,7 @@ class _DecoupledSample:
         rec.scalars.update(friction_force=s.friction_force,
                            friction_normal_force=s.normal_force, pull_seconds=s.seconds,
                            pull_converged=s.converged, pull_steps=s.steps)
-        if pl.error_estimate:  # NaN for the batch method, which has none
+        if pl.error_estimate and math.isfinite(s.error_estimate):  # batch has none: fill NaN
             rec.scalars["pull_error_estimate"] = s.error_estimate
         if "fx" in want:
             rec.fields["fx"] = s.fx_at_peak
