@@ -264,6 +264,18 @@ def test_verify_cli_quick_json(monkeypatch, quick_rows):
     assert all({"estimate", "error", "ratio", "holds"} <= set(c) for c in data["checks"])
 
 
+def test_verify_cli_plot_into_an_unwritable_place_is_one_line(monkeypatch, quick_rows,
+                                                                 tmp_path):
+    pytest.importorskip("matplotlib", reason="the plot extra is not installed")
+    monkeypatch.setattr(verify, "study", lambda quick, progress=None: quick_rows[0])
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    r = CliRunner().invoke(cli, ["verify", "--quick", "--quiet", "--plot",
+                                 str(blocker / "diagrams")])
+    assert r.exit_code == 1 and "cannot make the folder" in r.output
+    assert "Traceback" not in r.output and "scene" in r.output  # the table came first
+
+
 def test_verify_cli_fails_when_an_estimate_breaks_its_claim(monkeypatch, quick_rows):
     bad = verify.Study(list(quick_rows[0].points), [verify.Check(
         "pull", "cg", "tolerance", "N=32", 1e-4, "pull error_estimate", "estimate",

@@ -9,7 +9,7 @@ import numpy as np
 
 from roughslip.analysis.fit import fit_power_law, quantity
 from roughslip.analysis.summary import length_unit
-from roughslip.errors import InputError
+from roughslip.errors import InputError, OutputError
 from roughslip.run.store import read_run
 
 
@@ -26,10 +26,15 @@ def pyplot():
 
 
 def save(plt, fig, path: str | Path) -> Path:
-    """Lay out, write at 120 dpi and close a figure."""
+    """Lay out, write at 120 dpi and close a figure (:class:`OutputError` when it cannot be
+    written)."""
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    try:
+        fig.savefig(path, dpi=120)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write the figure ({exc.strerror or exc})") from None
+    finally:
+        plt.close(fig)
     return Path(path)
 
 

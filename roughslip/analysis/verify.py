@@ -63,7 +63,7 @@ from roughslip.contact.estimates import squeeze_correction
 from roughslip.contact.problem import Problem
 from roughslip.contact.pull import SlipResult, coulomb_force_at, pull
 from roughslip.contact.squeeze import NormalResult, squeeze
-from roughslip.errors import VerificationError
+from roughslip.errors import OutputError, VerificationError
 from roughslip.surfaces.synthetic import punch as punch_shape
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sinusoid, sphere
 
@@ -648,5 +648,9 @@ def plot(s: Study, path: str | Path) -> list[Path]:
             for ax, series in zip(row, SERIES, strict=True):
                 _panel(ax, s, scene, series)
         return [save(plt, fig, path)]
-    path.mkdir(parents=True, exist_ok=True)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot make the folder for the diagrams "
+                          f"({exc.strerror or exc})") from None
     return [plot_scene(s, scene, path / f"verify-{scene}.png") for scene in scenes]
