@@ -3,8 +3,8 @@
     python scripts/estimate_check.py [--sizes 32 64 96] [--seeds 3]
 
 For each self-affine surface (H = 0.8, depth 1.5 rms) the exact reference is the ``inverse``
-pull at tol 1e-13. The ``literal`` and ``cg`` pulls at tolerances 1e-3 to 1e-10 report
-``error_estimate`` (one refinement step on the peak state) and ``error_bound``
+pull at tol 1e-13 on the same squeeze. The ``literal`` and ``cg`` pulls at tolerances 1e-3 to
+1e-10 report ``solve_error_estimate`` (one refinement step on the peak state) and ``error_bound``
 (condition estimate x residual); the script prints both against the true relative error of the
 friction force, and whether the break order up to the peak matched the reference.
 """
@@ -45,10 +45,10 @@ def main() -> None:
                     total += 1
                     reordered += not same
                     if err > FLOOR:
-                        ratios.append(r.error_estimate / err)
+                        ratios.append(r.solve_error_estimate / err)
                         bound_ratios.append(r.error_bound / err)
                     print(f"{n:>4} {seed:>4} {method:>8} {tol:>7.0e} {err:>11.2e} "
-                          f"{r.error_estimate:>10.2e} {r.error_bound:>10.2e} "
+                          f"{r.solve_error_estimate:>10.2e} {r.error_bound:>10.2e} "
                           f"{'same' if same else 'other':>6}")
     ratios, bound_ratios = np.array(ratios), np.array(bound_ratios)
     print(f"{total} pulls, {reordered} with another break order up to the peak; above the "

@@ -129,7 +129,7 @@ def _format_solves(run, axis_label: str) -> list[str]:
     cols = [c for c in cols if has[c[0]]]
     what = "worst residual, mean iterations and median seconds over the samples"
     if has["pull_error_estimate"]:
-        what += "; the pull's estimated error given the squeeze's f_z (worst)"
+        what += "; the friction force's estimated error (worst)"
     if has["normal_force_error"]:
         what += f"; F_n against the {exact[0]} closed form (worst: the discretisation error)"
     w = max(12, len(axis_label))

@@ -36,10 +36,12 @@ above the timer's noise. The problem (grid, material, kernel spectra) is built o
 as a run builds it once per process: the times are those of the solves.
 
 Every estimate the product reports is compared with the true error of the same solve
-(:class:`Check`): the squeeze's ``residual``, the pull's ``error_estimate`` and
-``error_bound``, and the absence of an estimate for the ``batch`` pull. Relative errors below
-:data:`FLOOR` are at the level of rounding and of the tight reference: they are drawn at the
-floor and compared as equal.
+(:class:`Check`): the squeeze's ``residual`` and
+:func:`~roughslip.contact.estimates.squeeze_correction`, the pull's ``error_estimate`` (on
+squeezes of several tolerances), its part ``solve_error_estimate`` and ``error_bound``, the
+absence of an estimate for the ``batch`` pull, and the coupled model's ``residual``. Relative
+errors below :data:`FLOOR` are at the level of rounding and of the tight reference: they are
+drawn at the floor and compared as equal.
 
 The depth of the Hertz scene is the true approach of the apex: with the apex on a pixel corner
 the highest pixel sits :math:`h^2/4R` below it (``depth = d + max(heights)``).
@@ -386,18 +388,44 @@ def _cattaneo(sizes: Sequence[int], tol_size: int, budget: float) -> Study:
         est = pull(normal, lam=lam, slip_law="coulomb", tol=tol, estimate_error=True)
         f_err = abs(_rel(est.friction_force, ref.friction_force))
         out.checks.append(Check("cattaneo", method, "tolerance", label, tol,
-                                "pull error_estimate", "estimate", "friction force",
-                                est.error_estimate, f_err))
+                                "pull solve_error_estimate", "estimate", "friction force",
+                                est.solve_error_estimate, f_err))
     return out
 
 
 PULL_METHODS = ("literal", "cg", "inverse", "batch")
 
 
-def rough_contact(n: int) -> NormalResult:
-    """The rough contact of the ``pull`` scene: H = 0.8, rms 1, depth 1.5, squeezed to 1e-12."""
+def rough_contact(n: int, tol: float = 1e-12) -> NormalResult:
+    """The rough contact of the ``pull`` scene: H = 0.8, rms 1, depth 1.5, squeezed to
+    ``tol``."""
     h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(7, 0), oversample=2)
-    return squeeze(h, depth=1.5, tol=1e-12)
+    return squeeze(h, depth=1.5, tol=tol)
+
+
+#: squeeze tolerances of the checks of the whole estimate (squeeze and pull)
+SQUEEZE_TOLS = (1e-4, 1e-6, 1e-8, 1e-10)
+
+
+def _pull_on_loose_squeezes(n: int) -> Study:
+    """Checks of the whole ``error_estimate`` (the squeeze's part and the pull's): pulls on
+    squeezes at tolerances 1e-4 to 1e-10 against the pull at 1e-13 on the squeeze at 1e-13."""
+    out = Study()
+    tight = rough_contact(n, REF_TOL)
+    for law in ("break", "coulomb"):
+        ref = _reference(lambda law=law: pull(tight, method="inverse", tol=REF_TOL,
+                                              slip_law=law), f"the {law} pull at N={n}")
+        for stol in SQUEEZE_TOLS:
+            loose = rough_contact(n, stol)
+            for method, tol in ((("inverse", 1e-10), ("cg", 1e-6)) if law == "break"
+                                else (("inverse", 1e-10),)):
+                r = pull(loose, method=method, tol=tol, slip_law=law, estimate_error=True)
+                name = method if law == "break" else f"{method}/coulomb"
+                out.checks.append(Check("pull", name, "squeeze tolerance", f"N={n}", stol,
+                                        "pull error_estimate", "estimate", "friction force",
+                                        r.error_estimate,
+                                        abs(_rel(r.friction_force, ref.friction_force))))
+    return out
 
 
 def _pull_point(normal: NormalResult, ref: SlipResult, method: str, series: str, n: int,
@@ -413,7 +441,9 @@ def _pull_point(normal: NormalResult, ref: SlipResult, method: str, series: str,
         out.checks.append(Check("pull", method, series, label, tol, "pull error_estimate",
                                 "none", "friction force", est.error_estimate, abs(err)))
     else:
-        for name, kind, value in (("pull error_estimate", "estimate", est.error_estimate),
+        # the reference shares the squeeze: the pull's own part is what is compared
+        for name, kind, value in (("pull solve_error_estimate", "estimate",
+                                   est.solve_error_estimate),
                                   ("pull error_bound", "bound", est.error_bound)):
             out.checks.append(Check("pull", method, series, label, tol, name, kind,
                                     "friction force", value, abs(err)))
@@ -434,6 +464,7 @@ def _pull(sizes: Sequence[int], tol_size: int, budget: float) -> Study:
     for m in PULL_METHODS:
         for tol in TOLS:
             out += _pull_point(normal, ref, m, "tolerance", tol_size, tol, budget)
+    out += _pull_on_loose_squeezes(tol_size)
     return out
 
 
@@ -533,12 +564,12 @@ def format_table(s: Study) -> str:
                      f"{p.repeats:>4} {'yes' if p.converged else 'NO':>4}")
     lines += ["", f"estimates against the true error (floor {FLOOR:g}; kinds: "
               + "; ".join(f"{k}: {v}" for k, v in KINDS.items()) + ")",
-              f"{'scene':<9} {'method':<16} {'series':<10} {'resolution':<12} {'tol':>7} "
-              f"{'estimate of':<20} {'kind':<8} {'estimate':>10} {'true error':>10} "
+              f"{'scene':<9} {'method':<16} {'series':<17} {'resolution':<12} {'tol':>7} "
+              f"{'estimate of':<25} {'kind':<9} {'estimate':>10} {'true error':>10} "
               f"{'ratio':>9} {'holds':>5}"]
     for c in s.checks:
-        lines.append(f"{c.scene:<9} {c.method:<16} {c.series:<10} {c.resolution:<12} "
-                     f"{c.tol:>7.0e} {c.name:<20} {c.kind:<8} {c.estimate:>10.2e} "
+        lines.append(f"{c.scene:<9} {c.method:<16} {c.series:<17} {c.resolution:<12} "
+                     f"{c.tol:>7.0e} {c.name:<25} {c.kind:<9} {c.estimate:>10.2e} "
                      f"{c.error:>10.2e} {c.ratio:>9.2g} {_yes(c.holds):>5}")
     return "\n".join(lines)
 

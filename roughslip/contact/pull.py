@@ -48,6 +48,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from roughslip.contact import estimates
+from roughslip.contact.estimates import squeeze_correction
 from roughslip.contact.methods import Registry
 from roughslip.contact.squeeze import NormalResult
 from roughslip.elastic.operators import ElasticOperator
@@ -89,14 +91,19 @@ class SlipResult:
         The method actually used (``"auto"`` resolved).
     error_estimate : float
         Estimated relative error of ``friction_force``, NaN when not estimated. With
-        ``pull(..., estimate_error=True)`` the exact break-law methods give the a-posteriori
-        estimate of :func:`refinement_estimate` (one step of iterative refinement on the peak
-        state: within a factor 2 of the true error on the verify scenes, and at the rounding
-        level for ``"inverse"``); the Coulomb law gives 0 (its friction force
-        :math:`\sum_i s_i\lambda f_{z,i}` does not depend on the tangential solves). The
-        approximate ``"batch"`` method has none (NaN): its error is a staircase in the batch
-        size that no cheap comparison estimates. Every estimate here is of the pull given
-        the squeeze's normal forces, whose own error it does not include.
+        ``pull(..., estimate_error=True)``: ``solve_error_estimate + normal_error_estimate``,
+        the errors of the pull's own solves and of the squeeze's normal forces it starts
+        from. Within a factor 3.2 of the true error on every verify scene. The approximate
+        ``"batch"`` method has none (NaN): its error is a staircase in the batch size that no
+        cheap comparison estimates.
+    solve_error_estimate : float
+        The pull's own part: :func:`refinement_estimate` (one step of iterative refinement
+        on the peak state) for the break law, at the rounding level for ``"inverse"``; 0 for
+        the Coulomb law, whose friction force :math:`\sum_i s_i\lambda f_{z,i}` does not
+        depend on the tangential solves.
+    normal_error_estimate : float
+        The squeeze's part, :func:`normal_share` (how the estimated error of the normal
+        forces moves the friction force).
     error_bound : float
         With ``estimate_error=True``: :math:`\hat\kappa\,\rho`, the condition estimate
         times the worst relative residual ``residual`` (see :func:`bond_spectrum`), an
@@ -131,6 +138,8 @@ class SlipResult:
     normal_force: float = 0.0
     condition: float = math.nan
     error_bound: float = math.nan
+    solve_error_estimate: float = math.nan
+    normal_error_estimate: float = math.nan
 
     @property
     def peak_dx(self) -> float:
@@ -648,6 +657,8 @@ def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
 
 #: relative tolerance of the correction solve in :func:`refinement_estimate`
 REFINE_TOL = 1e-2
+#: and of the squeeze's correction in :func:`normal_share`
+SQUEEZE_REFINE_TOL = estimates.REFINE_TOL
 
 
 def _peak_force(phi: np.ndarray, cap: np.ndarray) -> float:
@@ -682,8 +693,8 @@ def refinement_estimate(normal: NormalResult, result: SlipResult, *,
         level (below 3e-15).
 
         It is the error of the pull *given* the normal forces :math:`f_z`: the squeeze's
-        error enters the friction force through :math:`\lambda f_z` and is not in it (the
-        squeeze has an estimate of its own, :func:`roughslip.contact.estimates.squeeze_correction`).
+        error enters the friction force through :math:`\lambda f_z` and is not in it
+        (:func:`normal_share` estimates that part).
 
     Returns
     -------
@@ -703,6 +714,40 @@ def refinement_estimate(normal: NormalResult, result: SlipResult, *,
     delta = A.gather(cg(A, A.scatter(r), tol=tol).x)
     refined = _peak_force(phi + delta, cap)
     return abs(_peak_force(phi, cap) - refined) / refined
+
+
+def normal_share(normal: NormalResult, result: SlipResult, *,
+                 tol: float = SQUEEZE_REFINE_TOL) -> float:
+    r"""Estimated relative error of a friction force caused by the error of the squeeze's
+    normal forces, signed: :math:`(F - F^{\rm exact})/F^{\rm exact}`.
+
+    :math:`\delta \approx f_z^{\rm exact} - f_z` is
+    :func:`~roughslip.contact.estimates.squeeze_correction`. The stick forces
+    :math:`\varphi` depend on the stick set only, so with the same break sequence:
+
+    - break law: :math:`F = \lambda f_{z,k}\sum_S\varphi/|\varphi_k|` with :math:`k` the
+      bond that breaks at the peak, and the share is
+      :math:`-\delta_k / (f_{z,k} + \delta_k)`;
+    - Coulomb law: :math:`F = \lambda\sum_i s_i f_{z,i}`, and the share is
+      :math:`-\sum_i s_i\delta_i / \sum_i s_i (f_{z,i} + \delta_i)`.
+
+    What it is
+        An *estimate*, first order in the squeeze's error, for the same contact and stick
+        sets. On 32 pulls of 4 rough scenes (N = 32 and 64, squeeze tolerances 1e-4 to 1e-10,
+        both laws, ``inverse`` at 1e-10) it was 0.999 to 1.01 times the true error against a
+        squeeze and pull at 1e-13, also where the break order differed. A site wrongly in or
+        out of contact is not seen.
+    """
+    delta = squeeze_correction(normal, tol=tol).ravel()
+    fz = normal.fz.ravel()
+    if result.slip_law == "coulomb":
+        s = np.sign(np.asarray(result.fx_at_peak).ravel())
+        total = float((s * (fz + delta)).sum())
+        return -float((s * delta).sum()) / total if total else 0.0
+    if result.steps == 0:
+        return 0.0
+    k = int(result.broken_site[result.peak_index])
+    return -float(delta[k]) / float(fz[k] + delta[k])
 
 
 # ----------------------------------------------------------------------------------------------
@@ -869,8 +914,9 @@ def pull(
     threads : int, optional
         BLAS threads of the dense methods (default: the problem's threads).
     estimate_error : bool
-        Also estimate the error of the friction force (``error_estimate``, by
-        :func:`refinement_estimate`: one CG solve on the peak state) and the condition number
+        Also estimate the error of the friction force (``error_estimate``: the pull's own part
+        by :func:`refinement_estimate`, one CG solve on the peak state, and the squeeze's part
+        by :func:`normal_share`, one CG solve on the contact set) and the condition number
         of :math:`G_{xx}` on the bonds (``condition``, :func:`bond_spectrum`, a few hundred
         operator applications; deterministic) with the bound estimate ``error_bound``
         :math:`= \hat\kappa\rho`. Both are estimates (docs/methods.rst#estimates-against-truth
@@ -915,14 +961,17 @@ def pull(
     if estimate_error:
         lo, hi = bond_spectrum(normal, threads=threads)
         kappa = hi / lo
-        if res.method == "batch":
-            est = math.nan
-        elif slip_law == "coulomb":
-            est = 0.0
-        else:
-            est = refinement_estimate(normal, res)
-        res = replace(res, condition=kappa, error_estimate=est,
-                      error_bound=kappa * res.residual, seconds=time.perf_counter() - t0)
+        solve = normal_part = math.nan
+        if res.method != "batch":
+            solve = 0.0 if slip_law == "coulomb" else refinement_estimate(normal, res)
+            normal_part = abs(normal_share(normal, res))
+        res = replace(res, condition=kappa, error_estimate=solve + normal_part,
+                      solve_error_estimate=solve, normal_error_estimate=normal_part,
+                      error_bound=kappa * res.residual, seconds=time.perf_counter() - t0,
+                      message=res.message + (f"; estimated error {solve + normal_part:.2e} "
+                                             f"(solves {solve:.1e}, normal forces "
+                                             f"{normal_part:.1e})"
+                                             if res.method != "batch" else ""))
     return res
 
 

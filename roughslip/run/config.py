@@ -252,10 +252,10 @@ class PullConfig:
     method: str = _f("auto", PULL_METHODS.describe(), choices=PULL_METHODS.names())
     tol: float = _f(1e-10, "relative tolerance of the tangential solves", _tol_rule)
     batch_size: int = _f(16, "sites broken per solve by method = 'batch'", _at_least(1))
-    error_estimate: bool = _f(False, "store pull_error_estimate, the error of the friction "
-                              "force estimated by one refinement step on the peak state "
-                              "(exact break-law methods; 'batch' has none); also runs the "
-                              "Lanczos condition estimate of G_xx on the bonds")
+    error_estimate: bool = _f(False, "store pull_error_estimate, the estimated error of the "
+                              "friction force: the pull's solves and the squeeze's normal "
+                              "forces, each by one refinement step ('batch' has none); also "
+                              "runs the Lanczos condition estimate of G_xx on the bonds")
     early_stop: bool = _f(True, "stop the break sequence once no later break can exceed the "
                           "peak (exact for the friction force); false records every break, "
                           "for the bursts after the peak")

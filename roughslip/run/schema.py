@@ -64,10 +64,11 @@ COLUMNS: tuple[Column, ...] = (
     Column("pull_steps", "pull", "bonds broken (or sites slipped, or coupled events) until "
            "the pull stopped", "count"),
     Column("pull_error_estimate", "pull", "with pull.error_estimate: estimate of the relative "
-           "error of friction_force by one refinement step on the peak state (exact break-law "
-           "methods; within a factor 2 of the true error on the verify scenes; it does not "
-           "see the error of the normal forces f_z), 0 for the Coulomb law; NaN when not "
-           "estimated and for method 'batch', which has no estimate"),
+           "error of friction_force, the pull's own part (one refinement step on the peak "
+           "state; 0 under the Coulomb law) plus the part of the squeeze's error in f_z "
+           "(one refinement step on the contact set); within a factor 3.2 of the true error "
+           "on the verify scenes; NaN when not estimated and for method 'batch', which has "
+           "none"),
     Column("released_bonds", "coupled", "coupled model: contact sites whose bond is released "
            "at D_x = 0", "count"),
 )
