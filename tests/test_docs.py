@@ -123,3 +123,17 @@ def test_every_command_in_the_guide_runs(tmp_path):
         r = subprocess.run(["bash", "-c", cmd], cwd=tmp_path, env=env, capture_output=True,
                            text=True, timeout=600)
         assert r.returncode == 0, f"{page}: {cmd}\n{r.stdout}\n{r.stderr}"
+
+
+def test_licence_and_citation_agree_with_the_package():
+    """The licence file, the package metadata and the citation record name the same licence,
+    and the citation record has the package's version."""
+    from roughslip import __version__
+
+    licence = (ROOT / "LICENSE").read_text()
+    assert licence.startswith("BSD 3-Clause License")
+    assert 'license = "BSD-3-Clause"' in (ROOT / "pyproject.toml").read_text()
+    cff = (ROOT / "CITATION.cff").read_text()
+    assert re.search(r"^cff-version: 1\.2\.0$", cff, re.M)
+    assert re.search(r"^license: BSD-3-Clause$", cff, re.M)
+    assert re.search(rf"^version: {re.escape(__version__)}$", cff, re.M)
