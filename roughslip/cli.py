@@ -53,7 +53,11 @@ set_option = click.option(
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(__version__, "--version", prog_name="roughslip")
+@click.version_option(
+    __version__, "--version", prog_name="roughslip",
+    message="%(prog)s %(version)s (BSD 3-Clause)\nTo cite: CITATION.cff of this version with "
+            "the version number, and the 2003 report whose model it implements (docs: Licence "
+            "and citation).")
 def cli() -> None:
     """Static friction of rough elastic surfaces: squeeze, pull, slip."""
 

@@ -360,6 +360,7 @@ def test_inspect_shows_the_solves_per_depth_and_the_error_against_hertz(tmp_path
         assert 0 < r["pull_error_estimate"] < 1e-8
     text = CliRunner().invoke(cli, ["inspect", str(out)]).output
     assert "solves per depth" in text and "F_n vs Hertz" in text and "pull est. err" in text
+    assert "+-" not in text and "sem" not in text  # one sample: no standard error
 
 
 def test_inspect_has_no_closed_form_for_rough_runs():

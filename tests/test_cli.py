@@ -21,6 +21,7 @@ BASE = {
 def test_version():
     r = CliRunner().invoke(cli, ["--version"])
     assert r.exit_code == 0 and __version__ in r.output
+    assert "CITATION.cff" in r.output  # what to cite
 
 
 def test_module_entry_point():

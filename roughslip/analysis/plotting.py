@@ -101,7 +101,7 @@ def _loglog_with_fit(ax, x, y, xlabel, ylabel, title):
         sel = (row_x > 0) & (row_y > 0)
         ax.loglog(row_x[sel], row_y[sel], ".", color="0.75", ms=3)
     ax.errorbar(xm[ok], ym[ok], yerr=ye[ok], fmt="o", color="C0", ms=4, capsize=2,
-                label="ensemble mean")
+                label="ensemble mean" if x.shape[0] > 1 else "one sample")
     try:
         f = fit_power_law(x, y)
         xx = np.geomspace(xm[ok].min(), xm[ok].max(), 50)

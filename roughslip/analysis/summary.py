@@ -143,7 +143,8 @@ def _format_solves(run, axis_label: str) -> list[str]:
 
 
 def summarize(path: str | Path) -> str:
-    """Config, progress, per-depth means +- standard errors, and convergence problems."""
+    """Config, progress, per-depth means +- standard errors (a single sample's values), and
+    convergence problems."""
     run = read_run(path)
     a = run.attrs
     lines = [
@@ -180,14 +181,16 @@ def summarize(path: str | Path) -> str:
     if axis_unit == "length" and unit:
         axis_unit = unit
     axis_label = f"{axis} ({axis_unit})" if axis_unit else axis
-    head = f"  {axis_label:>12} " + " ".join(f"{n + ' (mean +- sem)':>30}" for n in names)
+    one = int(sel.sum()) == 1  # one sample: its values, no standard error
+    head = f"  {axis_label:>12} " + " ".join(
+        f"{n:>30}" if one else f"{n + ' (mean +- sem)':>30}" for n in names)
     lines.append(head)
     stats = {n: mean_sem(run.scalars[n][sel]) for n in names}
     for k, x in enumerate(run.axis):
         row = f"  {x:>12.5g} "
         for n in names:
             m, e = stats[n][0][k], stats[n][1][k]
-            row += f"{m:>17.6g} +- {e:<10.3g}"
+            row += f"{m:>30.6g}" if one else f"{m:>17.6g} +- {e:<10.3g}"
         lines.append(row)
     bad, total = _count_false(run.scalars["converged"][sel])
     problems = [f"  squeeze solves not converged: {bad} of {total}"]
