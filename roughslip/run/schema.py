@@ -52,7 +52,8 @@ COLUMNS: tuple[Column, ...] = (
     Column("residual", "squeeze", "squeeze residual: worst gap error relative to the depth "
            "(coupled model: worst relative residual of the block solves, each certified "
            "against the FFT operator); a measure of convergence, not of the error of the "
-           "forces, from which it is off by factors 0.26 to 10^4 on the verify scenes"),
+           "forces, from which it is off by factors 0.26 to 10^4 on the verify squeezes (and "
+           "by 10^5 in a coupled matrix-free solve whose release order had near-ties)"),
     Column("converged", "squeeze", "1 when the squeeze met its tolerance", "flag"),
     Column("seconds", "squeeze", "squeeze wall-clock time (a measurement, differs between "
            "runs; coupled model: the part of its solve before the pull starts)"),
