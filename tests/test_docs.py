@@ -137,3 +137,40 @@ def test_licence_and_citation_agree_with_the_package():
     assert re.search(r"^cff-version: 1\.2\.0$", cff, re.M)
     assert re.search(r"^license: BSD-3-Clause$", cff, re.M)
     assert re.search(rf"^version: {re.escape(__version__)}$", cff, re.M)
+
+
+HTML = ROOT / "docs" / "_build" / "html"
+_RAW_ROLE = re.compile(r":(?:math|ref|func|doc|class|meth|mod|data|attr|term|numref):`")
+_RAW_PATH = re.compile(r"\bdocs/[\w/]+\.(?:rst|md)\b")
+
+
+def _visible_text(page: Path) -> str:
+    """The text a reader sees: no scripts, styles, code or markup."""
+    import html
+
+    text = re.sub(r"<(script|style|pre|code)\b[^>]*>.*?</\1>", " ", page.read_text(),
+                  flags=re.S)
+    return html.unescape(re.sub(r"<[^>]+>", " ", text))
+
+
+@pytest.mark.skipif(not (HTML / "index.html").exists(),
+                    reason="the documentation is not built (make test builds it first)")
+def test_rendered_pages_show_no_raw_role_or_source_path():
+    """What the reader sees has no unrendered role (``:math:`...```) and no source path
+    (``docs/page.rst#label``) where a link belongs."""
+    bad = []
+    for page in sorted(HTML.rglob("*.html")):
+        if {"_sources", "_static", "_modules"} & set(page.relative_to(HTML).parts):
+            continue
+        text = _visible_text(page)
+        for m in [*_RAW_ROLE.finditer(text), *_RAW_PATH.finditer(text)]:
+            bad.append(f"{page.relative_to(HTML)}: ...{text[max(0, m.start() - 40):m.end()]}")
+    assert not bad, "\n".join(bad[:20])
+
+
+def test_the_raw_text_check_catches_what_it_should(tmp_path):
+    page = tmp_path / "p.html"
+    page.write_text("<p>see (docs/theory/pull.rst#break-law) and ~:math:`x`</p>"
+                    "<pre>docs/stability.md is fine in code</pre>")
+    text = _visible_text(page)
+    assert _RAW_PATH.findall(text) == ["docs/theory/pull.rst"] and _RAW_ROLE.search(text)

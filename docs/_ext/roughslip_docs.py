@@ -63,7 +63,7 @@ def config_reference() -> list[str]:
     lines: list[str] = []
     for name, cls in C.SECTIONS.items():
         hints = typing.get_type_hints(cls)
-        doc = (cls.__doc__ or "").strip().splitlines()[0]
+        doc = _links((cls.__doc__ or "").strip().splitlines()[0])
         title = f"[{name}]"
         lines += [f".. _config-{name}:", "", title, "-" * len(title), "", doc, "",
                   ".. list-table::", "   :header-rows: 1", "   :widths: 18 12 12 22 36", "",
@@ -71,7 +71,7 @@ def config_reference() -> list[str]:
                   "     - meaning"]
         for f in dataclasses.fields(cls):
             meta = f.metadata
-            text = meta.get("doc", "").replace("|", "\\|")
+            text = _links(meta.get("doc", "").replace("|", "\\|"))
             if name in ("surface", "elastic_surface"):
                 kinds = [k for k, (allowed, _) in C.SURFACE_KEYS.items() if f.name in allowed]
                 if f.name != "kind" and kinds:
@@ -98,7 +98,7 @@ def schema_reference() -> list[str]:
         lines += [f"   * - ``/{name}``", "     - ", "     - axis", f"     - {text}"]
     for c in S.COLUMNS:
         lines += [f"   * - ``/{c.name}``", f"     - {c.stage}", f"     - {c.kind}",
-                  f"     - {c.description}"]
+                  f"     - {_links(c.description)}"]
     lines += ["", ".. list-table::", "   :header-rows: 1", "   :widths: 24 22 54", "",
               "   * - field", "     - shape", "     - meaning"]
     for f in S.FIELDS:
@@ -166,15 +166,20 @@ _PAGE = re.compile(r"docs/([\w/]+)\.(?:rst|md)\b")
 _LITERATURE = re.compile(r"\[(\w+)\] §")
 
 
+def _links(line: str) -> str:
+    """A line of the code's text with its references to pages (``docs/page.rst#label``) and to
+    the literature (``[Key] §``) as links."""
+    line = _PAGE_LABEL.sub(lambda m: f":ref:`{m.group(2).replace('-', ' ')} <{m.group(2)}>`",
+                           line)
+    line = _PAGE.sub(lambda m: f":doc:`/{m.group(1)}`", line)
+    return _LITERATURE.sub(lambda m: f":ref:`[{m.group(1)}] <ref-{m.group(1).lower()}>` §",
+                           line)
+
+
 def link_references(app, what, name, obj, options, lines: list[str]) -> None:
-    """Turn the code's references to pages (``docs/page.rst#label``) and to the literature
-    (``[Key] §``) into links in the rendered docstrings."""
+    """Links in the rendered docstrings (:func:`_links`)."""
     for i, line in enumerate(lines):
-        line = _PAGE_LABEL.sub(lambda m: f":ref:`{m.group(2).replace('-', ' ')} <{m.group(2)}>`",
-                               line)
-        line = _PAGE.sub(lambda m: f":doc:`/{m.group(1)}`", line)
-        lines[i] = _LITERATURE.sub(lambda m: f":ref:`[{m.group(1)}] <ref-{m.group(1).lower()}>` §",
-                                   line)
+        lines[i] = _links(line)
 
 
 def setup(app):
