@@ -36,8 +36,11 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
         except RoughslipError as exc:
             _fail(str(exc), exc.exit_code)
         except KeyboardInterrupt:
-            click.echo("roughslip: interrupted; completed samples are kept (continue with "
-                       "--resume)", err=True)
+            if fn.__name__ == "run_cmd":  # the one command whose work survives
+                click.echo("roughslip: interrupted; completed samples are kept (continue "
+                           "with --resume)", err=True)
+            else:
+                click.echo("roughslip: interrupted", err=True)
             sys.exit(130)
 
     return wrapper
