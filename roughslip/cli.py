@@ -235,7 +235,7 @@ def fit_cmd(files, xname, yname, xrange, as_json, plot_path):
     if plot_path:
         from roughslip.analysis.plotting import plot_fits
 
-        plot_fits(list(files), fits, xname, yname, plot_path)
+        click.echo(str(plot_fits(list(files), fits, xname, yname, plot_path)))
 
 
 @cli.command("topography")
@@ -333,7 +333,8 @@ def verify_cmd(quick, as_json, plot_path, quiet):
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", "out", help="Output prefix (default: the run file's name).")
 @click.option("--sample", type=int, help="Sample for the maps and the pull curve.")
-@click.option("--depth-index", type=int, help="Depth index for the maps and the pull curve.")
+@click.option("--depth-index", type=int,
+              help="Depth index for the maps and the pull curve (default: the deepest).")
 @click.option("--solves", is_flag=True,
               help="Also plot the solves per depth: residuals, errors, iterations, seconds.")
 @handle_errors

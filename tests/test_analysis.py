@@ -396,3 +396,34 @@ def test_inspect_says_a_batch_run_has_no_estimate_and_hides_estimates_not_asked_
     old = read_run(Path(__file__).parent / "data" / "run_v1_load.h5")
     assert all(math.isnan(r["pull_error_estimate"]) for r in solves_table(old))
     assert "pull est. err" not in summarize(old.path)
+
+
+def test_every_plot_command_renders_a_micrometre_run_with_its_units(tmp_path):
+    """plot (with --solves), fit --plot, bursts --plot on a run in um: no crash, and the
+    labels carry the unit, depths as values, E x um^2 for forces."""
+    pytest.importorskip("matplotlib", reason="the plot extra is not installed")
+    from roughslip.analysis.plotting import quantity_label, target_label
+    from roughslip.run.config import dumps_toml
+    from roughslip.run.executor import run
+    from roughslip.run.store import read_run
+
+    cfg_path = tmp_path / "um.toml"
+    cfg_path.write_text(dumps_toml({
+        "grid": {"n": 24, "pixel_size": 0.5}, "units": {"length": "um"},
+        "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1.0},
+        "squeeze": {"depths": [0.5, 1.0, 2.0], "depth_unit": "rms"},
+        "pull": {"enabled": True, "early_stop": False}, "ensemble": {"samples": 2},
+        "output": {"fields": ["contact", "fz", "fx", "stick", "pull_curve"]}}))
+    out = tmp_path / "um.h5"
+    run(load_config(cfg_path), out)
+    data = read_run(out)
+    assert quantity_label(data, "normal_force").endswith("(E $\\times$ um$^2$)")
+    assert quantity_label(data, "depth_length").endswith("(um)")
+    assert target_label(data, 2) == "$D_z$ = 2 rms"
+    for args in (["plot", str(out), "-o", str(tmp_path / "p"), "--solves"],
+                 ["fit", str(out), "--range", "0.1", "1e9", "--plot", str(tmp_path / "f.png")],
+                 ["bursts", str(out), "--min-tail", "10", "--plot", str(tmp_path / "b.png")]):
+        r = CliRunner().invoke(cli, args)
+        assert r.exit_code == 0 and "Traceback" not in r.output, (args, r.output)
+        assert ".png" in r.output  # every command says where the figure went
+    assert all(_png_ok(p) for p in tmp_path.glob("*.png"))

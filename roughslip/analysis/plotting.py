@@ -28,7 +28,8 @@ def pyplot():
 def save(plt, fig, path: str | Path) -> Path:
     """Lay out, write at 120 dpi and close a figure (:class:`OutputError` when it cannot be
     written)."""
-    fig.tight_layout()
+    if fig.get_layout_engine() is None:
+        fig.tight_layout()
     try:
         fig.savefig(path, dpi=120)
     except OSError as exc:
@@ -41,7 +42,7 @@ def save(plt, fig, path: str | Path) -> Path:
 def log_ticks(axis, most: int = 6) -> None:
     """Labelled major ticks on a log axis, never closer than a fifth of its span: powers of ten
     first, then 2 and 5, then the other digits, so that a short axis still gets labels and
-    labels never collide."""
+    labels never collide. Plain numbers from 0.01 to 9000, powers of ten beyond."""
     from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
 
     ax = axis.axes
@@ -67,6 +68,8 @@ def log_ticks(axis, most: int = 6) -> None:
     def label(t: float, _pos: int) -> str:
         k = math.floor(math.log10(t) + 1e-9)
         m = round(t / 10.0**k)
+        if -2 <= k <= 3:  # plain numbers where they are short: 0.05, 3, 200
+            return f"{m * 10.0**k:.{max(0, -k)}f}"
         return f"$10^{{{k}}}$" if m == 1 else f"${m}\\times10^{{{k}}}$"
 
     axis.set_major_locator(FixedLocator(sorted(picked)))
@@ -80,6 +83,34 @@ def finish_axes(ax, xlabel: str, ylabel: str, fontsize: int = 8) -> None:
     ax.set_ylabel(ylabel)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=fontsize)
+
+
+def quantity_label(run, name: str) -> str:
+    """Axis label of a quantity of :func:`roughslip.analysis.fit.quantity`, with its unit:
+    the run's length unit (``units.length``; "length" when it has none) and, for forces, E
+    times its square."""
+    unit = length_unit(run) or "length"
+    force = f"E $\\times$ {unit}$^2$"
+    if name == "depth":
+        axis_unit = run.axis_unit if run.axis_unit not in ("", "length") else unit
+        return f"penetration depth $D_z$ ({axis_unit})" if run.axis_name == "depth" else \
+            f"penetration depth $D_z$ ({unit})"
+    return {"depth_length": f"penetration depth $D_z$ ({unit})",
+            "normal_force": f"normal force $F_n$ ({force})",
+            "contact_area": "contact area (fraction of the grid)",
+            "friction_force": f"static friction $F_{{friction}}$ ({force})",
+            "friction_normal_force": f"normal force of the pulled state ({force})"}[name]
+
+
+def target_label(run, k: int) -> str:
+    """The depth (or load) of target index ``k``, as a value with its unit."""
+    unit = length_unit(run)
+    axis_unit = run.axis_unit
+    if axis_unit == "length":
+        axis_unit = unit or "length"
+    if run.axis_name == "depth":
+        return f"$D_z$ = {run.axis[k]:.3g} {axis_unit}".rstrip()
+    return f"$F_n$ = {run.axis[k]:.3g} {axis_unit}".rstrip()
 
 
 def _loglog_png(plt, stem: Path, suffix: str, x, y, xlabel: str, ylabel: str,
@@ -110,10 +141,12 @@ def _loglog_with_fit(ax, x, y, xlabel, ylabel, title):
                   label=f"fit: exponent {f.alpha:.3f} ± {err:.3f}")
     except InputError:
         pass
+    log_ticks(ax.xaxis)
+    log_ticks(ax.yaxis)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
+    ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8)
 
 
@@ -191,9 +224,10 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
              depth_index: int | None = None, solves: bool = False) -> list[Path]:
     """Write the friction law, F_n(D_z), contact/stick maps and a pull curve as PNGs.
 
-    Files are named ``<out>_friction.png``, ``_normal.png``, ``_maps.png``, ``_pull.png``
-    and, with ``solves``, ``_solves.png`` (:func:`plot_solves`); ``out`` defaults to the run
-    file without its suffix. Returns the paths written.
+    The maps and the pull curve show ``depth_index`` (default: the deepest state, which has
+    the most contact). Files are named ``<out>_friction.png``, ``_normal.png``, ``_maps.png``,
+    ``_pull.png`` and, with ``solves``, ``_solves.png`` (:func:`plot_solves`); ``out``
+    defaults to the run file without its suffix. Returns the paths written.
     """
     plt = pyplot()
     run = read_run(path)
@@ -205,42 +239,34 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
     fn = quantity(run, "normal_force")
     depth = quantity(run, "depth_length")
     unit = length_unit(run)
-    lu = f" ({unit})" if unit else ""
-    fu = f" (E x {unit}$^2$)" if unit else ""
-    written.append(_loglog_png(plt, stem, "normal", depth, fn, f"penetration depth $D_z${lu}",
-                               f"normal force $F_n${fu}", "$F_n \\propto D_z^{\\beta}$"))
+    written.append(_loglog_png(plt, stem, "normal", depth, fn,
+                               quantity_label(run, "depth_length"),
+                               quantity_label(run, "normal_force"),
+                               "$F_n \\propto D_z^{\\beta}$"))
     has_pull = "friction_force" in run.scalars
     if has_pull:
         ff = quantity(run, "friction_force")
-        written.append(_loglog_png(plt, stem, "friction", fn, ff, f"normal force $F_n${fu}",
-                                   f"static friction $F_{{friction}}${fu}",
+        written.append(_loglog_png(plt, stem, "friction", fn, ff,
+                                   quantity_label(run, "normal_force"),
+                                   quantity_label(run, "friction_force"),
                                    "$F_{friction} \\propto F_n^{\\alpha}$"))
     s = int(run.sample_index[run.complete][0]) if sample is None else int(sample)
     if s not in set(run.sample_index[run.complete].tolist()):
         raise InputError(f"{run.path}: sample {s} is not complete")
-    k = len(run.axis) // 2 if depth_index is None else int(depth_index)
+    # the deepest state by default: the most contact to see
+    k = len(run.axis) - 1 if depth_index is None else int(depth_index)
     if not 0 <= k < len(run.axis):
         raise InputError(f"depth index {k}: must be in 0..{len(run.axis) - 1}")
+    where = f"sample {s}, {target_label(run, k)}"
     panels = []
     for name, title in (("contact", "contact"), ("stick", "stick at the friction peak"),
                         ("fz", "normal force $f_z$"), ("fx", "tangential force $f_x$ at peak")):
         try:
-            panels.append((title, run.field(s, k, name)))
+            panels.append((name, title, run.field(s, k, name)))
         except InputError:
             continue
     if panels:
-        fig, axes = plt.subplots(1, len(panels), figsize=(3.6 * len(panels), 3.6),
-                                 squeeze=False)
-        for ax, (title, a) in zip(axes[0], panels, strict=True):
-            im = ax.imshow(a, origin="lower", interpolation="nearest",
-                           cmap="gray_r" if a.dtype == bool else "viridis")
-            if a.dtype != bool:
-                fig.colorbar(im, ax=ax, fraction=0.046)
-            ax.set_title(title, fontsize=9)
-            ax.set_xlabel("x (pull direction)")
-            ax.set_ylabel("y")
-        fig.suptitle(f"sample {s}, depth index {k}", fontsize=10)
-        written.append(save(plt, fig, stem.parent / f"{stem.name}_maps.png"))
+        written.append(_maps_figure(plt, stem, run, panels, where))
     if has_pull:
         try:
             dx, fx = run.field(s, k, "dx_lim"), run.field(s, k, "fx_lim")
@@ -248,11 +274,44 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
             dx = fx = None
         if dx is not None and dx.size:
             cfg = run.config_dict()
-            written.append(_pull_figure(plt, stem, cfg, dx, fx, f"sample {s}, depth index {k}",
-                                        unit))
+            written.append(_pull_figure(plt, stem, cfg, dx, fx, where, unit))
     if solves:
         written.append(plot_solves(run, stem))
     return written
+
+
+def _maps_figure(plt, stem: Path, run, panels: list, where: str) -> Path:
+    """Contact, stick and force maps in length units, each with its key (a two-colour key
+    for the sets), all panels of one size."""
+    from matplotlib.colors import ListedColormap
+
+    unit = length_unit(run)
+    cfg = run.config_dict()
+    pixel = float(run.attrs.get("pixel_size", cfg.get("grid", {}).get("pixel_size", 1.0)))
+    force = f"E $\\times$ {unit or 'length'}$^2$"
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.9 * len(panels), 3.7),
+                             squeeze=False, layout="constrained")
+    for ax, (name, title, a) in zip(axes[0], panels, strict=True):
+        ny, nx = a.shape
+        extent = (0.0, nx * pixel, 0.0, ny * pixel)
+        if a.dtype == bool:
+            im = ax.imshow(a.astype(int), origin="lower", interpolation="nearest",
+                           extent=extent, cmap=ListedColormap(["white", "0.15"]), vmin=0,
+                           vmax=1)
+            cb = fig.colorbar(im, ax=ax, fraction=0.046, ticks=[0.25, 0.75])
+            yes = {"contact": "in contact", "stick": "stuck"}.get(name, "yes")
+            cb.ax.set_yticklabels(["no", yes], fontsize=8)
+            title = f"{title}: {int(a.sum())} sites"
+        else:
+            im = ax.imshow(a, origin="lower", interpolation="nearest", extent=extent,
+                           cmap="viridis")
+            cb = fig.colorbar(im, ax=ax, fraction=0.046)
+            cb.set_label(f"pixel force ({force})", fontsize=8)
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel(f"x, pull direction ({unit or 'length'})")
+        ax.set_ylabel(f"y ({unit or 'length'})")
+    fig.suptitle(where, fontsize=10)
+    return save(plt, fig, stem.parent / f"{stem.name}_maps.png")
 
 
 def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
@@ -284,8 +343,8 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
                 label="pull curve between events")
         title = f"pull curve ({law})"
     ax.plot(dx[i], fx[i], "o", color="C3", label=f"$F_{{friction}}$ = {fx[i]:.4g}")
-    ax.set_xlabel("pull displacement $D_x$" + (f" ({unit})" if unit else ""))
-    ax.set_ylabel("pull force $F_x$" + (f" (E x {unit}$^2$)" if unit else ""))
+    ax.set_xlabel(f"pull displacement $D_x$ ({unit or 'length'})")
+    ax.set_ylabel(f"pull force $F_x$ (E $\\times$ {unit or 'length'}$^2$)")
     ax.set_title(f"{title}: {where}", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
@@ -326,18 +385,49 @@ def plot_bursts(sample, fits, out: str | Path) -> Path:
 
 
 def plot_fits(paths: list[str], fits, x: str, y: str, out: str | Path) -> Path:
-    """One log-log panel with the ensemble means and fit of every file."""
+    """One log-log panel with every file's ensemble means (error bars: the standard error
+    over samples; open markers: points outside the fitted range) and its fit, labelled
+    :math:`\\alpha \\pm \\sigma` (bootstrap over samples, or the regression's standard error
+    with one sample)."""
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    fig, ax = plt.subplots(figsize=(6, 4.4))
+    excluded = False
     for i, (p, f) in enumerate(zip(paths, fits, strict=True)):
         run = read_run(p)
         xv, yv = quantity(run, x), quantity(run, y)
         xm, ym = xv.mean(axis=0), yv.mean(axis=0)
+        n = xv.shape[0]
+        ye = yv.std(axis=0, ddof=1) / np.sqrt(n) if n > 1 else np.zeros_like(ym)
         ok = (xm > 0) & (ym > 0)
-        label = ", ".join(f"{k.split('.')[-1]}={v}" for k, v in f.varied.items()) or Path(p).name
-        ax.loglog(xm[ok], ym[ok], "o", color=f"C{i}", ms=4)
-        xx = np.geomspace(*f.fit.x_range, 50)
+        lo, hi = f.fit.x_range
+        inside = ok & (xm >= lo * (1 - 1e-12)) & (xm <= hi * (1 + 1e-12))
+        out_ = ok & ~inside
+        excluded |= bool(out_.any())
+        name = ", ".join(f"{k.split('.')[-1]} = {v}" for k, v in f.varied.items()) \
+            or Path(p).name
+        ax.errorbar(xm[inside], ym[inside], yerr=ye[inside], fmt="o", color=f"C{i}", ms=4,
+                    capsize=2)
+        if out_.any():
+            ax.errorbar(xm[out_], ym[out_], yerr=ye[out_], fmt="o", color=f"C{i}", ms=4,
+                        mfc="none", capsize=2)
+        sigma = f.fit.alpha_bootstrap_std
+        if not np.isfinite(sigma):
+            sigma = f.fit.alpha_stderr
+        err = f" ± {sigma:.3f}" if np.isfinite(sigma) else ""
+        xx = np.geomspace(lo, hi, 50)
         ax.loglog(xx, f.fit.prefactor * xx**f.fit.alpha, "-", color=f"C{i}",
-                  label=f"{label}: {f.fit.alpha:.3f}")
-    finish_axes(ax, x, y)
+                  label=f"{name}: $\\alpha$ = {f.fit.alpha:.3f}{err} ({n} sample"
+                        f"{'s' if n != 1 else ''})")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    log_ticks(ax.xaxis)
+    log_ticks(ax.yaxis)
+    run0 = read_run(paths[0])
+    ax.set_xlabel(quantity_label(run0, x))
+    ax.set_ylabel(quantity_label(run0, y))
+    ax.grid(True, which="major", alpha=0.3)
+    if excluded:
+        ax.plot([], [], "o", mfc="none", color="0.3", label="not fitted (outside --range)")
+    ax.legend(fontsize=8)
+    ax.set_title("ensemble means ± standard error, with the fits", fontsize=10)
     return save(plt, fig, out)
