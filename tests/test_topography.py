@@ -307,13 +307,15 @@ def test_bad_files_exit_2_with_one_line_and_leave_nothing(tmp_path, scan):
 
 
 def test_missing_extra_is_named(tmp_path, scan, monkeypatch):
-    p = tmp_path / "s.x3p"
-    write_x3p(p, scan, 5e-7, 5e-7)
+    p = tmp_path / "s.gwy"
+    write_gwy(p, scan, 5e-7, 5e-7)
     monkeypatch.setitem(sys.modules, "SurfaceTopography", None)  # as if not installed
     with pytest.raises(InputError, match=r"topography extra: pip install 'roughslip\["):
         read_raw(p)
     np.save(tmp_path / "s.npy", scan)
     assert read_raw(tmp_path / "s.npy").heights.shape == scan.shape  # built in: no extra
+    write_x3p(tmp_path / "s.x3p", scan, 5e-7, 5e-7)
+    assert read_raw(tmp_path / "s.x3p").heights.shape == scan.shape  # X3P too
 
 
 # ------------------------------------------------------------------ statistics
@@ -352,3 +354,87 @@ def test_shipped_scan_example_runs(tmp_path):
     raw = read_raw(root / "configs" / "data" / "scan.x3p")
     tile3 = raw.heights[64:, 64:] * 1e6  # metres -> um
     assert np.allclose(run_data.surface(3), detrend(tile3, "tilt"), rtol=0, atol=1e-12)
+
+
+# ------------------------------------------------------------------ X3P from another writer
+
+
+x3pio = pytest.importorskip("x3pio", reason="x3pio (the independent X3P writer) is not installed")
+
+#: stored type -> the largest error its quantisation allows, relative to the height range
+X3P_TYPES = {"D": 0.0, "F": 1e-7, "L": 1e-9, "I": 2e-5}
+
+
+@pytest.mark.parametrize("revision", ["ISO5436_2000", "ISO25178_72_2017_DAM1"])
+@pytest.mark.parametrize("ztype", list(X3P_TYPES))
+def test_x3p_of_either_revision_written_by_another_library(tmp_path, scan, revision, ztype):
+    """Heights, pixel size, unit and missing points of X3P files that x3pio writes, in both
+    revisions of the standard and every stored type (binary), read without the extra."""
+    h = scan.copy()  # metres
+    h[3, 5] = np.nan
+    p = tmp_path / "s.x3p"
+    x3pio.write(p, h, x_scale=5e-7, y_scale=2.5e-7, z_type=x3pio.DataType(ztype),
+                revision=getattr(x3pio.Revision, revision))
+    raw = read_raw(p)
+    assert raw.unit == "m" and raw.format == "x3p"
+    assert raw.pixel_size == (2.5e-7, 5e-7)  # (dy, dx)
+    assert raw.heights.shape == h.shape
+    assert np.array_equal(np.isnan(raw.heights), np.isnan(h))
+    ok = ~np.isnan(h)
+    span = np.ptp(h[ok])
+    assert np.max(np.abs(raw.heights[ok] - h[ok])) <= max(X3P_TYPES[ztype] * span, 1e-12 * span)
+
+
+def test_x3p_2017_as_xml_text_and_in_a_run(tmp_path, scan):
+    """The 2017 revision that SurfaceTopography refuses: written by x3pio with the heights as
+    XML text and as binary, both run, and the run stores the heights (in um) to 1e-12."""
+    h = scan  # metres
+    for name, storage in (("xml.x3p", x3pio.DataStorage.XML),
+                          ("bin.x3p", x3pio.DataStorage.BINARY)):
+        x3pio.write(tmp_path / name, h, x_scale=5e-7, y_scale=5e-7, storage=storage)
+        assert rel(read_raw(tmp_path / name).heights, h) < 1e-12
+        out = tmp_path / f"{name}.h5"
+        r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, {"path": name},
+                                                     units={"length": "um"})),
+                                     "-o", str(out), "--quiet"])
+        assert r.exit_code == 0, r.output
+        with h5py.File(out, "r") as f:
+            stored = f["samples/s000000/rigid_surface"][()]
+            assert f.attrs["pixel_size"] == pytest.approx(0.5, rel=1e-12)
+        assert rel(stored, scan * 1e6) < 1e-12
+
+
+def test_x3p_reader_agrees_with_surfacetopography_on_the_2000_revision(tmp_path, scan):
+    """Two independent readers of one x3pio file of the revision SurfaceTopography reads."""
+    st = pytest.importorskip("SurfaceTopography")
+    h = scan
+    p = tmp_path / "s.x3p"
+    x3pio.write(p, h, x_scale=5e-7, y_scale=2.5e-7, revision=x3pio.Revision.ISO5436_2000)
+    t = st.open_topography(str(p)).topography()
+    theirs = np.asarray(t.heights(), dtype=float).T  # [ix, iy] -> [iy, ix]
+    assert np.array_equal(read_raw(p).heights, theirs)
+    assert tuple(t.pixel_size)[::-1] == read_raw(p).pixel_size
+
+
+def test_x3p_damage_is_one_line(tmp_path, scan):
+    import zipfile
+
+    good = tmp_path / "good.x3p"
+    x3pio.write(good, scan, x_scale=5e-7, y_scale=5e-7)
+    with zipfile.ZipFile(good) as z:
+        files = {n: z.read(n) for n in z.namelist()}
+    data = bytearray(files["bindata/data.bin"])
+    data[8] ^= 0xFF
+    with zipfile.ZipFile(tmp_path / "flipped.x3p", "w") as z:
+        for n, b in files.items():
+            z.writestr(n, bytes(data) if n == "bindata/data.bin" else b)
+    with pytest.raises(InputError, match="checksum of the point data does not match"):
+        read_raw(tmp_path / "flipped.x3p")
+    with zipfile.ZipFile(tmp_path / "nodata.x3p", "w") as z:
+        for n, b in files.items():
+            if n != "bindata/data.bin":
+                z.writestr(n, b)
+    with pytest.raises(InputError, match="has no 'bindata/data.bin'"):
+        read_raw(tmp_path / "nodata.x3p")
+    with pytest.raises(InputError, match="layer number"):
+        read_raw(good, key="height")

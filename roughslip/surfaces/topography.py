@@ -3,7 +3,9 @@ r"""Measured topographies: instrument files, units, missing data, preparation, t
 Reading
     The built-in formats (``.npy``, ``.npz``, text matrices, HDF5;
     :func:`~roughslip.surfaces.synthetic.load_topography`) need nothing more; they carry no
-    units or pixel size. Every other file is
+    units or pixel size. X3P files (ISO 25178-72, the 2000 and the 2017 revision) are read by
+    :func:`roughslip.surfaces.x3p.read_x3p`, with their units, pixel size and missing points,
+    and need nothing more either. Every other file is
     read by SurfaceTopography (the ``topography`` extra, ``pip install 'roughslip[topography]'``),
     which recognises about 40 instrument formats by content and extension (:func:`formats`
     lists them), with their units, pixel sizes and masks of missing points. SurfaceTopography
@@ -45,6 +47,7 @@ import numpy as np
 
 from roughslip.errors import InputError
 from roughslip.surfaces.synthetic import HDF5_SUFFIXES, TEXT_SUFFIXES, load_topography
+from roughslip.surfaces.x3p import read_x3p
 
 if TYPE_CHECKING:  # the run configuration sits above this layer; only its type is used
     from roughslip.run.config import SurfaceConfig
@@ -109,6 +112,8 @@ def read_raw(path: str | Path, key: str | None = None) -> RawTopography:
         raise InputError(f"{name}: no such file")
     if p.stat().st_size == 0:
         raise InputError(f"{name}: is empty (0 bytes)")
+    if p.suffix.lower() == ".x3p":
+        return _read_x3p(p, key)
     if p.suffix.lower() in BUILTIN_SUFFIXES:
         try:
             h = load_topography(p, key, allow_missing=True)
@@ -120,6 +125,20 @@ def read_raw(path: str | Path, key: str | None = None) -> RawTopography:
             except InputError:
                 raise builtin_error from None
     return _read_instrument(p, key)
+
+
+def _read_x3p(p: Path, key: str | None) -> RawTopography:
+    """X3P of either revision, by :func:`roughslip.surfaces.x3p.read_x3p` (no extra needed);
+    ``key`` is the layer number of a multi-layer file."""
+    layer = 0
+    if key is not None:
+        try:
+            layer = int(key)
+        except ValueError:
+            raise InputError(f"{p}: key {key!r}: an X3P file's key is its layer number "
+                             "(0, 1, ...)") from None
+    h, pixel, _revision = read_x3p(p, layer)
+    return RawTopography(h, pixel, "m", "x3p", str(p), f"layer {layer}")
 
 
 def _read_instrument(p: Path, key: str | None) -> RawTopography:
