@@ -434,7 +434,7 @@ def test_x3p_damage_is_one_line(tmp_path, scan):
         for n, b in files.items():
             if n != "bindata/data.bin":
                 z.writestr(n, b)
-    with pytest.raises(InputError, match="has no 'bindata/data.bin'"):
+    with pytest.raises(InputError, match=r"has no 'bindata/data\.bin'"):
         read_raw(tmp_path / "nodata.x3p")
     with pytest.raises(InputError, match="layer number"):
         read_raw(good, key="height")
