@@ -243,6 +243,8 @@ def fit_cmd(files, xname, yname, xrange, as_json, plot_path):
 @click.option("--key", help="Channel (instrument files), array (.npz) or dataset (HDF5).")
 @click.option("--unit", type=click.Choice(["m", "mm", "um", "nm", "pm"]),
               help="Unit of a file that carries none (for the labels).")
+@click.option("--pixel-size", type=click.FloatRange(min=0, min_open=True),
+              help="Pixel size of a file that carries none, in --unit.")
 @click.option("--sample", type=int, help="Run files: the sample whose surface to describe.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
@@ -250,7 +252,7 @@ def fit_cmd(files, xname, yname, xrange, as_json, plot_path):
 @click.option("--formats", "list_formats", is_flag=True,
               help="List the file formats that can be read, and exit.")
 @handle_errors
-def topography_cmd(path, key, unit, sample, as_json, plot_path, list_formats):
+def topography_cmd(path, key, unit, pixel_size, sample, as_json, plot_path, list_formats):
     """What to check in a topography (or a run file's surface) before a run: format, shape,
     pixel size and unit, missing points, rms height, slope and curvature, Hurst exponent."""
     import json
@@ -265,7 +267,7 @@ def topography_cmd(path, key, unit, sample, as_json, plot_path, list_formats):
         return
     if path is None:
         raise click.UsageError("missing argument PATH")
-    st, h = describe(path, key=key, unit=unit, sample=sample)
+    st, h = describe(path, key=key, unit=unit, sample=sample, pixel_size=pixel_size)
     click.echo(json.dumps(st.as_dict(), indent=1) if as_json else format_stats(st))
     if plot_path:
         click.echo(str(plot_stats(st, h, plot_path)))

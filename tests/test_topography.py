@@ -333,6 +333,56 @@ def test_hurst_estimate_recovers_h(hurst):
     assert abs(np.mean(est) - hurst) < 0.03, est
 
 
+@pytest.mark.parametrize("rolloff", [None, 32.0])
+@pytest.mark.parametrize("hurst", [0.3, 0.5, 0.7, 0.9])
+def test_hurst_is_recovered_within_its_stated_uncertainty(hurst, rolloff):
+    """On 128 x 128 patches of larger self-affine surfaces, with and without a roll-off at a
+    quarter of the patch: each bias-corrected estimate within 3 of its stated standard
+    deviations, the mean of six within 3 standard errors, and the stated spread honest (the
+    measured one within a factor 2 of it)."""
+    kw = {} if rolloff is None else {"rolloff_wavelength": rolloff}
+    stats = [statistics(self_affine((128, 128), hurst=hurst, rms_height=1.0, oversample=2,
+                                    rng=sample_rng(100 + s, 0), **kw)) for s in range(6)]
+    std = stats[0].hurst_std
+    assert 0 < std < 0.06
+    corrected = np.array([st.hurst_corrected for st in stats])
+    assert np.all(np.abs(corrected - hurst) < 3 * std), (corrected, std)
+    assert abs(corrected.mean() - hurst) < 3 * std / np.sqrt(len(stats)), (corrected, std)
+    assert 0.5 * std < corrected.std(ddof=1) < 2 * std, (corrected, std)
+    assert not any(st.warnings for st in stats)
+
+
+def test_hurst_warnings_name_the_problem():
+    small = statistics(self_affine((48, 64), hurst=0.8, rms_height=1.0, oversample=2,
+                                   rng=sample_rng(5, 0)))
+    assert any("only" in w and "bins" in w for w in small.warnings)
+    assert small.hurst_std > 0.1 and any("uncertain" in w for w in small.warnings)
+    y, x = np.mgrid[0:64, 0:64].astype(float)
+    smooth = statistics(np.sin(x / 20) * np.cos(y / 25))  # no self-affine range: H > 1
+    assert not 0 < smooth.hurst < 1
+    assert any("outside (0, 1)" in w for w in smooth.warnings)
+    assert set(smooth.as_dict()) >= {"hurst_std", "hurst_bias", "hurst_corrected", "warnings"}
+
+
+def test_topography_pixel_size_unit_and_prefix_for_a_bare_file(tmp_path):
+    h = self_affine((48, 56), hurst=0.8, rms_height=1.0, rng=sample_rng(3, 0)) * 0.2
+    p = tmp_path / "bare.txt"
+    np.savetxt(p, h)
+    r = CliRunner().invoke(cli, ["topography", str(p), "--unit", "um", "--pixel-size", "0.5",
+                                 "--json"])
+    assert r.exit_code == 0, r.output
+    d = json.loads(r.output)
+    assert d["unit"] == "nm"  # rms 0.2 um: shown in nm
+    assert d["pixel_size"] == pytest.approx([500.0, 500.0])
+    assert d["rms_height"] == pytest.approx(200.0, rel=1e-9)
+    r = CliRunner().invoke(cli, ["topography", str(p)])
+    assert "not in the file" in r.output
+    x3p = tmp_path / "s.x3p"
+    write_x3p(x3p, h * 1e-6, 5e-7, 5e-7)
+    r = CliRunner().invoke(cli, ["topography", str(x3p), "--pixel-size", "0.7", "--unit", "um"])
+    assert r.exit_code == 2 and "contradicts" in r.output
+
+
 def test_statistics_of_a_plane_and_a_parabola():
     y, x = np.mgrid[0:32, 0:32].astype(float)
     st = statistics(0.25 * x, a=0.5)

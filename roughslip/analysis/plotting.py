@@ -78,10 +78,10 @@ def log_ticks(axis, most: int = 6) -> None:
 
 
 def finish_axes(ax, xlabel: str, ylabel: str, fontsize: int = 8) -> None:
-    """Labels, a log-log grid and the legend."""
+    """Labels, a grid at the major ticks and the legend."""
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.grid(True, which="both", alpha=0.3)
+    ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=fontsize)
 
 

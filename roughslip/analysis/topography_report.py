@@ -10,13 +10,36 @@ import numpy as np
 
 from roughslip.errors import InputError
 from roughslip.surfaces.synthetic import HDF5_SUFFIXES
-from roughslip.surfaces.topography import TopographyStats, _square, read_raw, statistics
+from roughslip.surfaces.topography import (
+    LENGTH_UNITS,
+    TopographyStats,
+    _square,
+    metres_per,
+    read_raw,
+    statistics,
+)
+
+
+def display_unit(rms: float, unit: str) -> tuple[str, float]:
+    """The SI prefix that puts a length ``rms`` in ``unit`` between 1 and 1000 (heights of a
+    scan in metres read in nm or um; its lateral size in um or mm): ``(new unit, factor)``."""
+    per = metres_per(unit, "height unit")
+    metres = rms * per
+    for name in ("m", "mm", "um", "nm", "pm"):
+        if metres >= LENGTH_UNITS[name] or name == "pm":
+            return name, per / LENGTH_UNITS[name]
+    return unit, 1.0
 
 
 def describe(path: str | Path, *, key: str | None = None, unit: str | None = None,
-             sample: int | None = None) -> tuple[TopographyStats, np.ndarray]:
+             sample: int | None = None, pixel_size: float | None = None
+             ) -> tuple[TopographyStats, np.ndarray]:
     """Statistics of a topography file, or of a surface stored in a run file (``sample``:
-    its rigid surface; default the first complete sample). Returns the stats and heights."""
+    its rigid surface; default the first complete sample). Returns the stats and heights.
+
+    ``unit`` and ``pixel_size`` describe a file that carries neither (a pixel size in the
+    file and a different one given is an error). Heights with a unit are shown in the prefix
+    that puts their rms between 1 and 1000 (:func:`display_unit`)."""
     p = Path(path)
     if p.suffix.lower() in HDF5_SUFFIXES and key is None and _is_run_file(p):
         from roughslip.run.store import read_run
@@ -36,18 +59,36 @@ def describe(path: str | Path, *, key: str | None = None, unit: str | None = Non
                         pixel_size=(a, a), unit=u)
         return st, h
     raw = read_raw(p, key)
+    if raw.unit and unit and not math.isclose(metres_per(raw.unit, str(p)),
+                                              metres_per(unit, "--unit"), rel_tol=1e-12):
+        raise InputError(f"{p}: --unit {unit} contradicts the file's unit {raw.unit}")
     u = raw.unit or unit
-    if raw.pixel_size is None:
-        a, ps = 1.0, None
-    else:
-        ps = raw.pixel_size
-        if not math.isclose(ps[0], ps[1], rel_tol=1e-9):
-            h2, sq = _square(raw.heights, ps)
-            return statistics(h2, sq[0], path=str(p), fmt=raw.format, pixel_size=ps,
-                              unit=u), h2
-        a = ps[0]
-    return statistics(raw.heights, a, path=str(p), fmt=raw.format, pixel_size=ps,
-                      unit=u), raw.heights
+    heights, ps = raw.heights, raw.pixel_size
+    if ps is None and pixel_size is not None:
+        ps = (float(pixel_size), float(pixel_size))
+    elif ps is not None and pixel_size is not None:
+        mine = float(pixel_size) * (metres_per(unit, "--unit") / metres_per(u, str(p))
+                                    if unit and u else 1.0)
+        if not math.isclose(mine, ps[1], rel_tol=1e-9):
+            raise InputError(f"{p}: --pixel-size {pixel_size:g} contradicts the file's "
+                             f"{ps[1]:.6g} {u or ''}".rstrip())
+    if u is not None and u in LENGTH_UNITS:
+        finite = heights[np.isfinite(heights)]
+        rms = float(np.sqrt(np.mean((finite - finite.mean()) ** 2))) if finite.size else 0.0
+        if rms > 0:
+            u2, f = display_unit(rms, u)
+            heights = heights * f
+            ps = None if ps is None else (ps[0] * f, ps[1] * f)
+            u = u2
+    if ps is None:
+        return statistics(heights, 1.0, path=str(p), fmt=raw.format, pixel_size=None,
+                          unit=u), heights
+    if not math.isclose(ps[0], ps[1], rel_tol=1e-9):
+        h2, sq = _square(heights, ps)
+        return statistics(h2, sq[0], path=str(p), fmt=raw.format, pixel_size=ps,
+                          unit=u), h2
+    return statistics(heights, ps[0], path=str(p), fmt=raw.format, pixel_size=ps,
+                      unit=u), heights
 
 
 def _is_run_file(p: Path) -> bool:
@@ -75,25 +116,53 @@ def format_stats(st: TopographyStats) -> str:
         f"rms height:      {st.rms_height:.6g} {st.unit or ''}".rstrip(),
         f"rms slope:       {st.rms_slope:.6g}",
         f"rms curvature:   {st.rms_curvature:.6g} per {st.unit or 'length unit'}",
-        f"Hurst exponent:  {st.hurst:.3f} (radially averaged PSD, Hann window, fit over "
-        f"q = {st.hurst_range[0]:.4g} .. {st.hurst_range[1]:.4g} rad per "
-        f"{st.unit or 'length unit'})",
+        *_hurst_lines(st),
     ]
     return "\n".join(lines)
 
 
+def _hurst_lines(st: TopographyStats) -> list[str]:
+    per = st.unit or "length unit"
+    if not math.isfinite(st.hurst):
+        return ["Hurst exponent:  not estimated", *(f"warning: {w}" for w in st.warnings)]
+    return [
+        f"Hurst exponent:  {st.hurst:.3f} +- {st.hurst_std:.3f} (one standard deviation of "
+        f"the estimate on this grid); bias on this grid {st.hurst_bias:+.3f}, corrected "
+        f"{st.hurst_corrected:.3f}",
+        f"  how:           radially averaged PSD, Hann window, C ~ q^-2(1+H) fitted over "
+        f"q = {st.hurst_range[0]:.4g} .. {st.hurst_range[1]:.4g} rad per {per} "
+        f"({st.hurst_bins} bins: from 4 x the lowest wavenumber, above the window's leakage "
+        "and the patch size, to half the Nyquist wavenumber, below the pixel-scale bend); "
+        "the spread and bias from 32 synthetic surfaces of this shape and H",
+        *(f"warning: {w}" for w in st.warnings),
+    ]
+
+
 def plot_stats(st: TopographyStats, h: np.ndarray, out: str | Path) -> Path:
     """Height map and PSD with the fitted power law ``C ~ q^(-2(1+H))``."""
-    from roughslip.analysis.plotting import finish_axes, pyplot, save
+    from roughslip.analysis.plotting import finish_axes, log_ticks, pyplot, save
 
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     ax = axes[0]
-    im = ax.imshow(h, origin="lower", interpolation="nearest", cmap="viridis")
-    fig.colorbar(im, ax=ax, fraction=0.046, label=f"height ({st.unit or 'length unit'})")
+    unit = st.unit or "length unit"
+    if st.pixel_size is None:
+        extent, xl, yl = None, "x (pixels)", "y (pixels)"
+    else:
+        a = h.shape[1] and st.pixel_size[1]
+        dy = st.pixel_size[0] if math.isclose(st.pixel_size[0], st.pixel_size[1],
+                                              rel_tol=1e-9) else a
+        lat, f = (display_unit(h.shape[1] * a, st.unit) if st.unit in LENGTH_UNITS
+                  else (unit, 1.0))
+        extent = (0.0, h.shape[1] * a * f, 0.0, h.shape[0] * dy * f)
+        xl, yl = f"x ({lat})", f"y ({lat})"
+    im = ax.imshow(h, origin="lower", interpolation="nearest", cmap="viridis", extent=extent)
+    cb = fig.colorbar(im, ax=ax, fraction=0.046, label=f"height ({unit})")
+    cb.formatter.set_useOffset(False)
+    cb.update_ticks()
     ax.set_title(Path(st.path.split(" (")[0]).name, fontsize=9)
-    ax.set_xlabel("ix")
-    ax.set_ylabel("iy")
+    ax.set_xlabel(xl)
+    ax.set_ylabel(yl)
     ax = axes[1]
     q, c = st.psd
     ax.loglog(q, c, "o", ms=3, label="radially averaged PSD")
@@ -104,6 +173,9 @@ def plot_stats(st: TopographyStats, h: np.ndarray, out: str | Path) -> Path:
             c0 = np.exp(np.mean(np.log(c[sel]) - slope * np.log(q[sel])))
             qq = q[sel]
             ax.loglog(qq, c0 * qq**slope, "-", color="C3",
-                      label=f"fit: H = {st.hurst:.3f}")
-    finish_axes(ax, f"wavenumber q (rad per {st.unit or 'length unit'})", "C(q)")
+                      label=f"fit: H = {st.hurst:.3f} ± {st.hurst_std:.3f}")
+    log_ticks(ax.xaxis)
+    log_ticks(ax.yaxis)
+    finish_axes(ax, f"wavenumber q (rad per {st.unit or 'length unit'})",
+                f"C(q) ({st.unit or 'length unit'}$^4$)")
     return save(plt, fig, out)

@@ -409,13 +409,31 @@ class TopographyStats:
     hurst: float
     hurst_range: tuple[float, float]  # wavenumbers of the fit (rad per length unit)
     psd: tuple[np.ndarray, np.ndarray] = field(repr=False)
+    #: one standard deviation of the estimate, and its bias, on this grid
+    #: (:func:`~roughslip.surfaces.synthetic.hurst_uncertainty`)
+    hurst_std: float = math.nan
+    hurst_bias: float = math.nan
+    hurst_bins: int = 0  # wavenumber bins in the fit
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def hurst_corrected(self) -> float:
+        """The estimate less its bias on this grid."""
+        return self.hurst - self.hurst_bias
 
     def as_dict(self) -> dict[str, Any]:
         d = {k: getattr(self, k) for k in ("path", "format", "shape", "pixel_size", "unit",
                                            "missing", "rms_height", "rms_slope",
-                                           "rms_curvature", "hurst", "hurst_range")}
+                                           "rms_curvature", "hurst", "hurst_std",
+                                           "hurst_bias", "hurst_corrected", "hurst_bins",
+                                           "hurst_range")}
+        d["warnings"] = list(self.warnings)
         d["shape"] = list(self.shape)
         return d
+
+
+#: fewest wavenumber bins in the Hurst fit before the report warns
+HURST_MIN_BINS = 5
 
 
 def statistics(h: np.ndarray, a: float = 1.0, *, path: str = "", fmt: str = "",
@@ -424,12 +442,16 @@ def statistics(h: np.ndarray, a: float = 1.0, *, path: str = "", fmt: str = "",
     r"""rms height, slope (:func:`~roughslip.surfaces.synthetic.rms_slope_of`), curvature
     (:math:`\sqrt{\langle(\nabla^2 h/2)^2\rangle}` by central differences inside the grid) and
     the Hurst exponent from the radially averaged PSD (Hann window; fit from 4 times the lowest
-    wavenumber to half the Nyquist wavenumber,
-    :func:`~roughslip.surfaces.synthetic.hurst_estimate`).
-    Missing points are filled harmonically first (and counted)."""
+    wavenumber, above the window's leakage and the sample's finite size, to half the Nyquist
+    wavenumber, below the bend of the pixel scale;
+    :func:`~roughslip.surfaces.synthetic.hurst_estimate`), with its standard deviation and
+    bias on this grid (:func:`~roughslip.surfaces.synthetic.hurst_uncertainty`) and warnings
+    when the exponent leaves (0, 1), the range holds fewer than :data:`HURST_MIN_BINS` bins
+    or the spread exceeds 0.1. Missing points are filled harmonically first (and counted)."""
     from roughslip.surfaces.synthetic import (
         hurst_estimate,
         hurst_fit_range,
+        hurst_uncertainty,
         radial_psd,
         rms_height_of,
         rms_slope_of,
@@ -443,11 +465,25 @@ def statistics(h: np.ndarray, a: float = 1.0, *, path: str = "", fmt: str = "",
            - 4 * hh[1:-1, 1:-1]) / a**2 if min(h.shape) >= 3 else np.zeros(1)
     ny, nx = h.shape
     qlo, qhi = hurst_fit_range((ny, nx), a)
+    q, c, _ = radial_psd(hh, a, window="hann")
+    bins = int(((q >= qlo) & (q <= qhi) & (c > 0)).sum())
+    warnings = []
     try:
         hurst = hurst_estimate(hh, a, window="hann")
-    except InputError:
-        hurst = math.nan
-    q, c, _ = radial_psd(hh, a, window="hann")
+        std, bias = hurst_uncertainty((ny, nx), hurst, a)
+    except InputError as exc:
+        hurst = std = bias = math.nan
+        warnings.append(f"no Hurst exponent: {exc}")
+    if math.isfinite(hurst):
+        if not 0 < hurst < 1:
+            warnings.append(f"the Hurst exponent {hurst:.3f} lies outside (0, 1): the surface "
+                            "is not self-affine over the fitted wavenumbers (a trend, a form "
+                            "or a filter?)")
+        if bins < HURST_MIN_BINS:
+            warnings.append(f"the fit range holds only {bins} wavenumber bins (fewer than "
+                            f"{HURST_MIN_BINS}): too short for a reliable exponent")
+        if std > 0.1:
+            warnings.append(f"the exponent is uncertain on a {ny} x {nx} grid (+- {std:.2f})")
     return TopographyStats(path, fmt, (ny, nx), pixel_size, unit, miss, rms_height_of(hh),
                            rms_slope_of(hh, a), float(np.sqrt(np.mean((lap / 2) ** 2))), hurst,
-                           (qlo, qhi), (q, c))
+                           (qlo, qhi), (q, c), std, bias, bins, tuple(warnings))
