@@ -409,7 +409,12 @@ def test_shipped_scan_example_runs(tmp_path):
 # ------------------------------------------------------------------ X3P from another writer
 
 
-x3pio = pytest.importorskip("x3pio", reason="x3pio (the independent X3P writer) is not installed")
+@pytest.fixture
+def x3pio():
+    """The independent X3P writer (the dev extra has it); only these tests need it."""
+    return pytest.importorskip("x3pio", reason="x3pio (the independent X3P writer) is not "
+                               "installed")
+
 
 #: stored type -> the largest error its quantisation allows, relative to the height range
 X3P_TYPES = {"D": 0.0, "F": 1e-7, "L": 1e-9, "I": 2e-5}
@@ -417,7 +422,7 @@ X3P_TYPES = {"D": 0.0, "F": 1e-7, "L": 1e-9, "I": 2e-5}
 
 @pytest.mark.parametrize("revision", ["ISO5436_2000", "ISO25178_72_2017_DAM1"])
 @pytest.mark.parametrize("ztype", list(X3P_TYPES))
-def test_x3p_of_either_revision_written_by_another_library(tmp_path, scan, revision, ztype):
+def test_x3p_of_either_revision_written_by_another_library(tmp_path, scan, x3pio, revision, ztype):
     """Heights, pixel size, unit and missing points of X3P files that x3pio writes, in both
     revisions of the standard and every stored type (binary), read without the extra."""
     h = scan.copy()  # metres
@@ -435,7 +440,7 @@ def test_x3p_of_either_revision_written_by_another_library(tmp_path, scan, revis
     assert np.max(np.abs(raw.heights[ok] - h[ok])) <= max(X3P_TYPES[ztype] * span, 1e-12 * span)
 
 
-def test_x3p_2017_as_xml_text_and_in_a_run(tmp_path, scan):
+def test_x3p_2017_as_xml_text_and_in_a_run(tmp_path, scan, x3pio):
     """The 2017 revision that SurfaceTopography refuses: written by x3pio with the heights as
     XML text and as binary, both run, and the run stores the heights (in um) to 1e-12."""
     h = scan  # metres
@@ -454,7 +459,7 @@ def test_x3p_2017_as_xml_text_and_in_a_run(tmp_path, scan):
         assert rel(stored, scan * 1e6) < 1e-12
 
 
-def test_x3p_reader_agrees_with_surfacetopography_on_the_2000_revision(tmp_path, scan):
+def test_x3p_reader_agrees_with_surfacetopography_on_the_2000_revision(tmp_path, scan, x3pio):
     """Two independent readers of one x3pio file of the revision SurfaceTopography reads."""
     st = pytest.importorskip("SurfaceTopography")
     h = scan
@@ -466,7 +471,7 @@ def test_x3p_reader_agrees_with_surfacetopography_on_the_2000_revision(tmp_path,
     assert tuple(t.pixel_size)[::-1] == read_raw(p).pixel_size
 
 
-def test_x3p_damage_is_one_line(tmp_path, scan):
+def test_x3p_damage_is_one_line(tmp_path, scan, x3pio):
     import zipfile
 
     good = tmp_path / "good.x3p"
