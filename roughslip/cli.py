@@ -36,11 +36,7 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
         except RoughslipError as exc:
             _fail(str(exc), exc.exit_code)
         except KeyboardInterrupt:
-            if fn.__name__ == "run_cmd":  # the one command whose work survives
-                click.echo("roughslip: interrupted; completed samples are kept (continue "
-                           "with --resume)", err=True)
-            else:
-                click.echo("roughslip: interrupted", err=True)
+            click.echo("roughslip: interrupted", err=True)
             sys.exit(130)
 
     return wrapper
@@ -191,6 +187,10 @@ def run_cmd(config, out, overrides, workers, resume, overwrite, scheduler, stric
         with _interruptible(progress) as emit:
             summary = run(cfg, out, workers=workers, resume=resume, overwrite=overwrite,
                           scheduler=scheduler, progress=emit)
+    except KeyboardInterrupt:  # what the run finished is on disk
+        click.echo("roughslip: interrupted; completed samples are kept (continue with "
+                   "--resume)", err=True)
+        sys.exit(130)
     finally:
         progress.close()
     if not quiet:
@@ -267,7 +267,7 @@ def topography_cmd(path, key, unit, pixel_size, sample, as_json, plot_path, list
         return
     if path is None:
         raise click.UsageError("missing argument PATH")
-    st, h = describe(path, key=key, unit=unit, sample=sample, pixel_size=pixel_size)
+    st, h = describe(path, key=key, unit=unit, sample=sample, pixel=pixel_size)
     click.echo(json.dumps(st.as_dict(), indent=1) if as_json else format_stats(st))
     if plot_path:
         click.echo(str(plot_stats(st, h, plot_path)))

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from roughslip.analysis.fit import fit_power_law, quantity
-from roughslip.analysis.summary import length_unit
+from roughslip.analysis.summary import axis_unit, length_unit, pixel_size
 from roughslip.errors import InputError, OutputError
 from roughslip.run.store import read_run
 
@@ -91,11 +91,10 @@ def quantity_label(run, name: str) -> str:
     times its square."""
     unit = length_unit(run) or "length"
     force = f"E $\\times$ {unit}$^2$"
-    if name == "depth":
-        axis_unit = run.axis_unit if run.axis_unit not in ("", "length") else unit
-        return f"penetration depth $D_z$ ({axis_unit})" if run.axis_name == "depth" else \
-            f"penetration depth $D_z$ ({unit})"
-    return {"depth_length": f"penetration depth $D_z$ ({unit})",
+    if name == "depth" and run.axis_name == "depth":
+        return f"penetration depth $D_z$ ({axis_unit(run) or unit})"
+    return {"depth": f"penetration depth $D_z$ ({unit})",
+            "depth_length": f"penetration depth $D_z$ ({unit})",
             "normal_force": f"normal force $F_n$ ({force})",
             "contact_area": "contact area (fraction of the grid)",
             "friction_force": f"static friction $F_{{friction}}$ ({force})",
@@ -104,13 +103,8 @@ def quantity_label(run, name: str) -> str:
 
 def target_label(run, k: int) -> str:
     """The depth (or load) of target index ``k``, as a value with its unit."""
-    unit = length_unit(run)
-    axis_unit = run.axis_unit
-    if axis_unit == "length":
-        axis_unit = unit or "length"
-    if run.axis_name == "depth":
-        return f"$D_z$ = {run.axis[k]:.3g} {axis_unit}".rstrip()
-    return f"$F_n$ = {run.axis[k]:.3g} {axis_unit}".rstrip()
+    name = "$D_z$" if run.axis_name == "depth" else "$F_n$"
+    return f"{name} = {run.axis[k]:.3g} {axis_unit(run)}".rstrip()
 
 
 def _loglog_png(plt, stem: Path, suffix: str, x, y, xlabel: str, ylabel: str,
@@ -157,12 +151,12 @@ def plot_solves(run, stem: Path) -> Path:
     from roughslip.analysis.summary import closed_form, solves_table
 
     plt = pyplot()
-    rows = solves_table(run)
+    exact = closed_form(run)
+    rows = solves_table(run, exact)
     x = np.asarray(run.axis, dtype=float)
     sel = run.complete
-    unit = length_unit(run) if run.axis_unit == "length" else None
-    xlabel = (f"{run.axis_name.replace('_', ' ')} "
-              f"({unit or run.axis_unit})" if (unit or run.axis_unit) else run.axis_name)
+    au = axis_unit(run)
+    xlabel = run.axis_name.replace("_", " ") + (f" ({au})" if au else "")
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
 
     def scatter(ax, name, color):
@@ -177,14 +171,12 @@ def plot_solves(run, stem: Path) -> Path:
         ok = np.isfinite(y) & (y > 0)
         if ok.any():
             ax.plot(x[ok], y[ok], style, color=color, label=label, ms=4)
-        return bool(ok.any())
 
     ax = axes[0]
     scatter(ax, "residual", "C0")
     line(ax, "residual", "o-", "C0", "squeeze residual (worst)")
     scatter(ax, "pull_error_estimate", "C1")
     line(ax, "pull_error_estimate", "s-", "C1", "pull: estimated error (worst)")
-    exact = closed_form(run)
     if exact is not None:
         line(ax, "normal_force_error", "D-", "C3", f"$F_n$ against {exact[0]} (worst)")
     ax.set_yscale("log")
@@ -286,8 +278,7 @@ def _maps_figure(plt, stem: Path, run, panels: list, where: str) -> Path:
     from matplotlib.colors import ListedColormap
 
     unit = length_unit(run)
-    cfg = run.config_dict()
-    pixel = float(run.attrs.get("pixel_size", cfg.get("grid", {}).get("pixel_size", 1.0)))
+    pixel = pixel_size(run)
     force = f"E $\\times$ {unit or 'length'}$^2$"
     fig, axes = plt.subplots(1, len(panels), figsize=(3.9 * len(panels), 3.7),
                              squeeze=False, layout="constrained")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +36,19 @@ def length_unit(run) -> str | None:
     return run.config_dict().get("units", {}).get("length")
 
 
+def axis_unit(run) -> str:
+    """The unit of the run's depths or loads (``rms``, a force unit, ...), with ``length``
+    replaced by the run's length unit when it has one; empty when there is none."""
+    unit = run.axis_unit
+    return (length_unit(run) or unit) if unit == "length" else unit
+
+
+def pixel_size(run) -> float:
+    """The run's pixel size, in its length unit (a file surface's, as stored)."""
+    return float(run.attrs.get("pixel_size",
+                               run.config_dict().get("grid", {}).get("pixel_size", 1.0)))
+
+
 def closed_form(run) -> tuple[str, np.ndarray] | None:
     r"""The exact normal force at each depth of each complete sample, when the run's scene has
     a closed form: ``(name, F)`` with ``F`` of shape ``(complete samples, depths)``, NaN where
@@ -64,10 +78,11 @@ def closed_form(run) -> tuple[str, np.ndarray] | None:
     sel = run.complete
     depth = np.asarray(run.scalars["depth_length"][sel], dtype=float)
     E, nu = float(mat["E"]), float(mat["nu"])
+    pixel = pixel_size(run)
+    area = np.asarray(run.scalars["contact_area"][sel], dtype=float)
     out = np.full(depth.shape, np.nan)
     for row, sample in enumerate(run.sample_index[sel]):
         h = run.surface(int(sample))
-        pixel = float(run.attrs.get("pixel_size", cfg["grid"].get("pixel_size", 1.0)))
         reach = 0.4 * min(h.shape) * pixel
         for k, dz in enumerate(depth[row]):
             if kind == "sphere":
@@ -75,21 +90,27 @@ def closed_form(run) -> tuple[str, np.ndarray] | None:
                 if d > 0 and np.sqrt(float(s["radius"]) * d) <= reach:
                     out[row, k] = hertz(float(s["radius"]), d, E, nu).force
             else:
-                n = run.scalars["contact_area"][sel][row, k] * h.size
+                n = area[row, k] * h.size
                 out[row, k] = flat_punch_force(float(np.sqrt(n / np.pi)) * pixel, dz, E, nu)
     return ("Hertz" if kind == "sphere" else "flat punch"), out
 
 
-def solves_table(run) -> list[dict[str, float]]:
+#: ``solves_table``'s default: compute the closed form
+_COMPUTE = object()
+
+
+def solves_table(run, exact: Any = _COMPUTE) -> list[dict[str, float]]:
     """Per depth (or load): the record of the solves over the complete samples.
 
     Worst squeeze residual, mean iterations, median squeeze and pull seconds, worst pull
     error estimate (only when ``pull.error_estimate`` asked for it), and the worst relative
-    error of the normal force against the closed form (:func:`closed_form`), each NaN where
-    the run has none.
+    error of the normal force against ``exact``, the :func:`closed_form` of the run (computed
+    when not given; it reads every surface, so pass it when you have it), each NaN where the
+    run has none.
     """
     sel = run.complete
-    exact = closed_form(run)
+    if exact is _COMPUTE:
+        exact = closed_form(run)
     pull_cfg = run.config_dict().get("pull", {})
     # files of earlier versions stored 0 for an estimate nobody asked for
     asked = pull_cfg.get("error_estimate", pull_cfg.get("error_bound", False))
@@ -118,8 +139,8 @@ def solves_table(run) -> list[dict[str, float]]:
 
 
 def _format_solves(run, axis_label: str) -> list[str]:
-    rows = solves_table(run)
     exact = closed_form(run)
+    rows = solves_table(run, exact)
     has = {k: any(np.isfinite(r[k]) for r in rows) for k in rows[0]}
     cols = [("residual", "sq. residual", "{:>12.2e}"), ("iterations", "iters", "{:>6.1f}"),
             ("seconds", "sq. seconds", "{:>11.3g}"), ("pull_seconds", "pull seconds",
@@ -177,10 +198,8 @@ def summarize(path: str | Path) -> str:
     names = ["normal_force", "contact_area"] + (["friction_force"]
                                                  if "friction_force" in run.scalars else [])
     axis = run.axis_name
-    axis_unit = run.axis_unit
-    if axis_unit == "length" and unit:
-        axis_unit = unit
-    axis_label = f"{axis} ({axis_unit})" if axis_unit else axis
+    au = axis_unit(run)
+    axis_label = f"{axis} ({au})" if au else axis
     one = int(sel.sum()) == 1  # one sample: its values, no standard error
     head = f"  {axis_label:>12} " + " ".join(
         f"{n:>30}" if one else f"{n + ' (mean +- sem)':>30}" for n in names)

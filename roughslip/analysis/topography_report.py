@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from roughslip.analysis.summary import length_unit, pixel_size
 from roughslip.errors import InputError
 from roughslip.surfaces.synthetic import HDF5_SUFFIXES
 from roughslip.surfaces.topography import (
@@ -25,21 +26,19 @@ def display_unit(rms: float, unit: str) -> tuple[str, float]:
     scan in metres read in nm or um; its lateral size in um or mm): ``(new unit, factor)``."""
     per = metres_per(unit, "height unit")
     metres = rms * per
-    for name in ("m", "mm", "um", "nm", "pm"):
-        if metres >= LENGTH_UNITS[name] or name == "pm":
-            return name, per / LENGTH_UNITS[name]
-    return unit, 1.0
+    name = next((n for n in ("m", "mm", "um", "nm") if metres >= LENGTH_UNITS[n]), "pm")
+    return name, per / LENGTH_UNITS[name]
 
 
 def describe(path: str | Path, *, key: str | None = None, unit: str | None = None,
-             sample: int | None = None, pixel_size: float | None = None
+             sample: int | None = None, pixel: float | None = None
              ) -> tuple[TopographyStats, np.ndarray]:
     """Statistics of a topography file, or of a surface stored in a run file (``sample``:
     its rigid surface; default the first complete sample). Returns the stats and heights.
 
-    ``unit`` and ``pixel_size`` describe a file that carries neither (a pixel size in the
-    file and a different one given is an error). Heights with a unit are shown in the prefix
-    that puts their rms between 1 and 1000 (:func:`display_unit`)."""
+    ``unit`` and ``pixel`` (the pixel size) describe a file that carries neither (a pixel
+    size in the file and a different one given is an error). Heights with a unit are shown
+    in the prefix that puts their rms between 1 and 1000 (:func:`display_unit`)."""
     p = Path(path)
     if p.suffix.lower() in HDF5_SUFFIXES and key is None and _is_run_file(p):
         from roughslip.run.store import read_run
@@ -52,9 +51,7 @@ def describe(path: str | Path, *, key: str | None = None, unit: str | None = Non
         if s not in set(done.tolist()):
             raise InputError(f"{p}: sample {s} is not complete")
         h = run.surface(s)
-        cfg = run.config_dict()
-        a = float(run.attrs.get("pixel_size", cfg.get("grid", {}).get("pixel_size", 1.0)))
-        u = cfg.get("units", {}).get("length")
+        a, u = pixel_size(run), length_unit(run)
         st = statistics(h, a, path=f"{p} (sample {s})", fmt="roughslip run",
                         pixel_size=(a, a), unit=u)
         return st, h
@@ -64,13 +61,11 @@ def describe(path: str | Path, *, key: str | None = None, unit: str | None = Non
         raise InputError(f"{p}: --unit {unit} contradicts the file's unit {raw.unit}")
     u = raw.unit or unit
     heights, ps = raw.heights, raw.pixel_size
-    if ps is None and pixel_size is not None:
-        ps = (float(pixel_size), float(pixel_size))
-    elif ps is not None and pixel_size is not None:
-        mine = float(pixel_size) * (metres_per(unit, "--unit") / metres_per(u, str(p))
-                                    if unit and u else 1.0)
-        if not math.isclose(mine, ps[1], rel_tol=1e-9):
-            raise InputError(f"{p}: --pixel-size {pixel_size:g} contradicts the file's "
+    if ps is None and pixel is not None:
+        ps = (float(pixel), float(pixel))
+    elif ps is not None and pixel is not None:  # in the file's unit: --unit agrees
+        if not math.isclose(float(pixel), ps[1], rel_tol=1e-9):
+            raise InputError(f"{p}: --pixel-size {pixel:g} contradicts the file's "
                              f"{ps[1]:.6g} {u or ''}".rstrip())
     if u is not None and u in LENGTH_UNITS:
         finite = heights[np.isfinite(heights)]
@@ -149,12 +144,10 @@ def plot_stats(st: TopographyStats, h: np.ndarray, out: str | Path) -> Path:
     if st.pixel_size is None:
         extent, xl, yl = None, "x (pixels)", "y (pixels)"
     else:
-        a = h.shape[1] and st.pixel_size[1]
-        dy = st.pixel_size[0] if math.isclose(st.pixel_size[0], st.pixel_size[1],
-                                              rel_tol=1e-9) else a
+        a = min(st.pixel_size)  # non-square pixels were resampled at the finer spacing
         lat, f = (display_unit(h.shape[1] * a, st.unit) if st.unit in LENGTH_UNITS
                   else (unit, 1.0))
-        extent = (0.0, h.shape[1] * a * f, 0.0, h.shape[0] * dy * f)
+        extent = (0.0, h.shape[1] * a * f, 0.0, h.shape[0] * a * f)
         xl, yl = f"x ({lat})", f"y ({lat})"
     im = ax.imshow(h, origin="lower", interpolation="nearest", cmap="viridis", extent=extent)
     cb = fig.colorbar(im, ax=ax, fraction=0.046, label=f"height ({unit})")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from roughslip.contact.squeeze import NormalResult
+from roughslip.errors import NumericalError
 from roughslip.linalg.cg import cg
 
 #: relative tolerance of the correction solves: the correction's sum can be far smaller than
@@ -53,6 +54,10 @@ def squeeze_correction(normal: NormalResult, *, tol: float = REFINE_TOL) -> np.n
     delta = cg(A, -g * K, tol=tol).x
     if normal.control == "force":
         w = cg(A, K.astype(float), tol=tol).x
+        if not w.sum() > 0:  # a periodic grid in full contact: G_KK has the constants as
+            raise NumericalError(  # its null space, and the depth is not defined by F_n
+                "squeeze_correction: no correction under load control in full contact on a "
+                "periodic grid (the operator on the contact set is singular)")
         delta = delta - (delta.sum() / w.sum()) * w
     return delta * K
 
