@@ -284,3 +284,17 @@ def test_squeeze_correction_recovers_the_tight_solution(control, method):
     else:
         true = abs(loose.normal_force - ref.normal_force) / ref.normal_force
         assert true / 2 <= est <= 2 * true
+
+
+def test_squeeze_correction_refuses_full_periodic_contact_under_load():
+    """Full contact on a periodic grid leaves the depth undefined by F_n: a clear error, not
+    NaN."""
+    from roughslip.contact.estimates import squeeze_correction
+    from roughslip.errors import NumericalError
+
+    h = sinusoid((4, 32), amplitude=0.01, wavelength=1.0, a=1 / 32)
+    p_star = westergaard(0.0, 0.01, 1.0, E=1.0, nu=0.0).p_star
+    r = squeeze(h, force=2 * p_star * 4 / 32, a=1 / 32, E=1.0, nu=0.0, boundary="periodic")
+    assert r.contact.all()
+    with pytest.raises(NumericalError, match="full contact on a periodic grid"):
+        squeeze_correction(r)
