@@ -3,7 +3,8 @@
 Math is typeset by a MathJax copy installed with the docs extra (sphinx-mathjax-offline) and
 served from ``_static``: no page loads anything from the network. The configuration and CLI
 references are generated from the code (docs/_ext/roughslip_docs.py, sphinx-click), and
-the work-precision diagrams are made at build time by ``roughslip verify --quick --plot``.
+the work-precision diagrams are made at build time by ``roughslip verify --quick --plot``, and
+the other figures and console output by ``scripts/docs_figures.py``.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ extensions = [
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 exclude_patterns = ["_build", "_generated/*.txt", "_generated/*.rst"]
 myst_heading_anchors = 3
+myst_enable_extensions = ["dollarmath"]  # $...$ and $$...$$ on the Markdown pages
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 autodoc_member_order = "bysource"

@@ -68,10 +68,10 @@ def main() -> None:
             r = squeeze(rough, depth=1.0, nu=nu, tol=1e-11)
             err = abs(r.normal_force * (1 - nu * nu) / base.normal_force - 1)
             p = pull(r)
-            return r, (f"F (1-nu^2) = F(nu=0): rel. err {err:.1e}; same contact; pull "
+            return r, (f"$F\\,(1-\\nu^2) = F(\\nu=0)$: rel. err {err:.1e}; same contact; pull "
                        f"converged"), err < 1e-9 and np.array_equal(r.contact, base.contact) \
                 and p.converged
-        case(f"nu = {nu}, rough 64^2", f)
+        case(f"$\\nu$ = {nu}, rough $64^2$", f)
 
         def g(nu=nu):
             ah = 16
@@ -81,18 +81,19 @@ def main() -> None:
             a_eq = math.sqrt(n.n_contact * h * h / math.pi)
             k = mindlin_bonded_punch_stiffness(a_eq, nu=nu)
             err = (p.fx_lim[0] / p.dx_lim[0] - k) / k
-            return n, f"bonded punch K = 8Ga/(2-nu): err {err:+.4f} (staircase ~ -0.12 h/a)", \
+            return n, (f"bonded punch $K = 8Ga/(2-\\nu)$: err {err:+.4f} "
+                       "(staircase $\\approx -0.12\\,h/a$)"), \
                 -0.2 * h < err < 0
-        case(f"nu = {nu}, tangential punch a/h = 16", g)
+        case(f"$\\nu$ = {nu}, tangential punch a/h = 16", g)
 
     for nu in (-1.0, 0.7):
         def bad(nu=nu):
             try:
                 squeeze(rough, depth=1.0, nu=nu)
             except InputError as exc:
-                return None, f"InputError: {exc}", True
+                return None, f"`InputError: {exc}`", True
             return None, "accepted", False
-        case(f"nu = {nu} (out of range)", bad)
+        case(f"$\\nu$ = {nu} (out of range)", bad)
 
     for shape in ((1, 1), (2, 2), (1, 64), (64, 1), (97, 97), (61, 127)):
         def s(shape=shape):
@@ -100,7 +101,7 @@ def main() -> None:
             r = squeeze(h, depth=0.005 * max(shape) + 1e-3, tol=1e-11)
             sym = np.allclose(r.fz, r.fz[::-1, ::-1], rtol=1e-9, atol=1e-12 * r.fz.max())
             p = pull(r)
-            return r, f"mirror-symmetric forces: {sym}; 0 < F_fric <= lambda F_n", \
+            return r, f"mirror-symmetric forces: {sym}; $0 < F_{{\\rm fric}} \\le \\lambda F_n$", \
                 sym and 0 < p.friction_force <= 0.2 * r.normal_force * (1 + 1e-12)
         case(f"grid {shape[0]} x {shape[1]}", s)
 
@@ -122,7 +123,8 @@ def main() -> None:
             lambda r: ("F = 0, empty masks, pull F = 0", r.normal_force == 0
                        and not r.contact.any() and pull(r).friction_force == 0))
     case_on("single contact site", lambda: squeeze(rough, depth=1e-12),
-            lambda r: ("one bond: F_fric = lambda F_n", r.n_contact == 1 and math.isclose(
+            lambda r: ("one bond: $F_{\\rm fric} = \\lambda F_n$",
+                       r.n_contact == 1 and math.isclose(
                 pull(r).friction_force, 0.2 * r.normal_force, rel_tol=1e-12)))
     case_on("near-full contact (depth 4 x range)",
             lambda: squeeze(rough, depth=4 * rng_, tol=1e-10),
@@ -135,7 +137,7 @@ def main() -> None:
     flat = float(hp.max() - hp.mean())
     case_on("full contact, periodic (load control)",
             lambda: squeeze(hp, force=30.0 * hp.size, boundary="periodic", tol=1e-10),
-            lambda r: (f"all in contact; D = max h - mean h (err {abs(r.depth - flat):.1e})",
+            lambda r: (f"all in contact; $D = \\max h - \\bar h$ (err {abs(r.depth - flat):.1e})",
                        r.contact.all() and abs(r.depth - flat) < 1e-9))
 
     for H in (0.01, 0.99):
@@ -159,22 +161,22 @@ def main() -> None:
             r = squeeze(nu=0.0, tol=1e-11, **kw)
             e1 = abs(r.normal_force / (s * base.normal_force) - 1)
             e2 = abs(pull(r).friction_force / (s * p0.friction_force) - 1)
-            return r, f"F and F_fric scale {what}: errors {e1:.0e}, {e2:.0e}", \
+            return r, f"$F$ and $F_{{\\rm fric}}$ scale {what}: errors {e1:.0e}, {e2:.0e}", \
                 e1 < limit and e2 < limit
         case(name, scaled)
     for lam in (1e-8, 1e8):
         def la(lam=lam):
             p = pull(base, lam=lam)
             e = abs(p.friction_force / (lam / 0.2 * p0.friction_force) - 1)
-            return p, f"F_fric scales with lambda: error {e:.0e}", e < 1e-9
-        case(f"lambda = {lam:g}", la)
+            return p, f"$F_{{\\rm fric}}$ scales with $\\lambda$: error {e:.0e}", e < 1e-9
+        case(f"$\\lambda$ = {lam:g}", la)
 
     def ill():
         n = 512
         r = squeeze(punch((n, n), radius=0.45 * n), depth=1.0, tol=1e-10, max_iter=5000)
-        return r, f"cond ~ N: met tol 1e-10 in {r.iterations} iterations", r.converged
+        return r, f"cond $\\sim N$: met tol 1e-10 in {r.iterations} iterations", r.converged
 
-    case("ill-conditioned: 512^2 punch, radius 0.45 N", ill)
+    case("ill-conditioned: $512^2$ punch, radius 0.45 N", ill)
 
     def nan():
         real = ElasticOperator.apply
@@ -191,7 +193,7 @@ def main() -> None:
         try:
             squeeze(rough, depth=1.0)
         except NumericalError as exc:
-            return None, f"NumericalError: {exc}", True
+            return None, f"`NumericalError: {exc}`", True
         finally:
             ElasticOperator.apply = real
         return None, "NaN went unnoticed", False

@@ -108,8 +108,33 @@ def _console_commands() -> list[tuple[str, str]]:
 
 
 def test_guide_commands_are_found():
+    """The typed commands of the guide. The quickstart's run and the Hurst loop are shown
+    with their output, made by running them at every docs build (scripts/docs_figures.py),
+    so a failing one fails ``make docs``; the commands typed on those pages are run here."""
     pages = {p for p, _ in _console_commands()}
-    assert {"quickstart.rst", "hurst_loop.rst", "topographies.rst", "resume.rst"} <= pages
+    assert {"quickstart.rst", "topographies.rst", "resume.rst"} <= pages
+
+
+def test_the_generated_guide_output_is_what_the_script_writes():
+    """Every console output and figure the pages include from ``_generated/figures`` is one
+    that scripts/docs_figures.py writes."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("docs_figures",
+                                                  ROOT / "scripts" / "docs_figures.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    written = ({f"quickstart_{n}.txt" for n, _ in mod.QUICKSTART} | set(mod.FIGURES)
+               | {"hurst_loop.txt", "hurst_fit.png", "hertz_resolution.png",
+                  "hertz_resolution.txt"})
+    used = set()
+    for page in [*DOCS.rglob("*.rst"), *DOCS.glob("*.md")]:
+        if "_build" in page.parts:
+            continue
+        used |= set(re.findall(r"_generated/figures/([\w.]+)", page.read_text()))
+    assert used and used <= written, used - written
+    assert {"demo_pull.png", "demo_maps.png", "fit_friction.png", "fit_area.png",
+            "bursts.png", "hertz_resolution.png", "hurst_fit.png"} <= used
 
 
 @pytest.mark.slow
@@ -142,14 +167,23 @@ def test_licence_and_citation_agree_with_the_package():
 HTML = ROOT / "docs" / "_build" / "html"
 _RAW_ROLE = re.compile(r":(?:math|ref|func|doc|class|meth|mod|data|attr|term|numref):`")
 _RAW_PATH = re.compile(r"\bdocs/[\w/]+\.(?:rst|md)\b")
+#: maths left as text: a $...$ that MyST did not typeset, or an ASCII formula such as
+#: "nu = 0.3", "F_n ~ D_z^beta" or "n^3" in prose
+_RAW_MATH = re.compile(r"\$[^$\s][^$]*\$|\b(?:nu|lam|lambda|alpha|beta|gamma|[DFf]_[a-z]+)\s*"
+                       r"(?:=|<|>|~|->)\s|\w\^[\w(]")
+#: the hand-written Markdown pages, whose formulas must be typeset
+_MARKDOWN_PAGES = ("results.html", "stability.html", "benchmarks.html")
 
 
-def _visible_text(page: Path) -> str:
-    """The text a reader sees: no scripts, styles, code or markup."""
+def _visible_text(page: Path, maths: bool = True) -> str:
+    """The text a reader sees: no scripts, styles, code or markup (and, with ``maths``
+    false, no typeset maths either)."""
     import html
 
     text = re.sub(r"<(script|style|pre|code)\b[^>]*>.*?</\1>", " ", page.read_text(),
                   flags=re.S)
+    if not maths:
+        text = re.sub(r'<(span|div) class="math[^"]*"[^>]*>.*?</\1>', " ", text, flags=re.S)
     return html.unescape(re.sub(r"<[^>]+>", " ", text))
 
 
@@ -174,3 +208,25 @@ def test_the_raw_text_check_catches_what_it_should(tmp_path):
                     "<pre>docs/stability.md is fine in code</pre>")
     text = _visible_text(page)
     assert _RAW_PATH.findall(text) == ["docs/theory/pull.rst"] and _RAW_ROLE.search(text)
+
+
+@pytest.mark.skipif(not (HTML / "index.html").exists(),
+                    reason="the documentation is not built (make test builds it first)")
+def test_markdown_pages_typeset_their_formulas():
+    """The results, stability and benchmark pages write formulas as maths, not as ASCII
+    (``nu = 0.3``, ``F_n ~ D_z^beta``) and not as an unprocessed ``$...$``."""
+    bad = []
+    for name in _MARKDOWN_PAGES:
+        text = _visible_text(HTML / name, maths=False)
+        for m in _RAW_MATH.finditer(text):
+            bad.append(f"{name}: ...{text[max(0, m.start() - 40):m.end() + 10]!r}")
+    assert not bad, "\n".join(bad[:20])
+
+
+def test_the_raw_maths_check_catches_what_it_should(tmp_path):
+    page = tmp_path / "p.html"
+    page.write_text('<p>at nu = 0.3 with $\\alpha$, n^3 flops and '
+                    '<span class="math notranslate">\\(\\nu = 0.3\\)</span></p>'
+                    "<pre>lam = 0.2 in code is fine</pre>")
+    found = [m.group(0) for m in _RAW_MATH.finditer(_visible_text(page, maths=False))]
+    assert found == ["nu = ", "$\\alpha$", "n^3"]

@@ -3,7 +3,8 @@
 ``.. roughslip-config::`` renders every section and key of the run configuration from the
 schema in :mod:`roughslip.run.config` (type, default, rule, description), so the reference cannot
 drift from what ``load_config`` accepts. At build start the error-against-run-time figure and
-tables of ``roughslip verify --quick`` are made into ``docs/_generated/``.
+tables of ``roughslip verify --quick``, and the figures and console output of
+``scripts/docs_figures.py``, are made into ``docs/_generated/``.
 """
 
 from __future__ import annotations
@@ -161,6 +162,16 @@ def make_verify_figure(app) -> None:
     (GENERATED / "verify_checks.rst").write_text("\n".join(lines) + "\n")
 
 
+def make_docs_figures(app) -> None:
+    """``python scripts/docs_figures.py``: the quickstart's console output, the plots of its
+    run, the Hurst loop and the Hertz resolution study, into ``_generated/figures``."""
+    script = Path(__file__).resolve().parents[2] / "scripts" / "docs_figures.py"
+    out = subprocess.run([sys.executable, str(script), str(GENERATED / "figures")],
+                         capture_output=True, text=True, check=False)
+    if out.returncode != 0:
+        raise RuntimeError(f"scripts/docs_figures.py failed: {out.stderr.strip()}")
+
+
 _PAGE_LABEL = re.compile(r"docs/([\w/]+)\.(?:rst|md)#([\w-]+)")
 _PAGE = re.compile(r"docs/([\w/]+)\.(?:rst|md)\b")
 _LITERATURE = re.compile(r"\[(\w+)\] §")
@@ -187,4 +198,5 @@ def setup(app):
     app.add_directive("roughslip-schema", SchemaReference)
     app.connect("autodoc-process-docstring", link_references)
     app.connect("builder-inited", make_verify_figure)
+    app.connect("builder-inited", make_docs_figures)
     return {"parallel_read_safe": True, "parallel_write_safe": True}

@@ -348,6 +348,9 @@ def plot_bursts(sample, fits, out: str | Path) -> Path:
     from roughslip.analysis.bursts import log_binned
 
     plt = pyplot()
+    # the pull force's unit: E times the first run's length unit squared
+    unit = length_unit(read_run(sample.files[0])) if sample.files else None
+    force = f"E $\\times$ {unit or 'length'}$^2$"
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     for ax, name, data, discrete in ((axes[0], "size", sample.sizes, True),
                                      (axes[1], "drop", sample.drops, False)):
@@ -369,7 +372,7 @@ def plot_bursts(sample, fits, out: str | Path) -> Path:
                     yy = frac * (fit.alpha - 1) / fit.xmin * (xx / fit.xmin) ** -fit.alpha
                 ax.loglog(xx, yy, "-", color=f"C{j}",
                           label=f"{bf.phase}: $\\alpha$ = {fit.alpha:.2f} ± {fit.sigma:.2f}")
-        ref = {"size": "burst size (breaks)", "drop": "force drop"}[name]
+        ref = {"size": "burst size (breaks)", "drop": f"force drop $\\Delta F_x$ ({force})"}[name]
         finish_axes(ax, ref, "probability density", fontsize=7)
     fig.suptitle(f"bursts of {sample.pulls} pulls (log bins; fits from x_min)", fontsize=10)
     return save(plt, fig, out)

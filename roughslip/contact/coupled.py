@@ -108,7 +108,7 @@ class CoupledResult:
     method: str
     message: str = ""
     #: of :attr:`seconds`, those until the pull starts (the squeeze and the release of the
-    #: bonds it overloads at D_x = 0)
+    #: bonds it overloads at :math:`D_x = 0`)
     squeeze_seconds: float = math.nan
     #: worst relative residual of the block solves against the FFT operator (both solvers); a
     #: measure of convergence, not of the error: where equally overloaded bonds are released

@@ -795,8 +795,8 @@ def bond_spectrum(normal: NormalResult, *, rtol: float = 1e-2, threads: int | No
         ``pull(..., estimate_error=True)`` multiplies :math:`\hat\kappa` by the worst
         certified residual: an *estimate* of that bound.
 
-    Measured (H = 0.8, nu = 0.3, 2 cores): 3 275 bonds, estimate 64 (dense: 64.3), 0.1 s;
-    52 259 bonds, estimate 231, ~930 operator applications, 12 s.
+    Measured on a rough surface (H = 0.8, :math:`\nu = 0.3`): 3 275 bonds, estimate 64
+    (dense: 64.3); 52 259 bonds, estimate 231, about 930 operator applications.
 
     Returns
     -------
@@ -852,9 +852,9 @@ def methods_for(slip_law: str) -> list[str]:
 def choose_method(n: int, memory: int | None = None, slip_law: str = "break") -> str:
     """The exact method ``"auto"`` picks for ``n`` bonds given ``memory`` bytes.
 
-    The inverse (~n^3 flops, ~n^2 doubles) whenever it fits in memory and the LAPACK can
-    index it (measured on 2 cores: 41 s for 13 074 bonds; for 3 271 bonds 1.2 s against
-    141 s for one warm-started CG solve per break); otherwise the matrix-free exact method.
+    The inverse (about n^3 flops, n^2 doubles) whenever it fits in memory and the LAPACK can
+    index it (for 3 271 bonds it was about 100 times faster than one warm-started CG solve
+    per break, docs/benchmarks.md); otherwise the matrix-free exact method.
     Tiny contacts use the literal algorithm. The Coulomb law has the inverse only, which
     checks its memory itself.
     """

@@ -271,8 +271,8 @@ class ElasticOperator:
         ``threads`` FFT threads, with its own transforms, buffers and counters.
 
         Used by the dense pull and coupled solvers: right after a threaded BLAS-3 call,
-        OpenBLAS's spinning threads made a two-thread FFTW convolution 40x slower on two cores
-        (26 ms against 0.65 ms single-threaded on a 256^2 padded grid). Views are cached per
+        OpenBLAS's spinning threads made a two-thread FFTW convolution about 40 times slower
+        than a single-threaded one on two cores (a 256^2 padded grid). Views are cached per
         thread count; the operator itself is never modified, so views can be used side by side.
         """
         threads = int(threads)

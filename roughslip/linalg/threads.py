@@ -2,7 +2,7 @@
 
 Everything in roughslip runs with an explicit thread count, by default one per worker: two
 threads on a machine that is busy elsewhere can be far slower than one (a 128 x 128 Cholesky
-was measured at 44 ms instead of 0.1 ms with the second core occupied).
+was measured several hundred times slower with the second core occupied).
 """
 
 from __future__ import annotations

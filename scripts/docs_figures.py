@@ -1,0 +1,194 @@
+"""The figures and console output of the documentation, made from scratch.
+
+    python scripts/docs_figures.py OUT_DIR
+
+``make docs`` runs this at build time (about 20 s on 2 cores); the pages include what it
+writes into ``OUT_DIR``:
+
+* ``quickstart_*.txt``: the console output of the quickstart's commands, run on a smaller
+  demo (``configs/demo.toml`` with 64 x 64 pixels and 8 samples) exactly as a user types them;
+* ``demo_friction.png``, ``demo_normal.png``, ``demo_maps.png``, ``demo_pull.png``:
+  ``roughslip plot`` of that run;
+* ``fit_friction.png``, ``fit_area.png``: ``roughslip fit --plot`` of the friction law
+  F_friction(F_n) and the area law A(F_n);
+* ``bursts.png``, ``quickstart_bursts.txt``: ``roughslip bursts --plot``;
+* ``hurst_loop.txt``, ``hurst_fit.png``: the loop over Hurst exponents of the guide
+  (``configs/rough_h08.toml`` at 48 x 48 pixels, 6 samples, H = 0.5, 0.7, 0.9) and the fit
+  of the friction law of each;
+* ``hertz_resolution.png``, ``hertz_resolution.txt``: one Hertz contact (R = 1, depth 0.01,
+  contact radius a = 0.1, E = 1, nu = 0.25, lambda = 0.2) at a/h = 4 ... 32: the frictionless
+  force against Hertz's, and the friction coefficient of the break law, decoupled and
+  coupled, against the pixel size.
+
+Every command runs in a scratch folder laid out like a checkout (``configs/``, ``runs/``),
+so the output shows the paths the quickstart uses.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: the quickstart's commands, in order, with the file their console output goes to
+QUICKSTART = (
+    ("run", "roughslip run configs/demo.toml -o runs/demo.h5 --set grid.n=64 "
+            "--set ensemble.samples=8"),
+    ("inspect", "roughslip inspect runs/demo.h5"),
+    ("fit", "roughslip fit runs/demo.h5 --plot runs/fit_friction.png"),
+    ("fit_area", "roughslip fit runs/demo.h5 --x normal_force --y contact_area "
+                 "--plot runs/fit_area.png"),
+    ("plot", "roughslip plot runs/demo.h5 -o runs/demo"),
+    ("bursts", "roughslip bursts runs/demo.h5 --min-tail 20 --plot runs/bursts.png"),
+)
+#: the Hurst loop's runs (one per exponent) and its joint fit
+HURST = (0.5, 0.7, 0.9)
+HURST_RUN = ("roughslip run configs/rough_h08.toml --set surface.hurst={H} --set grid.n=48 "
+             "--set ensemble.samples=6 -o runs/H{H}.h5 --quiet")
+HURST_FIT = ("roughslip fit " + " ".join(f"runs/H{h}.h5" for h in HURST)
+             + " --plot runs/hurst_fit.png")
+FIGURES = ("demo_friction.png", "demo_normal.png", "demo_maps.png", "demo_pull.png",
+           "fit_friction.png", "fit_area.png", "bursts.png")
+
+
+def _roughslip(command: str, cwd: Path) -> str:
+    """Run one ``roughslip ...`` command line in ``cwd``; its output, or an error with it."""
+    import shlex
+
+    args = shlex.split(command)
+    argv = [sys.executable, "-m", "roughslip", *args[1:]]
+    out = subprocess.run(argv, cwd=cwd, capture_output=True, text=True, check=False)
+    if out.returncode != 0:
+        raise RuntimeError(f"{command!r} failed ({out.returncode}): {out.stderr.strip()}")
+    # what the terminal shows (progress goes to stderr), with the paths as typed: the
+    # provenance line names the program, not this interpreter's module path
+    main = str(Path(__import__("roughslip").__file__).with_name("__main__.py"))
+    text = out.stdout + out.stderr
+    return text.replace(main, "roughslip").replace(f"{cwd.resolve()}/", "")
+
+
+def quickstart(out: Path) -> None:
+    """The quickstart's commands on a scratch checkout; their output and figures to ``out``."""
+    with tempfile.TemporaryDirectory(prefix="roughslip-docs-") as tmp:
+        work = Path(tmp)
+        (work / "configs").mkdir()
+        (work / "runs").mkdir()
+        shutil.copy(ROOT / "configs" / "demo.toml", work / "configs" / "demo.toml")
+        for name, command in QUICKSTART:
+            text = _roughslip(command, work)
+            (out / f"quickstart_{name}.txt").write_text(f"$ {command}\n{text}")
+        for name in FIGURES:
+            shutil.copy(work / "runs" / name, out / name)
+
+
+def hurst_loop(out: Path) -> None:
+    """The Hurst loop of the guide: one run per exponent, then one fit of all of them."""
+    with tempfile.TemporaryDirectory(prefix="roughslip-docs-") as tmp:
+        work = Path(tmp)
+        (work / "configs").mkdir()
+        (work / "runs").mkdir()
+        shutil.copy(ROOT / "configs" / "rough_h08.toml", work / "configs" / "rough_h08.toml")
+        for h in HURST:
+            _roughslip(HURST_RUN.format(H=h), work)
+        loop = HURST_RUN.replace("{H}", "$H")
+        text = _roughslip(HURST_FIT, work)
+        (out / "hurst_loop.txt").write_text(
+            f"$ for H in {' '.join(map(str, HURST))}; do {loop}; done\n$ {HURST_FIT}\n{text}")
+        shutil.copy(work / "runs" / "hurst_fit.png", out / "hurst_fit.png")
+
+
+def hertz_resolution(out: Path, ratios=(4, 8, 16, 32), coupled_max: int = 16,
+                     nu: float = 0.25, lam: float = 0.2) -> None:
+    """One Hertz problem at ever finer pixels: the squeeze converges, the break law does not.
+
+    The sphere R = 1 is pressed to d = 0.01 (Hertz contact radius a = sqrt(R d) = 0.1) into a
+    half-space with E = 1 on an open grid of side 4a, h = a / ratio.
+    """
+    from roughslip import couple, pull
+    from roughslip.analysis.plotting import log_ticks, pyplot, save
+    from roughslip.contact.analytic import hertz
+    from roughslip.contact.problem import Problem
+    from roughslip.contact.squeeze import NormalSolver
+    from roughslip.elastic.operators import Grid, Material
+    from roughslip.surfaces import sphere
+
+    R, d = 1.0, 0.01
+    a = np.sqrt(R * d)
+    rows = []
+    for ratio in ratios:
+        h, n = a / ratio, 4 * ratio
+        problem = Problem(sphere((n, n), radius=R, a=h), Grid((n, n), h), Material(1.0, nu))
+        normal = NormalSolver(problem, tol=1e-12).solve(depth=d)
+        t0 = time.perf_counter()
+        dec = pull(normal, lam=lam)
+        t_dec = time.perf_counter() - t0
+        fc, t_c, released = np.nan, np.nan, np.nan
+        if ratio <= coupled_max:
+            t0 = time.perf_counter()
+            c = couple(problem, depth=d, lam=lam)
+            t_c = time.perf_counter() - t0
+            fc = c.friction_force / (lam * c.normal_force_at_peak)
+            released = c.released / max(int(c.contact0.sum()), 1)
+        rows.append((ratio, n, normal.normal_force / hertz(R=R, d=d, E=1.0, nu=nu).force - 1,
+                     dec.friction_force / (lam * normal.normal_force), fc, released,
+                     t_dec, t_c))
+    r = np.array(rows, dtype=float)
+    lines = [f"# Hertz R = {R}, d = {d}, a = {a:.3g}, E = 1, nu = {nu}, lambda = {lam}; "
+             "open grid of side 4a",
+             f"{'a/h':>4} {'N':>4} {'F_n/Hertz-1':>12} {'F_f/(lam F_n)':>14} "
+             f"{'coupled':>8} {'released':>8} {'s (dec)':>8} {'s (coup)':>8}"]
+    for row in rows:
+        coupled = (f"{row[4]:8.4f} {row[5]:8.2f}" if np.isfinite(row[4])
+                   else f"{'-':>8} {'-':>8}")
+        t_c = f"{row[7]:8.2f}" if np.isfinite(row[7]) else f"{'-':>8}"
+        lines.append(f"{row[0]:4d} {row[1]:4d} {row[2]:12.3e} {row[3]:14.4f} {coupled} "
+                     f"{row[6]:8.2f} {t_c}")
+    (out / "hertz_resolution.txt").write_text("\n".join(lines) + "\n")
+
+    plt = pyplot()
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.0))
+    x = r[:, 0]
+    left.loglog(x, np.abs(r[:, 2]), "o-", color="C0", label="$|F_n / F_{Hertz} - 1|$")
+    left.loglog(x, np.abs(r[0, 2]) * (x / x[0]) ** -2.0, "--", color="0.5",
+                label="slope $-2$ ($\\propto h^2$)")
+    left.set_title("squeeze: converges", fontsize=9)
+    left.set_ylabel("relative error of the normal force")
+    right.loglog(x, r[:, 3], "o-", color="C0", label="break law, decoupled")
+    ok = np.isfinite(r[:, 4])
+    right.loglog(x[ok], r[ok, 4], "s-", color="C1", label=f"break law, coupled ($\\nu$ = {nu})")
+    right.loglog(x, r[0, 3] * (x / x[0]) ** -0.5, "--", color="0.5",
+                 label="slope $-1/2$ ($\\propto (h/a)^{1/2}$)")
+    right.set_title("pull: falls with the pixel size", fontsize=9)
+    right.set_ylabel("friction coefficient $F_f / (\\lambda F_n)$")
+    for ax in (left, right):
+        ax.set_xlabel("contact radius over pixel size, $a/h$")
+        log_ticks(ax.xaxis)
+        log_ticks(ax.yaxis)
+        ax.grid(True, which="major", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"one Hertz contact (R = {R:g}, a = {a:.3g}, $\\lambda$ = {lam}) at "
+                 "ever finer pixels", fontsize=10)
+    save(plt, fig, out / "hertz_resolution.png")
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("out", type=Path, help="folder for the figures and text files")
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    quickstart(args.out)
+    hurst_loop(args.out)
+    hertz_resolution(args.out)
+
+
+if __name__ == "__main__":
+    main()
