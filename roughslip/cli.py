@@ -26,6 +26,12 @@ def _fail(message: str, code: int) -> None:
     sys.exit(code)
 
 
+def _verbose() -> bool:
+    """``roughslip --verbose``: errors also print the library's detail."""
+    ctx = click.get_current_context(silent=True)
+    return bool(ctx and ctx.find_root().params.get("verbose"))
+
+
 def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
     """Turn roughslip errors into one line on stderr and the documented exit code."""
 
@@ -34,6 +40,11 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
         try:
             return fn(*args, **kwargs)
         except RoughslipError as exc:
+            if exc.__cause__ is not None and _verbose():
+                import traceback
+
+                click.echo("".join(traceback.format_exception(exc.__cause__)).rstrip(),
+                           err=True)
             _fail(str(exc), exc.exit_code)
         except KeyboardInterrupt:
             click.echo("roughslip: interrupted", err=True)
@@ -57,7 +68,10 @@ set_option = click.option(
     message="%(prog)s %(version)s (BSD 3-Clause)\nTo cite: CITATION.cff of this version with "
             "the version number, and the 2003 report whose model it implements (docs: Licence "
             "and citation).")
-def cli() -> None:
+@click.option("-v", "--verbose", is_flag=True,
+              help="On an error, also print the library's detail (the underlying exception "
+                   "and its traceback) above the one-line message.")
+def cli(verbose: bool) -> None:
     """Static friction of rough elastic surfaces: squeeze, pull, slip."""
 
 

@@ -20,6 +20,10 @@ VerificationError      1     ``verify``: an estimate broke the relation it claim
 
 from __future__ import annotations
 
+import errno as _errno
+import os
+import re
+
 
 class RoughslipError(Exception):
     """Base class of every error roughslip raises on purpose."""
@@ -89,3 +93,55 @@ EXIT_CODES = {
     "usage": 2,
     "nonconvergence": 3,
 }
+
+
+#: h5py reports the operating system's error inside a long message: "... errno = 28, ..."
+_H5_ERRNO = re.compile(r"errno = (\d+)")
+
+#: what a run can do after a failed write, by the operating system's error number
+_KEPT = "the samples completed before are kept: {}, then run again with --resume"
+_REMEDY = {_errno.ENOSPC: _KEPT.format("free some space"),
+           _errno.EDQUOT: _KEPT.format("free some space"),
+           _errno.EACCES: _KEPT.format("make the file and its folder writable"),
+           _errno.EPERM: _KEPT.format("make the file and its folder writable"),
+           _errno.EROFS: _KEPT.format("make the file system writable"),
+           _errno.ENOENT: "the folder was removed, and the samples written into it with it: "
+                          "run again (restore the folder, or choose another with -o)"}
+
+
+def _errno_of(exc: BaseException) -> int | None:
+    if isinstance(exc, OSError) and exc.errno:
+        return exc.errno
+    m = _H5_ERRNO.search(str(exc))
+    return int(m.group(1)) if m else None
+
+
+def io_cause(exc: BaseException) -> str:
+    """The cause of a failed file operation in a few words ("No space left on device"),
+    from an ``OSError`` or from h5py's long error text; its first line when it names none.
+
+    The whole text, with the library's detail, stays on the exception that
+    :func:`io_failure` chains (``roughslip --verbose`` prints it).
+    """
+    code = _errno_of(exc)
+    if isinstance(exc, OSError) and code is not None and exc.strerror \
+            and exc.strerror.startswith(os.strerror(code)):
+        return exc.strerror  # the system's words, with what roughslip added to them
+    if code is not None:
+        return os.strerror(code)
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return text if len(text) <= 120 else text[:117] + "..."
+
+
+def io_failure(path: object, what: str, exc: BaseException, *, resume: bool = False
+               ) -> OutputError:
+    """One line for a failed write: the file, what failed, the cause and, for a run, what to
+    do and that the completed samples are kept (``--resume``). Raise it ``from exc``."""
+    code = _errno_of(exc)
+    line = f"{path}: {what}: {io_cause(exc)}"
+    folder = os.path.dirname(os.path.abspath(str(path)))
+    if code == _errno.ENOENT and not os.path.isdir(folder):
+        line += f" (the folder {folder} is gone)"
+    if resume:
+        line += "; " + _REMEDY.get(code or -1, _KEPT.format("remove the cause"))
+    return OutputError(line)

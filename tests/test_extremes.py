@@ -295,6 +295,105 @@ def test_full_disk_keeps_completed_samples_and_resume_finishes(tmp_path, monkeyp
     assert read_run(out).complete.all() and s.skipped >= 1
 
 
+def _same_stored_results(a, b) -> bool:
+    """Every dataset of two run files bitwise equal, timings aside."""
+    def walk(g, out, prefix=""):
+        for k, v in g.items():
+            if isinstance(v, h5py.Group):
+                walk(v, out, f"{prefix}/{k}")
+            elif "seconds" not in k:
+                out[f"{prefix}/{k}"] = np.asarray(v[()]).tobytes()
+    da, db = {}, {}
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        walk(fa, da)
+        walk(fb, db)
+    return da == db
+
+
+def _full_disk_after(monkeypatch, calls: int) -> None:
+    """The file system reports no free space from the ``calls``-th question on."""
+    import shutil
+    from collections import namedtuple
+
+    real, n = shutil.disk_usage, {"n": 0}
+    usage = namedtuple("usage", "total used free")
+
+    def disk_usage(path):
+        n["n"] += 1
+        return usage(1 << 30, 1 << 30, 0) if n["n"] >= calls else real(path)
+
+    monkeypatch.setattr(shutil, "disk_usage", disk_usage)
+
+
+@pytest.mark.parametrize("verbose", [False, True])
+def test_a_full_disk_is_one_line_and_resume_gives_the_same_file(tmp_path, monkeypatch,
+                                                                verbose):
+    """The free space is checked before a sample is written: a full disk stops the run with
+    one line naming the file, the cause and the resume hint (the library's detail only with
+    --verbose); the samples before are kept and --resume gives bitwise the same file."""
+    cfg_path = _cfg_file(tmp_path, GOOD)
+    out, ref = tmp_path / "disk.h5", tmp_path / "ref.h5"
+    assert CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(ref), "--quiet",
+                                    "--workers", "1"]).exit_code == 0
+    _full_disk_after(monkeypatch, 2)
+    r = CliRunner().invoke(cli, [*(["--verbose"] if verbose else []), "run", str(cfg_path),
+                                 "-o", str(out), "--quiet", "--workers", "1"])
+    monkeypatch.undo()
+    assert r.exit_code == 1, r.output
+    lines = r.output.strip().splitlines()
+    assert lines[-1].startswith(f"roughslip: error: {out}: cannot write sample 1: No space "
+                                "left on device")
+    assert lines[-1].endswith("free some space, then run again with --resume")
+    assert ("Traceback" in r.output and "OSError" in r.output) == verbose
+    assert len(lines) == 1 or verbose
+    assert read_run(out).n_complete == 1
+    r = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(out), "--resume", "--quiet",
+                                 "--workers", "1"])
+    assert r.exit_code == 0, r.output
+    assert _same_stored_results(out, ref)
+
+
+def test_a_vanished_folder_is_one_line_that_says_what_is_lost(tmp_path):
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    cfg = load_config(_cfg_file(tmp_path, GOOD))
+
+    def progress(event):
+        if event.get("kind") == "sample":
+            import shutil
+
+            shutil.rmtree(folder)
+
+    with pytest.raises(OutputError) as e:
+        run(cfg, folder / "gone.h5", workers=1, progress=progress)
+    msg = str(e.value)
+    assert "\n" not in msg and msg.startswith(f"{folder / 'gone.h5'}: cannot write sample 1")
+    assert f"the folder {folder} is gone" in msg and "run again" in msg
+
+
+@pytest.mark.parametrize(("exc", "cause", "remedy"), [
+    (RuntimeError("Can't close file (file write failed: time = Tue, filename = 'x.h5', file "
+                  "descriptor = 16, errno = 28, error message = 'No space left on device', "
+                  "buf = 0x5, total write size = 5594)"),
+     "No space left on device", "free some space, then run again with --resume"),
+    (PermissionError(13, "Permission denied"), "Permission denied",
+     "make the file and its folder writable, then run again with --resume"),
+    (OSError(30, "Read-only file system"), "Read-only file system",
+     "make the file system writable, then run again with --resume"),
+    (RuntimeError("Something HDF5 says\nwith a second line"), "Something HDF5 says",
+     "remove the cause, then run again with --resume"),
+])
+def test_io_failures_name_file_cause_and_remedy_in_one_line(exc, cause, remedy):
+    from roughslip.errors import io_cause, io_failure
+
+    assert io_cause(exc) == cause
+    err = io_failure("runs/x.h5", "cannot write sample 3", exc, resume=True)
+    assert str(err) == (f"runs/x.h5: cannot write sample 3: {cause}; the samples completed "
+                        f"before are kept: {remedy}")
+    assert str(io_failure("a.png", "cannot write the figure", exc)) == \
+        f"a.png: cannot write the figure: {cause}"
+
+
 def test_worker_crash_keeps_completed_samples(tmp_path, monkeypatch):
     """A worker process that dies (here: os._exit while computing sample 2, injected into the
     spawned workers through sitecustomize) ends the run with a clear error; the samples

@@ -9,7 +9,7 @@ import numpy as np
 
 from roughslip.analysis.fit import fit_power_law, quantity
 from roughslip.analysis.summary import axis_unit, length_unit, pixel_size
-from roughslip.errors import InputError, OutputError
+from roughslip.errors import InputError, io_failure
 from roughslip.run.store import read_run
 
 
@@ -33,7 +33,7 @@ def save(plt, fig, path: str | Path) -> Path:
     try:
         fig.savefig(path, dpi=120)
     except OSError as exc:
-        raise OutputError(f"{path}: cannot write the figure ({exc.strerror or exc})") from None
+        raise io_failure(path, "cannot write the figure", exc) from exc
     finally:
         plt.close(fig)
     return Path(path)

@@ -149,8 +149,12 @@ def plot_stats(st: TopographyStats, h: np.ndarray, out: str | Path) -> Path:
                   else (unit, 1.0))
         extent = (0.0, h.shape[1] * a * f, 0.0, h.shape[0] * a * f)
         xl, yl = f"x ({lat})", f"y ({lat})"
-    im = ax.imshow(h, origin="lower", interpolation="nearest", cmap="viridis", extent=extent)
-    cb = fig.colorbar(im, ax=ax, fraction=0.046, label=f"height ({unit})")
+    # heights in the prefix that suits them (nm for a 1e-7 m scan), not with an offset
+    hunit, hf = (display_unit(float(np.std(h)), st.unit) if st.unit in LENGTH_UNITS
+                 else (unit, 1.0))
+    im = ax.imshow(h * hf, origin="lower", interpolation="nearest", cmap="viridis",
+                   extent=extent)
+    cb = fig.colorbar(im, ax=ax, fraction=0.046, label=f"height ({hunit})")
     cb.formatter.set_useOffset(False)
     cb.update_ticks()
     ax.set_title(Path(st.path.split(" (")[0]).name, fontsize=9)

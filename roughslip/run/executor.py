@@ -32,6 +32,7 @@ from roughslip.errors import (
     MemoryLimitError,
     NumericalError,
     WorkerError,
+    io_cause,
 )
 from roughslip.linalg import memory
 from roughslip.run import schema
@@ -345,7 +346,12 @@ def _run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pr
     budget = memory.available_bytes() // workers
     # progress (sample, depth index) from the workers; a plain queue, no server process that
     # could outlive this one
-    q = ctx.Queue()
+    try:
+        q = ctx.Queue()
+    except OSError as exc:  # no semaphores or no resource tracker in this environment
+        raise WorkerError(f"cannot start worker processes: {io_cause(exc)} (in "
+                          "multiprocessing's set-up); run with --workers 1 to compute in "
+                          "this process") from exc
     before = {p.pid for p in mp.active_children()}
     pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
                                   initializer=_worker_init,

@@ -53,6 +53,7 @@ without ``h5clear``. The journal, not the format, guarantees integrity.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shutil
@@ -63,7 +64,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from roughslip.errors import InputError, OutputError
+from roughslip.errors import InputError, io_failure
 from roughslip.run import schema
 from roughslip.run.config import RunConfig
 
@@ -157,8 +158,8 @@ class RunWriter:
                                                    "format_version": FORMAT_VERSION})
             cls._build(path, ".creating", config, indices, n_targets, attrs, [])
             f = h5py.File(path, "r+")
-        except OSError as exc:
-            raise OutputError(f"{path}: cannot create ({exc})") from None
+        except (OSError, RuntimeError) as exc:  # h5py reports a failed write as either
+            raise io_failure(path, "cannot create the run file", exc) from exc
         return cls(path, f, config, indices)
 
     @classmethod
@@ -232,8 +233,9 @@ class RunWriter:
                                                        "format_version": FORMAT_VERSION})
             cls._build(path, ".rebuilding", config, indices, n_targets, attrs, entries)
             f = h5py.File(path, "r+")
-        except OSError as exc:
-            raise OutputError(f"{path}: cannot rebuild from its journal ({exc})") from None
+        except (OSError, RuntimeError) as exc:
+            raise io_failure(path, "cannot rebuild the run file from its journal", exc,
+                             resume=True) from exc
         writer = cls(path, f, config, indices)
         writer.recovery = (f"rebuilt {path.name} from its journal "
                            f"({len(writer.completed())} sample(s) kept)")
@@ -247,8 +249,14 @@ class RunWriter:
 
     # -- writing ---------------------------------------------------------------------------------
     def write_sample(self, res: SampleResult) -> None:
-        """Journal the sample atomically, then write it into the run file and flush."""
+        """Journal the sample atomically, then write it into the run file and flush.
+
+        The free space is checked first (:func:`_check_space`): HDF5 does not recover from a
+        write that fails half-way, and a run file it was writing into can be left unusable,
+        so a full disk is found before anything is written.
+        """
         try:
+            _check_space(self.path, res)
             self.journal.mkdir(exist_ok=True)
             final = self.journal / f"{_group_name(res.sample)}.h5"
             tmp = final.with_suffix(".tmp")
@@ -261,10 +269,9 @@ class RunWriter:
             _fsync(tmp)
             os.replace(tmp, final)
             self._write_main(res)
-        except OSError as exc:
-            raise OutputError(
-                f"{self.path}: cannot write sample {res.sample} ({exc}); completed samples "
-                "are kept: free the problem and run again with --resume") from None
+        except (OSError, RuntimeError) as exc:  # h5py reports a failed write as either
+            raise io_failure(self.path, f"cannot write sample {res.sample}", exc,
+                             resume=True) from exc
 
     def _write_main(self, res: SampleResult) -> None:
         f = self.f
@@ -284,21 +291,54 @@ class RunWriter:
     def finish(self) -> None:
         """Close; retire the journal when every sample is complete (renamed first, so that a
         kill while it is removed cannot be mistaken for an unfinished run)."""
-        all_done = bool(np.all(self.f["complete"][()]))
-        self.f.close()
-        if all_done and self.journal.is_dir():
-            _fsync(self.path)
-            done = _sibling(self.journal, ".done")
-            shutil.rmtree(done, ignore_errors=True)
-            os.replace(self.journal, done)
-            shutil.rmtree(done, ignore_errors=True)
+        try:
+            all_done = bool(np.all(self.f["complete"][()]))
+            self.f.close()
+            if all_done and self.journal.is_dir():
+                _fsync(self.path)
+                done = _sibling(self.journal, ".done")
+                shutil.rmtree(done, ignore_errors=True)
+                os.replace(self.journal, done)
+                shutil.rmtree(done, ignore_errors=True)
+        except (OSError, RuntimeError) as exc:
+            raise io_failure(self.path, "cannot close the run file", exc,
+                             resume=True) from exc
 
     def close(self) -> None:
-        """Close without touching the journal (interrupted runs)."""
+        """Close without touching the journal (interrupted and failed runs). A flush or close
+        that fails too (a full disk) is ignored: the journal holds every completed sample, and
+        the error that stopped the run is the one to report."""
         try:
             self.f.flush()
+        except (OSError, RuntimeError):
+            pass
         finally:
-            self.f.close()
+            try:
+                self.f.close()
+            except (OSError, RuntimeError):
+                pass
+
+
+#: room for HDF5's metadata beside a sample's arrays (object headers, chunk indices)
+_SPACE_MARGIN = 1 << 18
+
+
+def _sample_bytes(res: SampleResult) -> int:
+    """The bytes of a sample's arrays, uncompressed: an upper bound on what one copy of it
+    (the journal entry, or its group in the run file) adds, before metadata."""
+    arrays = [*res.scalars.values(), *res.surfaces.values(),
+              *(a for fields in res.fields for a in fields.values())]
+    return sum(np.asarray(a).nbytes for a in arrays)
+
+
+def _check_space(path: Path, res: SampleResult) -> None:
+    """``OSError(ENOSPC)`` when the file system of ``path`` has less room than two copies of
+    the sample (journal entry and run file) and :data:`_SPACE_MARGIN` take."""
+    need = 2 * _sample_bytes(res) + _SPACE_MARGIN
+    free = shutil.disk_usage(path.parent).free
+    if free < need:
+        raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} (this sample needs up to "
+                      f"{need / 2**20:.1f} MiB, {free / 2**20:.1f} MiB are free)")
 
 
 def _journal_digest(jdir: Path, path: Path) -> str | None:
