@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import errno
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +39,20 @@ def save(plt, fig, path: str | Path) -> Path:
     finally:
         plt.close(fig)
     return Path(path)
+
+
+def make_folder(folder: str | Path) -> Path:
+    """Create ``folder`` (and its parents) for figures, or name the cause in one line
+    (:class:`OutputError`). Commands call it before they compute what they will draw."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise io_failure(folder, "cannot make the folder for the figures", exc) from exc
+    if not os.access(folder, os.W_OK):
+        raise io_failure(folder, "cannot write figures into it",
+                         PermissionError(errno.EACCES, os.strerror(errno.EACCES)))
+    return folder
 
 
 def log_ticks(axis, most: int = 6) -> None:
@@ -226,7 +242,7 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
     if run.n_complete == 0:
         raise InputError(f"{run.path}: has no complete samples to plot")
     stem = Path(out) if out else Path(path).with_suffix("")
-    stem.parent.mkdir(parents=True, exist_ok=True)
+    make_folder(stem.parent)
     written = []
     fn = quantity(run, "normal_force")
     depth = quantity(run, "depth_length")

@@ -71,7 +71,7 @@ from roughslip.contact.pull import (
     refinement_estimate,
 )
 from roughslip.contact.squeeze import NormalResult, squeeze
-from roughslip.errors import OutputError, VerificationError
+from roughslip.errors import VerificationError
 from roughslip.surfaces.synthetic import punch as punch_shape
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sinusoid, sphere
 
@@ -683,7 +683,7 @@ def plot(s: Study, path: str | Path) -> list[Path]:
     """Work-precision diagrams: one file per scene in the folder ``path``
     (``verify-<scene>.png``), or all scenes as one grid when ``path`` ends in ``.png``,
     ``.pdf`` or ``.svg``."""
-    from roughslip.analysis.plotting import pyplot, save
+    from roughslip.analysis.plotting import make_folder, pyplot, save
 
     path = Path(path)
     scenes = s.scenes()
@@ -695,9 +695,5 @@ def plot(s: Study, path: str | Path) -> list[Path]:
             for ax, series in zip(row, SERIES, strict=True):
                 _panel(ax, s, scene, series)
         return [save(plt, fig, path)]
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot make the folder for the diagrams "
-                          f"({exc.strerror or exc})") from None
+    make_folder(path)
     return [plot_scene(s, scene, path / f"verify-{scene}.png") for scene in scenes]
