@@ -422,14 +422,3 @@ def test_worker_crash_keeps_completed_samples(tmp_path, monkeypatch):
     s = run(cfg, out, resume=True)
     assert read_run(out).complete.all() and s.computed >= 1
 
-
-def test_a_figure_folder_that_cannot_be_made_stops_before_any_work(tmp_path):
-    """``plot`` and ``verify --plot`` name the folder and the cause in one line, and verify
-    finds it before it runs its study (nothing computed is thrown away)."""
-    blocker = tmp_path / "file"
-    blocker.write_text("x")
-    r = CliRunner().invoke(cli, ["verify", "--quick", "--quiet", "--plot",
-                                 str(blocker / "diagrams")])
-    assert r.exit_code == 1
-    assert r.output.strip() == (f"roughslip: error: {blocker / 'diagrams'}: cannot make the "
-                                "folder for the figures: Not a directory")
