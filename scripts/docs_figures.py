@@ -27,6 +27,7 @@ so the output shows the paths the quickstart uses.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import shutil
 import subprocess
 import sys
@@ -75,13 +76,21 @@ def _roughslip(command: str, cwd: Path) -> str:
     return text.replace(main, "roughslip").replace(f"{cwd.resolve()}/", "")
 
 
-def quickstart(out: Path) -> None:
-    """The quickstart's commands on a scratch checkout; their output and figures to ``out``."""
+@contextlib.contextmanager
+def _checkout(config: str):
+    """A scratch folder laid out like a checkout: ``configs/<config>`` and an empty
+    ``runs/``; removed afterwards."""
     with tempfile.TemporaryDirectory(prefix="roughslip-docs-") as tmp:
         work = Path(tmp)
         (work / "configs").mkdir()
         (work / "runs").mkdir()
-        shutil.copy(ROOT / "configs" / "demo.toml", work / "configs" / "demo.toml")
+        shutil.copy(ROOT / "configs" / config, work / "configs" / config)
+        yield work
+
+
+def quickstart(out: Path) -> None:
+    """The quickstart's commands on a scratch checkout; their output and figures to ``out``."""
+    with _checkout("demo.toml") as work:
         for name, command in QUICKSTART:
             text = _roughslip(command, work)
             (out / f"quickstart_{name}.txt").write_text(f"$ {command}\n{text}")
@@ -91,11 +100,7 @@ def quickstart(out: Path) -> None:
 
 def hurst_loop(out: Path) -> None:
     """The Hurst loop of the guide: one run per exponent, then one fit of all of them."""
-    with tempfile.TemporaryDirectory(prefix="roughslip-docs-") as tmp:
-        work = Path(tmp)
-        (work / "configs").mkdir()
-        (work / "runs").mkdir()
-        shutil.copy(ROOT / "configs" / "rough_h08.toml", work / "configs" / "rough_h08.toml")
+    with _checkout("rough_h08.toml") as work:
         for h in HURST:
             _roughslip(HURST_RUN.format(H=h), work)
         loop = HURST_RUN.replace("{H}", "$H")
