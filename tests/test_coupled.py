@@ -136,7 +136,7 @@ def test_reciprocity_of_the_coupled_block():
     d = _Dense(problem, reference=True)
     ids = np.concatenate([2 * rng.choice(99, 20, replace=False),
                           2 * rng.choice(99, 15, replace=False) + 1])
-    A = d._entries(ids, ids)
+    A = d.entries(ids, ids)
     assert np.array_equal(A, A.T)
     assert np.linalg.eigvalsh(A).min() > 0
 
@@ -312,9 +312,9 @@ def test_updated_inverse_tracks_solutions_through_set_changes(symv_min):
     grid = Grid((12, 12))
     problem = Problem(np.zeros(grid.shape), grid, Material(1.0, 0.25))
     d = _Dense(problem, tol=1e-13)
-    d.block = 8  # fold pending terms in often
+    d.inverse.block = 8  # fold pending terms in often
     d.refinements = 0  # the updates alone, without the certification's refinement
-    d.symv_min = symv_min
+    d.inverse.symv_min = symv_min
     rng = np.random.default_rng(11)
     C = rng.random(grid.shape) < 0.6
     S = C & (rng.random(grid.shape) < 0.7)
@@ -325,11 +325,11 @@ def test_updated_inverse_tracks_solutions_through_set_changes(symv_min):
         fz, fx, _ = d.solve(rz, rx, "a")
         ids = np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1])
         b = np.concatenate([rz[C], rx[S]])
-        x = np.linalg.solve(d._entries(ids, ids), b)
+        x = np.linalg.solve(d.entries(ids, ids), b)
         got = np.concatenate([fz[C], fx[S]])
         assert np.abs(got - x).max() <= 1e-10 * np.abs(x).max()
         assert not fz[~C].any() and not fx[~S].any()
-        m = d.m
+        m = d.inverse.m
         # one to three removals (a contact takes its bond along), up to two additions
         for j in rng.choice(np.flatnonzero(C), rng.integers(1, 4), replace=False):
             if rng.random() < 0.5:
@@ -341,8 +341,8 @@ def test_updated_inverse_tracks_solutions_through_set_changes(symv_min):
             C.flat[j] = True
             S.flat[j] = rng.random() < 0.5
         d.prepare(C, S)
-        compactions += d.m < m
-    assert d.factorisations == 1 and compactions > 0
+        compactions += d.inverse.m < m
+    assert d.inverse.factorisations == 1 and compactions > 0
 
 
 def test_a_slow_rate_is_flat_only_on_the_scale_of_the_pull_so_far():
@@ -603,3 +603,20 @@ def test_indentation_rejects_bad_input():
     for call in (indent, squeeze_pull_coupled):
         with pytest.raises(InputError, match="max\\(h\\) - mean\\(h\\)"):
             call(per, depth=too_deep)
+
+
+def test_the_dense_solver_refines_when_its_residual_is_above_tol():
+    """A tolerance below what the inverse reaches makes every solve refine (a crash before:
+    the refinement step passed a vector where the product expected columns); the friction
+    force is that of the default tolerance, and the run says it missed tol."""
+    from roughslip import couple
+    from roughslip.contact.problem import Problem
+    from roughslip.elastic.operators import Grid, Material
+
+    n, h = 24, 0.1 / 6
+    p = Problem(sphere((n, n), radius=1.0, a=h), Grid((n, n), h), Material(1.0, 0.3))
+    ref = couple(p, depth=0.0036, lam=0.3, method="dense")
+    tight = couple(p, depth=0.0036, lam=0.3, method="dense", tol=1e-17)
+    assert ref.converged and not tight.converged
+    assert tight.friction_force == pytest.approx(ref.friction_force, rel=1e-12)
+    assert tight.residual < 1e-15

@@ -61,8 +61,8 @@ from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem, finite
 from roughslip.contact.pull import check_friction
 from roughslip.errors import InputError, MemoryLimitError, NumericalError
-from roughslip.linalg import lapack64
 from roughslip.linalg.cg import cg
+from roughslip.linalg.inverse import BYTES_PER_ORDER2, Tracked, UpdatableInverse
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.threads import blas_threads
 
@@ -154,9 +154,20 @@ class CoupledResult:
 
 
 class BlockSolver(Protocol):
-    """A linear solver for the reduced block on the contact set C and the stick set S."""
+    """A linear solver for the reduced block on the contact set C and the stick set S: the
+    contract the event loop uses, and all of it."""
 
+    #: solves so far (:meth:`add_solves` counts those the caller does on the solver's behalf)
     solves: int
+    #: seconds in dense linear algebra
+    blas_seconds: float
+    #: why the solver went on matrix-free (the dense inverse did not fit), else ""
+    note: str
+    #: the dense test reference: every state factorised afresh, displacements by dense sums
+    reference: bool
+    #: whether the current state is solved through an explicit inverse (then
+    #: :meth:`apply_inverse` is available), else matrix-free
+    dense: bool
 
     def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
         """Set the unknowns: f_z on C, f_x on S. ``bulk``: the sets are about to change by
@@ -174,13 +185,19 @@ class BlockSolver(Protocol):
     def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(u_z, u_x) on the grid for the force fields (f_z, f_x)."""
 
+    def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(f_z, f_x): the current inverse times a right-hand side, uncertified (only while
+        :attr:`dense`)."""
+
     def residual(self) -> float:
         """The worst relative residual of the solves so far."""
 
-    #: seconds in dense linear algebra
-    blas_seconds: float
-    #: why the solver went on matrix-free (the dense inverse did not fit), else ""
-    note: str
+    def reset(self) -> bool:
+        """Drop what the solver kept between states (an updated inverse), so that the next
+        :meth:`prepare` starts afresh; False when there was nothing to drop."""
+
+    def add_solves(self, n: int) -> None:
+        """Count ``n`` solves done with this solver's operators by the caller."""
 
 
 #: the coupled block solvers, by name (``method`` of :func:`couple`)
@@ -192,22 +209,12 @@ class _Dense:
     r"""Reduced block assembled from the operator's kernel tables, solved through its inverse.
 
     The unknowns are numbered ``2 i`` (:math:`f_z` at site ``i``) and ``2 i + 1``
-    (:math:`f_x`). The explicit inverse of the block on the current unknowns is updated when
-    the contact or stick set changes, never recomputed for it. It is held as
-    :math:`M + V\,\mathrm{diag}(s)\,V^T`: a stored matrix and up to ``block`` pending
-    rank-one terms of sign :math:`s = \pm 1`, which one product folds into :math:`M` when
-    they are full (BLAS-3).
+    (:math:`f_x`). The explicit inverse of the block on the current unknowns is an
+    :class:`~roughslip.linalg.inverse.UpdatableInverse`: updated when the contact or stick set
+    changes (downdates, bordered additions, blocked BLAS-3 folding, compaction), never
+    recomputed for it, and kept solutions of unchanged right-hand sides are updated with it.
 
-    * Removing an unknown :math:`r` subtracts :math:`c\,c^T/c_r`, :math:`c` the current
-      column :math:`r` (Sherman-Morrison); a tracked solution :math:`x` of an unchanged
-      right-hand side becomes :math:`x - c\,x_r/c_r`, :math:`O(m)`.
-    * Adding unknowns with couplings :math:`B` and diagonal block :math:`D` is a bordered
-      inverse through the Schur complement :math:`S = D - B^T M B`: the old block gains
-      :math:`(MB)S^{-1}(MB)^T` (pending terms :math:`W W^T`, :math:`W = MB L^{-T}`,
-      :math:`S = LL^T`), the new rows are written into spare capacity, and tracked
-      solutions are bordered too (:math:`O(mk)`).
-    * When more than a third of the unknowns change at once, the block is factorised afresh
-      (Cholesky, then LAPACK's inverse from it).
+    * When more than a third of the unknowns change at once, the block is factorised afresh.
     * The squeeze's first passes, which drop every tensile contact at once from the geometric
       overlap (``prepare(..., bulk=True)``), are solved by warm-started conjugate gradients
       on the FFT operator when they have more than ``bulk_min`` unknowns: an inverse of the
@@ -217,16 +224,13 @@ class _Dense:
     Every solution is certified against the FFT operator: the displacements of the forces,
     which the event loop needs anyway for the gaps, give the residual on the unknowns; above
     ``tol`` (relative) it is refined by :math:`x \leftarrow x + M^{-1}_{\rm current} r`, up to
-    ``refinements`` times, and the worst certified residual is reported. With
-    ``reference=True`` every state is factorised from scratch and displacements are dense
-    sums (no FFT at all): the test reference.
+    ``refinements`` times (:meth:`UpdatableInverse.refine`), and the worst certified residual
+    is reported. With ``reference=True`` every state is factorised from scratch and
+    displacements are dense sums (no FFT at all): the test reference.
     """
 
-    block = 512
     refinements = 3
     bulk_min = 2000
-    threaded_min = 8192  # unknowns from which products with the inverse use the threads
-    symv_min = 1024  # unknowns from which products with few columns use the symmetric kernel
 
     def __init__(self, problem: Problem, *, reference: bool = False, tol: float = 1e-12,
                  fallback: bool = False, threads: int = 1, **_: object) -> None:
@@ -234,7 +238,6 @@ class _Dense:
         # event loop runs with one BLAS thread: its products are matrix-vector, and idle BLAS
         # threads spinning beside the FFTs cost more than they gain (measured: N = 128, 5 %
         # contact, 2.0 s with one thread, 4.9 s with two).
-        self.threads = threads
         #: when an inverse does not fit in memory: go on matrix-free (True, with a :attr:`note`)
         #: or refuse (False, :class:`MemoryLimitError`)
         self.fallback = fallback
@@ -247,22 +250,17 @@ class _Dense:
         self.reference = reference
         self.tol = tol
         self.solves = 0
-        self.factorisations = 0
-        #: seconds in dense linear algebra (factorisation, products with the inverse, updates)
-        self.blas_seconds = 0.0
         self.worst = 0.0
         self.bulk: _CG | None = None  # the matrix-free solver of the bulk passes, when used
-        self.mode = "dense"
-        self.row = np.full(2 * self.ny * self.nx, -1, dtype=np.int64)  # unknown -> row
-        self.buf: np.ndarray | None = None  # F-order, capacity x capacity; M = buf[:m, :m]
-        self.m = 0
-        self.V = np.empty((0, self.block), order="F")
-        self.s = np.empty(self.block)
-        self.k = 0
-        self.ids = np.empty(0, dtype=np.int64)  # unknown of each row
-        self.live = np.empty(0, dtype=bool)  # rows still in the system
-        #: tracked solutions by right-hand side name: [b, x, rz, rx] (b and x on the rows)
-        self.cache: dict[str, list[np.ndarray]] = {}
+        #: the updated inverse of the block (unknowns ``2 i``: f_z, ``2 i + 1``: f_x)
+        self.inverse = UpdatableInverse(self.entries, 2 * self.ny * self.nx, room=self._room,
+                                        threads=threads)
+        self.dense = True  # False while the bulk passes or the fallback solve matrix-free
+
+    @property
+    def blas_seconds(self) -> float:
+        """Seconds in dense linear algebra (factorisation, products, updates)."""
+        return self.inverse.blas_seconds
 
     # -- assembly ------------------------------------------------------------------------------
     def _block(self, ci: np.ndarray, cj: np.ndarray, comp: str) -> np.ndarray:
@@ -272,7 +270,7 @@ class _Dense:
         lin_i, lin_j = iy * w + ix, jy * w + jx
         return T[lin_i[:, None] - lin_j[None, :] + off]
 
-    def _entries(self, ids_i: np.ndarray, ids_j: np.ndarray, order: str = "C") -> np.ndarray:
+    def entries(self, ids_i: np.ndarray, ids_j: np.ndarray, order: str = "C") -> np.ndarray:
         """Block entries between two lists of unknowns (u_a at i due to f_b at j)."""
         ids_i, ids_j = np.asarray(ids_i, dtype=np.int64), np.asarray(ids_j, dtype=np.int64)
         out = np.empty((ids_i.size, ids_j.size), order=order)
@@ -292,42 +290,6 @@ class _Dense:
         return out
 
     # -- the inverse ---------------------------------------------------------------------------
-    def _adopt(self, buf: np.ndarray, m: int, ids: np.ndarray) -> None:
-        """Take ``buf[:m, :m]`` as the inverse on the unknowns ``ids`` (nothing pending)."""
-        self.row[self.ids] = -1
-        self.buf, self.m = buf, m
-        self.ids = np.asarray(ids, dtype=np.int64)
-        self.row[self.ids] = np.arange(m)
-        self.live = np.ones(m, dtype=bool)
-        self.V = np.zeros((buf.shape[0], self.block), order="F")
-        self.k = 0
-
-    def _factor(self, ids: np.ndarray) -> None:
-        """The inverse of the block on ``ids`` afresh: Cholesky and LAPACK's inverse from it
-        (potrf + potri, in place: a third of the work of solving for the identity). Its memory
-        is checked first (:func:`dense_memory_bytes`)."""
-        if not self._room(ids.size):
-            return
-        lapack64.check_size(ids.size)
-        A = self._entries(ids, ids, order="F")
-        t0 = time.perf_counter()
-        try:
-            with blas_threads(self.threads):
-                lapack64.cholesky_inverse(A)
-        except NumericalError:
-            raise NumericalError("coupled model: the coupled block on the contact and stick "
-                                 "sets is not positive definite") from None
-        finally:
-            self.blas_seconds += time.perf_counter() - t0
-        n, b = A.shape[0], 512
-        for j in range(0, n, b):  # mirror the lower triangle, a panel at a time
-            A[j:j + b, j + b:] = A[j + b:, j:j + b].T
-            blk = A[j:j + b, j:j + b]
-            blk[np.triu_indices(blk.shape[0], 1)] = blk.T[np.triu_indices(blk.shape[0], 1)]
-        self._adopt(A, n, ids)
-        self.cache = {}
-        self.factorisations += 1
-
     def _room(self, m: int) -> bool:
         """Whether an inverse for ``m`` unknowns fits in memory (:func:`dense_memory_bytes`).
         If not: refuse, or with :attr:`fallback` drop the inverse and leave a :attr:`note`."""
@@ -341,136 +303,15 @@ class _Dense:
                 f"coupled model, method 'dense': {msg}; use method 'cg' (matrix-free) or "
                 "'auto', a smaller depth or grid, or raise execution.memory_limit_gb")
         self.note = f"auto chose cg: the dense solver {msg}"
-        self.reset()
+        self.inverse.reset()
         return False
 
-    def _apply(self, B: np.ndarray) -> np.ndarray:
-        """The current inverse times ``B`` (rows of dead unknowns of ``B`` must be zero)."""
-        t0, m = time.perf_counter(), self.m
-        # a product with a large inverse is bound by memory bandwidth: more threads read
-        # faster, and a few columns go by the symmetric product, which reads half of it
-        with blas_threads(self.threads if m >= self.threaded_min else 1):
-            if B.shape[1] <= 4 and m >= self.symv_min:
-                sol = np.column_stack([lapack64.symv(self.buf, B[:, j], m)
-                                       for j in range(B.shape[1])])
-            else:
-                sol = self.buf[:m, :m] @ B
-            if self.k:
-                V = self.V[:m, : self.k]
-                sol += V @ (self.s[: self.k, None] * (V.T @ B))
-        self.blas_seconds += time.perf_counter() - t0
-        return sol
-
-    def _column(self, r: int) -> np.ndarray:
-        t0 = time.perf_counter()
-        c = self.buf[: self.m, r].copy()
-        if self.k:
-            c += self.V[: self.m, : self.k] @ (self.s[: self.k] * self.V[r, : self.k])
-        self.blas_seconds += time.perf_counter() - t0
-        return c
-
-    def _push(self, W: np.ndarray, sign: float) -> None:
-        """Pending terms ``sign W W^T`` (W with m rows)."""
-        if self.k + W.shape[1] > self.V.shape[1]:
-            self._flush()
-        if W.shape[1] > self.V.shape[1]:  # too many to keep pending: fold in now
-            M = self.buf[: self.m, : self.m]
-            M += sign * (W @ W.T)
-            return
-        k2 = self.k + W.shape[1]
-        self.V[: self.m, self.k:k2] = W
-        self.s[self.k:k2] = sign
-        self.k = k2
-
-    def _flush(self) -> None:
-        """Fold the pending terms into M (GEMMs on column panels) and clear dead columns."""
-        if self.k:
-            t0 = time.perf_counter()
-            m, V = self.m, self.V[: self.m, : self.k]
-            M = self.buf[:m, :m]
-            Vs = V * self.s[: self.k]
-            with blas_threads(self.threads):
-                for j in range(0, m, 2048):  # column panels: no copy of M, small temporaries
-                    M[:, j:j + 2048] += Vs @ V[j:j + 2048].T
-            # dead columns are cleared (contiguous); dead rows only feed dead entries of
-            # solutions, which are never read
-            M[:, ~self.live] = 0.0
-            self.V[:m, : self.k] = 0.0
-            self.k = 0
-            self.blas_seconds += time.perf_counter() - t0
-
-    def _remove(self, r: int) -> bool:
-        """Remove the unknown of row ``r``; False when the pivot is not positive."""
-        c = self._column(r)
-        cr = float(c[r])
-        if not cr > 0:
-            return False
-        for b, x, _, _ in self.cache.values():
-            x -= c * (x[r] / cr)
-            x[r] = 0.0
-            b[r] = 0.0
-        self.live[r] = False
-        self.row[self.ids[r]] = -1
-        self._push((c * (1.0 / math.sqrt(cr)))[:, None], -1.0)
-        return True
-
-    def _compact(self, extra: int) -> None:
-        """Drop dead rows; in place when ``extra`` more rows fit, else into a larger buffer.
-
-        Column by column in increasing order (each a gather within one contiguous column):
-        in place, column ``j`` of the result overwrites source column ``j <= keep[j]``, which
-        was read before."""
-        self._flush()
-        keep = np.flatnonzero(self.live)
-        k = keep.size
-        buf = self.buf
-        if k + extra > buf.shape[0]:
-            cap = k + max(extra, k // 8 + 16)
-            buf = np.zeros((cap, cap), order="F")
-        for j, src in enumerate(keep):
-            buf[:k, j] = self.buf[keep, src]
-        cache = {key: [v[0][keep], v[1][keep], v[2], v[3]] for key, v in self.cache.items()}
-        self._adopt(buf, k, self.ids[keep])
-        self.cache = cache
-
-    def _add(self, new: np.ndarray) -> bool:
-        """Border the inverse with the unknowns ``new``; False when the Schur complement is
-        not positive definite."""
-        if self.m + new.size > self.buf.shape[0]:  # no spare rows left: compact and grow
-            if not self._room(int(self.live.sum()) + new.size):
-                return True  # fallen back: the caller goes on matrix-free
-            self._compact(new.size)
-        m, k2 = self.m, new.size
-        B = np.zeros((m, k2))
-        rows = np.flatnonzero(self.live)
-        B[rows] = self._entries(self.ids[rows], new)
-        MB = self._apply(B)
-        MB[~self.live] = 0.0
-        Sc = self._entries(new, new) - B.T @ MB
-        try:  # the Schur complement of an SPD block is SPD: Cholesky checks
-            L = linalg.cholesky(Sc, lower=True, check_finite=False)
-        except linalg.LinAlgError:
-            return False
-        Linv = linalg.solve_triangular(L, np.eye(k2), lower=True, check_finite=False)
-        Si = Linv.T @ Linv
-        MBSi = MB @ Si
-        buf = self.buf
-        buf[m:m + k2, :m] = -MBSi.T
-        buf[:m, m:m + k2] = -MBSi
-        buf[m:m + k2, m:m + k2] = Si
-        self._push(MB @ Linv.T, 1.0)
-        for v in self.cache.values():  # border the tracked solutions
-            b, x, rz, rx = v
-            sites, isx = new >> 1, (new & 1).astype(bool)
-            bn = np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
-            z = Si @ (bn - B.T @ x)
-            v[0] = np.concatenate([b, bn])
-            v[1] = np.concatenate([x - MB @ z, z])
-        self.m = m + k2
-        self.ids = np.concatenate([self.ids, new])
-        self.row[new] = np.arange(m, m + k2)
-        self.live = np.concatenate([self.live, np.ones(k2, dtype=bool)])
-        return True
+    def _factor(self, ids: np.ndarray) -> None:
+        try:
+            self.inverse.factor(ids)
+        except NumericalError:
+            raise NumericalError("coupled model: the coupled block on the contact and stick "
+                                 "sets is not positive definite") from None
 
     def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
         bulk = bulk and not self.reference and int(C.sum() + S.sum()) > self.bulk_min
@@ -482,51 +323,56 @@ class _Dense:
         if self.bulk is None:
             self.bulk = _CG(self.problem, tol=self.tol)
         self.bulk.prepare(C, S)
-        self.reset()
-        self.mode = "bulk"
+        self.inverse.reset()
+        self.dense = False
 
     def _update(self, C: np.ndarray, S: np.ndarray) -> None:
         """Bring the inverse to the unknowns of C and S: updated when few change, afresh
         otherwise (or when an update loses positive definiteness)."""
-        self.mode = "dense"
-        want = np.zeros(self.row.size, dtype=bool)
+        self.dense = True
+        inv = self.inverse
+        want = np.zeros(inv.row.size, dtype=bool)
         want[2 * np.flatnonzero(C)] = True
         want[2 * np.flatnonzero(S) + 1] = True
-        have = self.row >= 0
+        have = inv.row >= 0
         gone = np.flatnonzero(have & ~want)
         new = np.flatnonzero(want & ~have)
-        ok = not (self.reference or self.buf is None
-                  or gone.size + new.size > max(4, int(self.live.sum()) // 3))
-        # stops at the first failed removal; _add fails only on a non-positive Schur complement
-        ok = ok and all(self._remove(int(self.row[u])) for u in gone)
-        ok = ok and (not new.size or self._add(new))
+        ok = not (self.reference or not inv.ready
+                  or gone.size + new.size > max(4, int(inv.live.sum()) // 3))
+        # stops at the first failed removal; an addition fails only on a non-positive Schur
+        # complement (None: the memory did not allow it, and the note says so)
+        ok = ok and all(inv.remove(int(u)) for u in gone)
+        ok = ok and (not new.size or inv.add(new) is not False)
         if not ok:
             self._factor(np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1]))
-        elif (~self.live).sum() > 0.25 * self.m:
-            self._compact(0)
+        elif (~inv.live).sum() > 0.25 * inv.m:
+            inv.compact(0)
 
     def residual(self) -> float:
         return self.worst
 
-    def reset(self) -> None:
-        """Drop the updated inverse: the next :meth:`prepare` factorises afresh."""
-        self.row[:] = -1
-        self.buf, self.m, self.k = None, 0, 0
-        self.ids = np.empty(0, dtype=np.int64)
-        self.live = np.empty(0, dtype=bool)
-        self.cache = {}
+    def reset(self) -> bool:
+        """Drop the updated inverse: the next :meth:`prepare` factorises afresh. True: there
+        was one to drop."""
+        had = self.inverse.ready
+        self.inverse.reset()
+        return had
+
+    def add_solves(self, n: int) -> None:
+        self.solves += n
 
     # -- solutions -----------------------------------------------------------------------------
     def _layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The live rows, the site of each, and whether it holds f_x (else f_z)."""
-        rows = np.flatnonzero(self.live)
-        ids = self.ids[rows]
+        inv = self.inverse
+        rows = np.flatnonzero(inv.live)
+        ids = inv.ids[rows]
         return rows, ids >> 1, (ids & 1).astype(bool)
 
     def _to_rows(self, rz: np.ndarray, rx: np.ndarray, layout) -> np.ndarray:
         """The right-hand side on the rows (zero on dead rows)."""
         rows, sites, isx = layout
-        b = np.zeros(self.m)
+        b = np.zeros(self.inverse.m)
         b[rows] = np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
         return b
 
@@ -546,8 +392,8 @@ class _Dense:
         n = self.ny * self.nx
         src = np.concatenate([2 * np.flatnonzero(fz.ravel()), 2 * np.flatnonzero(fx.ravel()) + 1])
         val = np.where(src % 2 == 1, fx.ravel()[src >> 1], fz.ravel()[src >> 1])
-        uz = self._entries(2 * np.arange(n), src) @ val
-        ux = self._entries(2 * np.arange(n) + 1, src) @ val
+        uz = self.entries(2 * np.arange(n), src) @ val
+        ux = self.entries(2 * np.arange(n) + 1, src) @ val
         return uz.reshape(fz.shape), ux.reshape(fz.shape)
 
     def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = ""
@@ -560,41 +406,45 @@ class _Dense:
         the right-hand side on the unknowns is unchanged, else one product with the inverse
         for all the new ones (read from memory once); each certified (class docstring)."""
         self.solves += len(rhs)
-        if self.mode == "bulk":
+        if not self.dense:
             out = self.bulk.solve_many(rhs)
             self.worst = max(self.worst, self.bulk.worst)
             return out
+        inv = self.inverse
         layout = self._layout()
         rows, sites, isx = layout
         bs, xs, todo = [], [], []
         for k, (rz, rx, key) in enumerate(rhs):
             b = self._to_rows(rz, rx, layout)
-            hit = self.cache.get(key)
-            if hit is not None and np.array_equal(hit[0], b):
-                xs.append(hit[1])
+            hit = inv.tracked.get(key)
+            if hit is not None and np.array_equal(hit.b, b):
+                xs.append(hit.x)
             else:
                 xs.append(None)
                 todo.append(k)
             bs.append(b)
         if todo:
-            X = self._apply(np.column_stack([bs[k] for k in todo]))
+            X = inv.apply(np.column_stack([bs[k] for k in todo]))
             for j, k in enumerate(todo):
                 xs[k] = np.ascontiguousarray(X[:, j])
         out = []
         for (rz, rx, key), b, x in zip(rhs, bs, xs, strict=True):
             scale = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
-            for attempt in range(self.refinements + 1):
+            last: list[np.ndarray] = []
+
+            def residual(x, b=b, rz=rz, last=last, scale=scale):
                 fz, fx = self._to_fields(x, layout, rz.shape)
                 uz, ux = self._displacements(fz, fx)
-                r = np.zeros(self.m)
+                last[:] = [fz, fx, uz]
+                r = np.zeros(inv.m)
                 r[rows] = b[rows] - np.where(isx, ux.ravel()[sites], uz.ravel()[sites])
-                res = float(np.linalg.norm(r)) / scale
-                if res <= self.tol or attempt == self.refinements or self.reference:
-                    break
-                x = x + self._apply(r)
+                return r, float(np.linalg.norm(r)) / scale
+
+            x, res, _ = inv.refine(x, residual, math.inf if self.reference else self.tol,
+                                   self.refinements)
             self.worst = max(self.worst, res)
-            self.cache[key] = [b, x, rz.copy(), rx.copy()]
-            out.append((fz, fx, uz))
+            inv.tracked[key] = Tracked(b, x, _rhs_values(rz.copy(), rx.copy()))
+            out.append(tuple(last))
         return out
 
     def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -604,8 +454,16 @@ class _Dense:
         """(f_z, f_x) = the current inverse times the right-hand side, uncertified (the inner
         products of the Coulomb solves, whose result is certified as a whole)."""
         layout = self._layout()
-        x = self._apply(self._to_rows(rz, rx, layout)[:, None])[:, 0]
+        x = self.inverse.apply(self._to_rows(rz, rx, layout)[:, None])[:, 0]
         return self._to_fields(x, layout, rz.shape)
+
+
+def _rhs_values(rz: np.ndarray, rx: np.ndarray):
+    """The right-hand side of unknowns (``2 i``: rz at site i, ``2 i + 1``: rx), for the
+    bordering of a tracked solution."""
+    def values(ids: np.ndarray) -> np.ndarray:
+        return np.where((ids & 1).astype(bool), rx.ravel()[ids >> 1], rz.ravel()[ids >> 1])
+    return values
 
 
 @SOLVERS.register("cg", "matrix-free: warm-started CG on the restricted FFT block operator")
@@ -620,6 +478,7 @@ class _CG:
         self.solves = 0
         self.worst = 0.0
         self.blas_seconds, self.note = 0.0, ""  # no dense linear algebra, no fallback
+        self.reference, self.dense = False, False
         self.prev: dict[str, np.ndarray] = {}
 
     def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
@@ -627,6 +486,15 @@ class _CG:
 
     def residual(self) -> float:
         return self.worst
+
+    def reset(self) -> bool:
+        return False  # nothing kept that a fresh start would compute differently
+
+    def add_solves(self, n: int) -> None:
+        self.solves += n
+
+    def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError("the matrix-free solver keeps no inverse (dense is False)")
 
     def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = ""
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -718,9 +586,7 @@ class _State:
         self._solve(bulk)
         if self._finite():
             return
-        reset = getattr(self.solver, "reset", None)
-        if reset is not None:
-            reset()
+        if self.solver.reset():
             self._solve(bulk)
             if self._finite():
                 return
@@ -797,10 +663,9 @@ class _State:
         if not P.any():
             return self.solver.solve_many(rhs)
         w = self.lam * self.sigma[P]
-        if getattr(self.solver, "reference", False):
+        if self.solver.reference:
             return self._solve_direct(rhs, P, w)
-        solve = (self._slip_solve if getattr(self.solver, "mode", "") == "dense"
-                 else self._slip_solve_free)
+        solve = self._slip_solve if self.solver.dense else self._slip_solve_free
         out = []
         for rz, rx, key in rhs:
             fz, fx = solve(rz, rx, key, P, w)
@@ -874,7 +739,7 @@ class _State:
         bnorm = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
         y, _ = gmres(LinearOperator((n, n), matvec=matvec, dtype=float), b, x0=x0, rtol=0.0,
                      atol=0.1 * self.tol * bnorm, restart=min(n, 200), maxiter=50)
-        self.solver.solves += 1
+        self.solver.add_solves(1)
         fz, fx = fields(y)
         self._warm[key] = (fz, fx)
         return fz, fx
@@ -884,12 +749,12 @@ class _State:
         """The reference: the non-symmetric system with the slip forces, assembled by dense
         sums and solved directly (LU)."""
         s = self.solver
-        s.solves += len(rhs)
+        s.add_solves(len(rhs))
         ids = np.concatenate([2 * np.flatnonzero(self.C), 2 * np.flatnonzero(self.S) + 1])
-        A = s._entries(ids, ids)
+        A = s.entries(ids, ids)
         pz = np.flatnonzero(P)
         cols = np.searchsorted(ids[: int(self.C.sum())], 2 * pz)  # f_z(P) among the unknowns
-        A[:, cols] += s._entries(ids, 2 * pz + 1) * w
+        A[:, cols] += s.entries(ids, 2 * pz + 1) * w
         sites, isx = ids >> 1, (ids & 1).astype(bool)
         B = np.column_stack([np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
                              for rz, rx, _ in rhs])
@@ -1052,9 +917,8 @@ def _argext(a: np.ndarray, mask: np.ndarray, how: str) -> int:
     return int(np.flatnonzero(close & mask.ravel())[0])
 
 
-#: dense solver's peak memory per squared unknown count (bytes): the inverse with up to 27 %
-#: spare rows (8 x 1.27^2 m^2), and a second one while it is compacted or grown
-DENSE_BYTES_PER_UNKNOWN2 = 28
+#: dense solver's peak memory per squared unknown count (bytes): that of the updatable inverse
+DENSE_BYTES_PER_UNKNOWN2 = BYTES_PER_ORDER2
 
 
 def dense_memory_bytes(sites: int) -> int:

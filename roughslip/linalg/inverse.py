@@ -1,0 +1,346 @@
+r"""An explicit inverse of a symmetric matrix on a changing index set, updated, not recomputed.
+
+The matrix :math:`A` is known through an assembler: ``entries(i, j, order)`` returns the block
+:math:`A_{ij}` for two arrays of indices (the *unknowns*, numbered ``0 .. size - 1``). The
+object holds :math:`A_{SS}^{-1}` for the current set :math:`S` of unknowns as
+
+.. math:: A_{SS}^{-1} = M + V\,\mathrm{diag}(s)\,V^T,
+
+a stored matrix :math:`M` and up to ``block`` pending rank-one terms of sign
+:math:`s = \pm 1`, which one BLAS-3 product folds into :math:`M` when they are full.
+
+* **Removing** unknown :math:`r` subtracts :math:`c\,c^T/c_r`, :math:`c` the current column
+  :math:`r` (Sherman & Morrison 1950). A tracked solution :math:`x` of an unchanged
+  right-hand side becomes :math:`x - c\,x_r/c_r` in :math:`O(m)`.
+* **Adding** unknowns with couplings :math:`B = A_{S,new}` and diagonal block
+  :math:`D = A_{new,new}` borders the inverse through the Schur complement
+  :math:`S_c = D - B^T M B`: the old block gains :math:`(MB)\,S_c^{-1}(MB)^T`, the new rows are
+  written into spare capacity, and tracked solutions are bordered in :math:`O(mk)`.
+* **Compacting** drops the rows of removed unknowns, in place when they fit.
+* **Factorising** afresh: Cholesky and LAPACK's inverse from it (``definite``), else a
+  symmetric-indefinite inverse.
+
+With ``definite=True`` (the default) the matrix is taken to be positive definite, and an update
+whose pivot or Schur complement is not reports failure, so the caller can factorise afresh.
+With ``definite=False`` the matrix may be indefinite (symmetric, nonsingular): a negative
+pivot adds a term of the other sign, and the Schur complement is inverted through its
+eigenvalues. Only a (numerically) singular update fails.
+
+The memory is checked before every allocation through ``room(m)``, a callable that says whether
+an inverse of order ``m`` may be allocated (:func:`inverse_bytes` gives its peak). The
+certification of solutions against an exact operator is :meth:`UpdatableInverse.refine`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg
+
+from roughslip.errors import NumericalError
+from roughslip.linalg import lapack64
+from roughslip.linalg.threads import blas_threads
+
+#: peak memory per squared order (bytes): the inverse with up to 27 % spare rows
+#: (8 x 1.27^2 m^2), and a second one while it is compacted or grown
+BYTES_PER_ORDER2 = 28
+
+#: the assembler: ``entries(i, j, order)``, the block of the matrix between two index arrays
+Entries = Callable[[np.ndarray, np.ndarray, str], np.ndarray]
+
+
+def inverse_bytes(m: int) -> int:
+    """Peak memory of an :class:`UpdatableInverse` of order ``m`` (bytes)."""
+    return BYTES_PER_ORDER2 * m * m
+
+
+@dataclass
+class Tracked:
+    """A solution kept current through the updates: ``x = A_SS^{-1} b`` on the rows.
+
+    ``values(ids)`` gives the right-hand side for unknowns that are added later.
+    """
+
+    b: np.ndarray
+    x: np.ndarray
+    values: Callable[[np.ndarray], np.ndarray]
+
+
+class UpdatableInverse:
+    """The inverse of a symmetric matrix on a changing set of unknowns (module docstring).
+
+    Parameters
+    ----------
+    entries
+        The assembler ``entries(i, j, order)`` of the matrix.
+    size
+        The number of unknowns the matrix has (indices ``0 .. size - 1``).
+    room
+        ``room(m)``: whether an inverse of order ``m`` may be allocated. When it says no, the
+        operation that needed it does nothing and reports so.
+    threads
+        BLAS threads of the factorisation, the folding of pending terms and products with
+        large inverses (everything else runs on one).
+    block
+        Pending rank-one terms kept before they are folded in.
+    definite
+        Whether the matrix is positive definite (module docstring).
+    """
+
+    threaded_min = 8192  # order from which products with the inverse use the threads
+    symv_min = 1024  # order from which products with few columns use the symmetric kernel
+
+    def __init__(self, entries: Entries, size: int, *, room: Callable[[int], bool],
+                 threads: int = 1, block: int = 512, definite: bool = True) -> None:
+        self.entries = entries
+        self.room = room
+        self.threads = threads
+        self.block = block
+        self.definite = definite
+        self.factorisations = 0
+        #: seconds in dense linear algebra (factorisation, products, updates)
+        self.blas_seconds = 0.0
+        self.row = np.full(int(size), -1, dtype=np.int64)  # unknown -> row, -1: not in the set
+        self.buf: np.ndarray | None = None  # F-order, capacity x capacity; M = buf[:m, :m]
+        self.m = 0  # rows in use, removed ones included
+        self.V = np.empty((0, block), order="F")  # pending terms
+        self.s = np.empty(block)  # their signs
+        self.k = 0  # pending terms in use
+        self.ids = np.empty(0, dtype=np.int64)  # unknown of each row
+        self.live = np.empty(0, dtype=bool)  # rows still in the set
+        #: tracked solutions by name (:class:`Tracked`, on the rows)
+        self.tracked: dict[str, Tracked] = {}
+
+    # -- state ---------------------------------------------------------------------------------
+    @property
+    def ready(self) -> bool:
+        """Whether an inverse is held (after :meth:`factor`, until :meth:`reset`)."""
+        return self.buf is not None
+
+    def unknowns(self) -> np.ndarray:
+        """The unknowns in the set, in row order."""
+        return self.ids[self.live]
+
+    def reset(self) -> None:
+        """Drop the inverse and the tracked solutions."""
+        self.row[:] = -1
+        self.buf, self.m, self.k = None, 0, 0
+        self.ids = np.empty(0, dtype=np.int64)
+        self.live = np.empty(0, dtype=bool)
+        self.tracked = {}
+
+    def _adopt(self, buf: np.ndarray, m: int, ids: np.ndarray) -> None:
+        """Take ``buf[:m, :m]`` as the inverse on the unknowns ``ids`` (nothing pending)."""
+        self.row[self.ids] = -1
+        self.buf, self.m = buf, m
+        self.ids = np.asarray(ids, dtype=np.int64)
+        self.row[self.ids] = np.arange(m)
+        self.live = np.ones(m, dtype=bool)
+        self.V = np.zeros((buf.shape[0], self.block), order="F")
+        self.k = 0
+
+    # -- factorising ---------------------------------------------------------------------------
+    def factor(self, ids: np.ndarray) -> bool:
+        """The inverse on the unknowns ``ids`` afresh; False when ``room`` refused it.
+
+        Positive definite: Cholesky and LAPACK's inverse from it (potrf + potri, in place: a
+        third of the work of solving for the identity). Indefinite: an LU inverse. Raises
+        :class:`NumericalError` when the matrix is not positive definite (``definite``) or is
+        singular.
+        """
+        ids = np.asarray(ids, dtype=np.int64)
+        if not self.room(ids.size):
+            return False
+        lapack64.check_size(ids.size)
+        A = self.entries(ids, ids, "F")
+        t0 = time.perf_counter()
+        try:
+            with blas_threads(self.threads):
+                if self.definite:
+                    lapack64.cholesky_inverse(A)
+                else:
+                    A = np.asfortranarray(np.linalg.inv(A))
+        except (NumericalError, np.linalg.LinAlgError) as exc:
+            what = "not positive definite" if self.definite else "singular"
+            raise NumericalError(f"the matrix on {ids.size} unknowns is {what}") from exc
+        finally:
+            self.blas_seconds += time.perf_counter() - t0
+        if self.definite:
+            n, b = A.shape[0], 512
+            for j in range(0, n, b):  # mirror the lower triangle, a panel at a time
+                A[j:j + b, j + b:] = A[j + b:, j:j + b].T
+                blk = A[j:j + b, j:j + b]
+                blk[np.triu_indices(blk.shape[0], 1)] = blk.T[np.triu_indices(blk.shape[0], 1)]
+        self._adopt(A, ids.size, ids)
+        self.tracked = {}
+        self.factorisations += 1
+        return True
+
+    # -- products ------------------------------------------------------------------------------
+    def apply(self, B: np.ndarray) -> np.ndarray:
+        """The current inverse times ``B`` (one or more columns on the rows; rows of removed
+        unknowns must be zero)."""
+        if B.ndim == 1:
+            return self.apply(B[:, None])[:, 0]
+        t0, m = time.perf_counter(), self.m
+        # a product with a large inverse is bound by memory bandwidth: more threads read
+        # faster, and a few columns go by the symmetric product, which reads half of it
+        with blas_threads(self.threads if m >= self.threaded_min else 1):
+            if B.shape[1] <= 4 and m >= self.symv_min:
+                sol = np.column_stack([lapack64.symv(self.buf, B[:, j], m)
+                                       for j in range(B.shape[1])])
+            else:
+                sol = self.buf[:m, :m] @ B
+            if self.k:
+                V = self.V[:m, : self.k]
+                sol += V @ (self.s[: self.k, None] * (V.T @ B))
+        self.blas_seconds += time.perf_counter() - t0
+        return sol
+
+    def column(self, r: int) -> np.ndarray:
+        """Column ``r`` of the current inverse."""
+        t0 = time.perf_counter()
+        c = self.buf[: self.m, r].copy()
+        if self.k:
+            c += self.V[: self.m, : self.k] @ (self.s[: self.k] * self.V[r, : self.k])
+        self.blas_seconds += time.perf_counter() - t0
+        return c
+
+    def refine(self, x: np.ndarray, residual: Callable[[np.ndarray], tuple[np.ndarray, float]],
+               tol: float, refinements: int) -> tuple[np.ndarray, float, int]:
+        r"""Certify ``x`` against an exact operator: ``residual(x)`` returns the residual on the
+        rows and its relative norm; while that is above ``tol``, :math:`x \leftarrow x +
+        A_{SS}^{-1} r`, at most ``refinements`` times. Returns ``(x, norm, refinements
+        done)``."""
+        done = 0
+        while True:
+            r, res = residual(x)
+            if res <= tol or done >= refinements:
+                return x, res, done
+            x = x + self.apply(r)
+            done += 1
+
+    # -- pending terms -------------------------------------------------------------------------
+    def _push(self, W: np.ndarray, sign: float | np.ndarray) -> None:
+        """Pending terms ``W diag(sign) W^T`` (W with m rows; one sign or one per column)."""
+        if self.k + W.shape[1] > self.V.shape[1]:
+            self.flush()
+        if W.shape[1] > self.V.shape[1]:  # too many to keep pending: fold in now
+            M = self.buf[: self.m, : self.m]
+            M += (sign * (W @ W.T)) if np.ndim(sign) == 0 else (W * sign) @ W.T
+            return
+        k2 = self.k + W.shape[1]
+        self.V[: self.m, self.k:k2] = W
+        self.s[self.k:k2] = sign
+        self.k = k2
+
+    def flush(self) -> None:
+        """Fold the pending terms into M (GEMMs on column panels); clear dead columns."""
+        if self.k:
+            t0 = time.perf_counter()
+            m, V = self.m, self.V[: self.m, : self.k]
+            M = self.buf[:m, :m]
+            Vs = V * self.s[: self.k]
+            with blas_threads(self.threads):
+                for j in range(0, m, 2048):  # column panels: no copy of M, small temporaries
+                    M[:, j:j + 2048] += Vs @ V[j:j + 2048].T
+            # dead columns are cleared (contiguous); dead rows only feed dead entries of
+            # solutions, which are never read
+            M[:, ~self.live] = 0.0
+            self.V[:m, : self.k] = 0.0
+            self.k = 0
+            self.blas_seconds += time.perf_counter() - t0
+
+    # -- updates -------------------------------------------------------------------------------
+    def remove(self, unknown: int) -> bool:
+        """Remove ``unknown`` from the set; False when its pivot is not positive (definite)
+        or is zero (indefinite)."""
+        r = int(self.row[unknown])
+        c = self.column(r)
+        cr = float(c[r])
+        if not (cr > 0 if self.definite else cr != 0 and math.isfinite(cr)):
+            return False
+        for t in self.tracked.values():
+            t.x -= c * (t.x[r] / cr)
+            t.x[r] = 0.0
+            t.b[r] = 0.0
+        self.live[r] = False
+        self.row[self.ids[r]] = -1
+        self._push((c * (1.0 / math.sqrt(abs(cr))))[:, None], -1.0 if cr > 0 else 1.0)
+        return True
+
+    def compact(self, extra: int = 0) -> bool:
+        """Drop removed rows; in place when ``extra`` more rows fit, else into a larger buffer
+        (False when ``room`` refused it).
+
+        Column by column in increasing order (each a gather within one contiguous column):
+        in place, column ``j`` of the result overwrites source column ``j <= keep[j]``, which
+        was read before."""
+        keep = np.flatnonzero(self.live)
+        k = keep.size
+        if k + extra > self.buf.shape[0] and not self.room(k + extra):
+            return False
+        self.flush()
+        buf = self.buf
+        if k + extra > buf.shape[0]:
+            cap = k + max(extra, k // 8 + 16)
+            buf = np.zeros((cap, cap), order="F")
+        for j, src in enumerate(keep):
+            buf[:k, j] = self.buf[keep, src]
+        tracked = {key: Tracked(t.b[keep], t.x[keep], t.values)
+                   for key, t in self.tracked.items()}
+        self._adopt(buf, k, self.ids[keep])
+        self.tracked = tracked
+        return True
+
+    def add(self, new: np.ndarray) -> bool | None:
+        """Border the inverse with the unknowns ``new``.
+
+        Returns True when done, False when the Schur complement is not positive definite
+        (``definite``) or is singular, and None when ``room`` refused the larger buffer
+        (nothing changed).
+        """
+        if self.m + new.size > self.buf.shape[0]:  # no spare rows left: compact and grow
+            if not self.compact(new.size):
+                return None
+        m, k2 = self.m, new.size
+        B = np.zeros((m, k2))
+        rows = np.flatnonzero(self.live)
+        B[rows] = self.entries(self.ids[rows], new, "C")
+        MB = self.apply(B)
+        MB[~self.live] = 0.0
+        Sc = self.entries(new, new, "C") - B.T @ MB
+        if self.definite:
+            try:  # the Schur complement of an SPD block is SPD: Cholesky checks
+                L = linalg.cholesky(Sc, lower=True, check_finite=False)
+            except linalg.LinAlgError:
+                return False
+            Linv = linalg.solve_triangular(L, np.eye(k2), lower=True, check_finite=False)
+            Si = Linv.T @ Linv
+            W, sign = MB @ Linv.T, 1.0
+        else:
+            w, Q = linalg.eigh(Sc, check_finite=False)
+            if not np.all(np.isfinite(w)) or np.min(np.abs(w)) <= 1e-13 * np.max(np.abs(w)):
+                return False
+            Si = (Q / w) @ Q.T
+            W, sign = MB @ (Q / np.sqrt(np.abs(w))), np.sign(w)
+        MBSi = MB @ Si
+        buf = self.buf
+        buf[m:m + k2, :m] = -MBSi.T
+        buf[:m, m:m + k2] = -MBSi
+        buf[m:m + k2, m:m + k2] = Si
+        self._push(W, sign)
+        for t in self.tracked.values():  # border the tracked solutions
+            bn = t.values(new)
+            z = Si @ (bn - B.T @ t.x)
+            t.b = np.concatenate([t.b, bn])
+            t.x = np.concatenate([t.x - MB @ z, z])
+        self.m = m + k2
+        self.ids = np.concatenate([self.ids, new])
+        self.row[new] = np.arange(m, m + k2)
+        self.live = np.concatenate([self.live, np.ones(k2, dtype=bool)])
+        return True
