@@ -398,3 +398,27 @@ def test_coupled_run_says_when_the_dense_inverse_did_not_fit(tmp_path, monkeypat
         dense_notes = json.loads(f["samples/s000000"].attrs["notes"])
     assert not any("auto chose cg" in n for n in dense_notes)
     assert any("auto chose cg: the dense solver needs" in n and "GiB" in n for n in notes)
+
+
+def test_keys_the_coupled_model_does_not_use_are_stated_not_ignored(tmp_path):
+    """Under coupling, squeeze and pull keys that the coupled model does not read are named
+    in the run's notes when they are set (none when left at their defaults); a pull.tol above
+    the coupled model's largest is said to be tightened."""
+    from roughslip.run.scene import Scene
+
+    base = {**CFG, "material": {"nu": 0.25}, "coupling": {"enabled": True}}
+    quiet = Scene.from_config(load_config(write_cfg(tmp_path, base)))
+    assert not [n for n in quiet.notes if n.startswith("coupling:")]
+    data = {**base, "squeeze": {**CFG["squeeze"], "method": "active-set", "tol": 1e-8},
+            "pull": {**CFG["pull"], "method": "cg", "batch_size": 4, "early_stop": False,
+                     "error_estimate": True, "tol": 1e-6}}
+    notes = [n for n in Scene.from_config(load_config(write_cfg(tmp_path, data))).notes
+             if n.startswith("coupling:")]
+    named = {n.split(" = ")[0].removeprefix("coupling: ") for n in notes}
+    assert named == {"squeeze.method", "squeeze.tol", "pull.method", "pull.batch_size",
+                     "pull.early_stop", "pull.error_estimate", "pull.tol"}
+    assert any("tightened to 1e-10" in n for n in notes)
+    # at nu = 1/2 the decoupled model runs and reads them all: nothing to say
+    half = {**data, "material": {"nu": 0.5}}
+    assert not [n for n in Scene.from_config(load_config(write_cfg(tmp_path, half))).notes
+                if n.startswith("coupling:")]

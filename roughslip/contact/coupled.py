@@ -917,6 +917,9 @@ def _argext(a: np.ndarray, mask: np.ndarray, how: str) -> int:
     return int(np.flatnonzero(close & mask.ravel())[0])
 
 
+#: the largest tolerance a run gives the coupled model (``pull.tol``, at most this)
+COUPLED_TOL = 1e-10
+
 #: dense solver's peak memory per squared unknown count (bytes): that of the updatable inverse
 DENSE_BYTES_PER_UNKNOWN2 = BYTES_PER_ORDER2
 

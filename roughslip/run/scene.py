@@ -20,10 +20,11 @@ number of workers.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
+from roughslip.contact.coupled import COUPLED_TOL
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import InputError
 from roughslip.run.config import RunConfig, SurfaceConfig
@@ -115,6 +116,8 @@ class Scene:
         if cfg.coupling.enabled and material.nu == 0.5:
             notes.append("nu = 0.5: the normal-tangential coupling G_zx vanishes; using the "
                          "decoupled model")
+        elif cfg.coupling.enabled:
+            notes += _unused_under_coupling(cfg)
         return cls(cfg, grid, material, fixed, tuple(notes), tiles, provenance)
 
     # -- what the run needs ---------------------------------------------------------------------
@@ -224,3 +227,27 @@ def _analytic(sc: SurfaceConfig, grid: Grid, where: str) -> np.ndarray:
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
     raise InputError(f"{where}: kind {sc.kind!r} is not an analytic shape")
+
+
+#: keys the coupled model does not read: it solves the squeeze and the pull with its own block
+#: solver and event tracking (docs/theory/coupled.rst), from a Polonsky-Keer contact at 1e-8
+_COUPLED_IGNORES = {"squeeze": ("method", "tol", "max_iter", "warm_start"),
+                    "pull": ("method", "batch_size", "error_estimate", "early_stop")}
+
+def _unused_under_coupling(cfg: RunConfig) -> list[str]:
+    """One note per configured key that the coupled model does not honour (a key left at its
+    default says nothing)."""
+    notes = []
+    for section, keys in _COUPLED_IGNORES.items():
+        sec = getattr(cfg, section)
+        defaults = {f.name: f.default for f in fields(sec)}
+        for key in keys:
+            value = getattr(sec, key)
+            if value != defaults[key]:
+                notes.append(f"coupling: {section}.{key} = {value!r} is not used by the coupled "
+                             "model (it solves the squeeze and the pull with its own block "
+                             "solver)")
+    if cfg.pull.tol > COUPLED_TOL:
+        notes.append(f"coupling: pull.tol = {cfg.pull.tol!r} is tightened to {COUPLED_TOL:g}, "
+                     "the coupled model's largest tolerance")
+    return notes

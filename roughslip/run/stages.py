@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from roughslip.contact.coupled import couple
+from roughslip.contact.coupled import COUPLED_TOL, couple
 from roughslip.contact.problem import Problem
 from roughslip.contact.pull import SlipResult, pull
 from roughslip.contact.squeeze import NormalResult, NormalSolver
@@ -136,7 +136,7 @@ class _CoupledSample:
         try:
             r = couple(pb, **by, lam=cfg.pull.lam, pull_control=cfg.coupling.pull_control,
                        gained=cfg.coupling.gained, slip_law=cfg.pull.slip_law,
-                       tol=min(cfg.pull.tol, 1e-10))
+                       tol=min(cfg.pull.tol, COUPLED_TOL))
         except NumericalError as exc:
             raise NumericalError(f"{where}: {exc}") from None
         if cfg.execution.strict and not r.converged:
