@@ -333,10 +333,7 @@ def verify_cmd(quick, as_json, plot_path, quiet):
             click.echo(f"roughslip: verify: {msg}", err=True)
 
     if plot_path:  # a folder that cannot be written is found before the study runs
-        from roughslip.analysis.plotting import make_folder
-
-        p = Path(plot_path)
-        make_folder(p.parent if p.suffix.lower() in (".png", ".pdf", ".svg") else p)
+        verify.prepare_plot(plot_path)
     result = verify.study(quick=quick, progress=say)
     click.echo(verify.to_json(result) if as_json else verify.format_table(result))
     if plot_path:

@@ -37,6 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
+import roughslip
+
 ROOT = Path(__file__).resolve().parents[1]
 
 #: the quickstart's commands, in order, with the file their console output goes to
@@ -71,7 +73,7 @@ def _roughslip(command: str, cwd: Path) -> str:
         raise RuntimeError(f"{command!r} failed ({out.returncode}): {out.stderr.strip()}")
     # what the terminal shows (progress goes to stderr), with the paths as typed: the
     # provenance line names the program, not this interpreter's module path
-    main = str(Path(__import__("roughslip").__file__).with_name("__main__.py"))
+    main = str(Path(roughslip.__file__).with_name("__main__.py"))
     text = out.stdout + out.stderr
     return text.replace(main, "roughslip").replace(f"{cwd.resolve()}/", "")
 

@@ -28,6 +28,7 @@ from roughslip.run.executor import estimate_memory, run
 from roughslip.run.scene import Scene
 from roughslip.run.store import read_run
 from roughslip.surfaces.synthetic import punch, sample_rng, self_affine, sphere
+from roughslip.testing import differences
 
 
 @pytest.fixture(scope="module")
@@ -295,21 +296,6 @@ def test_full_disk_keeps_completed_samples_and_resume_finishes(tmp_path, monkeyp
     assert read_run(out).complete.all() and s.skipped >= 1
 
 
-def _same_stored_results(a, b) -> bool:
-    """Every dataset of two run files bitwise equal, timings aside."""
-    def walk(g, out, prefix=""):
-        for k, v in g.items():
-            if isinstance(v, h5py.Group):
-                walk(v, out, f"{prefix}/{k}")
-            elif "seconds" not in k:
-                out[f"{prefix}/{k}"] = np.asarray(v[()]).tobytes()
-    da, db = {}, {}
-    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
-        walk(fa, da)
-        walk(fb, db)
-    return da == db
-
-
 def _full_disk_after(monkeypatch, calls: int) -> None:
     """The file system reports no free space from the ``calls``-th question on."""
     import shutil
@@ -350,7 +336,7 @@ def test_a_full_disk_is_one_line_and_resume_gives_the_same_file(tmp_path, monkey
     r = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(out), "--resume", "--quiet",
                                  "--workers", "1"])
     assert r.exit_code == 0, r.output
-    assert _same_stored_results(out, ref)
+    assert differences(out, ref) == []
 
 
 def test_a_vanished_folder_is_one_line_that_says_what_is_lost(tmp_path):

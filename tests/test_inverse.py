@@ -18,7 +18,7 @@ def _matrix(n: int, definite: bool, seed: int) -> np.ndarray:
     if not definite:
         w[rng.random(n) < 0.35] *= -1
     A = (Q * w) @ Q.T
-    return 0.5 * (A + A.T) + (0 if not definite else 0.5 * np.eye(n))
+    return 0.5 * (A + A.T)
 
 
 def _inverse(A: np.ndarray, **kw) -> UpdatableInverse:
@@ -74,13 +74,11 @@ def test_a_lost_positive_pivot_is_reported_and_an_indefinite_one_is_taken():
     """With ``definite`` an update whose pivot is not positive fails (the caller factorises
     afresh); without it the same update goes through and stays exact."""
     A = np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.5], [0.0, 0.5, 3.0]])  # indefinite
-    spd = _inverse(np.eye(3) + 0.1)
-    assert spd.factor(np.array([0, 2]))
     with pytest.raises(NumericalError, match="not positive definite"):
         _inverse(A).factor(np.arange(3))
     ind = _inverse(A, definite=False)
     assert ind.factor(np.array([0, 2]))
-    assert ind.add(np.array([1])) is True  # Schur complement 1 - 4 - ... < 0
+    assert ind.add(np.array([1])) is True  # Schur complement 1 - 2^2/1 - 0.5^2/3 < 0
     _check(ind, A)
     assert ind.remove(0)
     _check(ind, A)
@@ -128,3 +126,17 @@ def test_room_is_asked_before_every_allocation():
     assert asked[-1] == 12 and inv.m == 4
     _check(inv, A)
     assert inverse_bytes(1000) == 28 * 1000**2
+
+
+def test_a_numerically_singular_indefinite_update_is_refused():
+    """Without definiteness only a singular update fails: a zero pivot on removal (the rest
+    would be singular) and a zero Schur complement on addition."""
+    A = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 2.0]])  # eigenvalues -1, 1, 2
+    inv = _inverse(A, definite=False)
+    assert inv.factor(np.arange(3))
+    assert not inv.remove(0)  # leaves [[0, 0], [0, 2]]: singular
+    _check(inv, A)  # nothing changed
+    inv = _inverse(A, definite=False)
+    assert inv.factor(np.array([2]))
+    assert inv.add(np.array([0])) is False  # Schur complement A_00 = 0
+    _check(inv, A)

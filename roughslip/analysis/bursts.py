@@ -281,6 +281,8 @@ class BurstSample:
     drops: dict[str, list[float]]
     pulls: int
     files: list[str]
+    #: the length unit of the first run (``units.length``), None for bare numbers
+    length_unit: str | None = None
 
 
 def collect_bursts(paths: list[str | Path]) -> BurstSample:
@@ -290,6 +292,7 @@ def collect_bursts(paths: list[str | Path]) -> BurstSample:
     peak and those that follow. Needs runs of the decoupled break law with ``pull_curve`` in
     ``output.fields``.
     """
+    from roughslip.analysis.summary import length_unit
     from roughslip.run.store import open_file, read_run
 
     out = BurstSample({p: [] for p in PHASES}, {p: [] for p in PHASES}, 0,
@@ -297,6 +300,8 @@ def collect_bursts(paths: list[str | Path]) -> BurstSample:
     for path in paths:
         run = read_run(path)
         cfg = run.config_dict()
+        if path == paths[0]:
+            out.length_unit = length_unit(run)
         pull = cfg.get("pull", {})
         if not pull.get("enabled", False):
             raise InputError(f"{path}: has no pull (pull.enabled = false)")

@@ -364,9 +364,7 @@ def plot_bursts(sample, fits, out: str | Path) -> Path:
     from roughslip.analysis.bursts import log_binned
 
     plt = pyplot()
-    # the pull force's unit: E times the first run's length unit squared
-    unit = length_unit(read_run(sample.files[0])) if sample.files else None
-    force = f"E $\\times$ {unit or 'length'}$^2$"
+    force = f"E $\\times$ {sample.length_unit or 'length'}$^2$"  # the pull force's unit
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     for ax, name, data, discrete in ((axes[0], "size", sample.sizes, True),
                                      (axes[1], "drop", sample.drops, False)):

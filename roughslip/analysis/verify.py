@@ -679,15 +679,30 @@ def plot_scene(s: Study, scene: str, path: str | Path) -> Path:
     return save(plt, fig, path)
 
 
+#: a ``--plot`` path with one of these suffixes is one figure; any other is a folder
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+def prepare_plot(path: str | Path) -> Path:
+    """Make the folder that :func:`plot` writes ``path`` into (the path itself, or the folder
+    of a single figure), or fail in one line; called before the study, so that a folder that
+    cannot be written costs no work."""
+    from roughslip.analysis.plotting import make_folder
+
+    path = Path(path)
+    return make_folder(path.parent if path.suffix.lower() in FIGURE_SUFFIXES else path)
+
+
 def plot(s: Study, path: str | Path) -> list[Path]:
     """Work-precision diagrams: one file per scene in the folder ``path``
-    (``verify-<scene>.png``), or all scenes as one grid when ``path`` ends in ``.png``,
-    ``.pdf`` or ``.svg``."""
-    from roughslip.analysis.plotting import make_folder, pyplot, save
+    (``verify-<scene>.png``), or all scenes as one grid when ``path`` ends in one of
+    :data:`FIGURE_SUFFIXES`."""
+    from roughslip.analysis.plotting import pyplot, save
 
     path = Path(path)
     scenes = s.scenes()
-    if path.suffix.lower() in (".png", ".pdf", ".svg"):
+    prepare_plot(path)
+    if path.suffix.lower() in FIGURE_SUFFIXES:
         plt = pyplot()
         fig, axes = plt.subplots(len(scenes), 2, figsize=(9.5, 4.2 * len(scenes)),
                                  squeeze=False)
@@ -695,5 +710,4 @@ def plot(s: Study, path: str | Path) -> list[Path]:
             for ax, series in zip(row, SERIES, strict=True):
                 _panel(ax, s, scene, series)
         return [save(plt, fig, path)]
-    make_folder(path)
     return [plot_scene(s, scene, path / f"verify-{scene}.png") for scene in scenes]

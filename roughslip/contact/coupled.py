@@ -454,7 +454,7 @@ class _Dense:
         """(f_z, f_x) = the current inverse times the right-hand side, uncertified (the inner
         products of the Coulomb solves, whose result is certified as a whole)."""
         layout = self._layout()
-        x = self.inverse.apply(self._to_rows(rz, rx, layout)[:, None])[:, 0]
+        x = self.inverse.apply(self._to_rows(rz, rx, layout))
         return self._to_fields(x, layout, rz.shape)
 
 

@@ -24,7 +24,9 @@ With ``definite=True`` (the default) the matrix is taken to be positive definite
 whose pivot or Schur complement is not reports failure, so the caller can factorise afresh.
 With ``definite=False`` the matrix may be indefinite (symmetric, nonsingular): a negative
 pivot adds a term of the other sign, and the Schur complement is inverted through its
-eigenvalues. Only a (numerically) singular update fails.
+eigenvalues. Only a numerically singular update fails: a pivot, or an eigenvalue of the Schur
+complement, at or below ``order x eps`` times the largest entry of its column (of its
+spectrum), the rank threshold of LAPACK and ``numpy.linalg.matrix_rank``.
 
 The memory is checked before every allocation through ``room(m)``, a callable that says whether
 an inverse of order ``m`` may be allocated (:func:`inverse_bytes` gives its peak). The
@@ -56,6 +58,14 @@ Entries = Callable[[np.ndarray, np.ndarray, str], np.ndarray]
 def inverse_bytes(m: int) -> int:
     """Peak memory of an :class:`UpdatableInverse` of order ``m`` (bytes)."""
     return BYTES_PER_ORDER2 * m * m
+
+
+def _nonsingular(pivots: np.ndarray, scale: np.ndarray) -> bool:
+    """Whether every pivot is finite and above ``len(scale) x eps x max|scale|``."""
+    if not (np.all(np.isfinite(pivots)) and np.all(np.isfinite(scale))):
+        return False
+    floor = scale.size * np.finfo(float).eps * float(np.max(np.abs(scale)))
+    return bool(np.min(np.abs(pivots)) > floor)
 
 
 @dataclass
@@ -258,11 +268,11 @@ class UpdatableInverse:
     # -- updates -------------------------------------------------------------------------------
     def remove(self, unknown: int) -> bool:
         """Remove ``unknown`` from the set; False when its pivot is not positive (definite)
-        or is zero (indefinite)."""
+        or numerically zero (indefinite, module docstring)."""
         r = int(self.row[unknown])
         c = self.column(r)
         cr = float(c[r])
-        if not (cr > 0 if self.definite else cr != 0 and math.isfinite(cr)):
+        if not (cr > 0 if self.definite else _nonsingular(np.array([cr]), c)):
             return False
         for t in self.tracked.values():
             t.x -= c * (t.x[r] / cr)
@@ -324,7 +334,7 @@ class UpdatableInverse:
             W, sign = MB @ Linv.T, 1.0
         else:
             w, Q = linalg.eigh(Sc, check_finite=False)
-            if not np.all(np.isfinite(w)) or np.min(np.abs(w)) <= 1e-13 * np.max(np.abs(w)):
+            if not _nonsingular(w, w):
                 return False
             Si = (Q / w) @ Q.T
             W, sign = MB @ (Q / np.sqrt(np.abs(w))), np.sign(w)
