@@ -116,7 +116,7 @@ def test_no_contact_and_bad_input():
 def test_reciprocity_of_the_coupled_block():
     """Maxwell-Betti: u_z at i from a unit f_x at j equals u_x at j from a unit f_z at i, and
     the reduced block the solver factorises is symmetric."""
-    from roughslip.contact.coupled import _Dense
+    from roughslip.contact.blocksolvers import DenseBlockSolver as _Dense
     from roughslip.contact.problem import Problem
     from roughslip.elastic.operators import Grid, Material
 
@@ -305,7 +305,7 @@ def test_updated_inverse_tracks_solutions_through_set_changes(symv_min):
     pending terms folded in) and its tracked solutions agree with a direct solve of the block
     to 1e-10 through a random sequence of set changes, from one factorisation; with the
     products by the symmetric kernel (lower triangle) or the general one."""
-    from roughslip.contact.coupled import _Dense
+    from roughslip.contact.blocksolvers import DenseBlockSolver as _Dense
     from roughslip.contact.problem import Problem
     from roughslip.elastic.operators import Grid, Material
 
@@ -352,7 +352,7 @@ def test_a_slow_rate_is_flat_only_on_the_scale_of_the_pull_so_far():
     interval came out empty, [inf, -inf]; the loop then evaluated the state at D = -inf
     (a NaN from 0 x inf). Over the pull so far the gap is not flat: it has been open since
     D = 0.1. A non-finite displacement is an error, never a NaN."""
-    from roughslip.contact.coupled import _State
+    from roughslip.contact.state import ContactState as _State
     from roughslip.errors import NumericalError
 
     st = object.__new__(_State)
@@ -381,14 +381,14 @@ def test_bulk_passes_by_cg_then_the_updated_inverse_match_the_reference(monkeypa
     ``bulk_min`` unknowns; the inverse is built for the set they leave. Forced on a small
     grid, the path is the reference's (every state factorised afresh, dense sums), event for
     event, to 1e-8."""
-    from roughslip.contact import coupled
+    from roughslip.contact import blocksolvers
 
     h = rough(16, seed=seed)
     ref = squeeze_pull_coupled(h, **load, lam=0.2, nu=0.25, method="dense", reference=True)
-    monkeypatch.setattr(coupled._Dense, "bulk_min", 10)
+    monkeypatch.setattr(blocksolvers.DenseBlockSolver, "bulk_min", 10)
     bulk_solves = []
-    solve_many = coupled._CG.solve_many
-    monkeypatch.setattr(coupled._CG, "solve_many",
+    solve_many = blocksolvers.MatrixFreeBlockSolver.solve_many
+    monkeypatch.setattr(blocksolvers.MatrixFreeBlockSolver, "solve_many",
                         lambda self, rhs: bulk_solves.append(len(rhs)) or solve_many(self, rhs))
     fast = squeeze_pull_coupled(h, **load, lam=0.2, nu=0.25, method="dense")
     # the bulk passes ran matrix-free: the overlap always has tensile sites, so a pass that

@@ -381,13 +381,13 @@ def test_runs_started_before_keys_were_renamed_or_added_resume(tmp_path):
 def test_coupled_run_says_when_the_dense_inverse_did_not_fit(tmp_path, monkeypatch):
     """A coupled run whose block inverse does not fit the memory budget goes on matrix-free:
     same friction forces, and the sample's notes say why."""
-    from roughslip.contact import coupled
+    from roughslip.contact import blocksolvers
 
     data = {**CFG, "grid": {"n": 16}, "ensemble": {"samples": 1, "seed": 3},
             "material": {"nu": 0.25}, "coupling": {"enabled": True}}
     cfg = load_config(write_cfg(tmp_path, data))
     run(cfg, tmp_path / "dense.h5", workers=1)
-    monkeypatch.setattr(coupled, "DENSE_BYTES_PER_UNKNOWN2", 2**50)  # no inverse fits
+    monkeypatch.setattr(blocksolvers, "DENSE_BYTES_PER_UNKNOWN2", 2**50)  # no inverse fits
     run(cfg, tmp_path / "cg.h5", workers=1)
     dense, cg = read_run(tmp_path / "dense.h5"), read_run(tmp_path / "cg.h5")
     np.testing.assert_allclose(cg.scalars["friction_force"], dense.scalars["friction_force"],

@@ -20,6 +20,12 @@ a stored matrix :math:`M` and up to ``block`` pending rank-one terms of sign
 * **Factorising** afresh: Cholesky and LAPACK's inverse from it (``definite``), else a
   symmetric-indefinite inverse.
 
+Two storage layouts. The default keeps the whole symmetric matrix with spare rows, so the set
+can grow as well as shrink. ``lower=True`` keeps only the lower triangle of an exactly sized
+matrix, for a set that only shrinks (a pull that breaks bonds): products by the symmetric
+kernel (DSYMV), folding by a symmetric rank-k update (DSYRK), and compaction in place inside
+the one buffer, so the peak memory stays one matrix of the starting order.
+
 With ``definite=True`` (the default) the matrix is taken to be positive definite, and an update
 whose pivot or Schur complement is not reports failure, so the caller can factorise afresh.
 With ``definite=False`` the matrix may be indefinite (symmetric, nonsingular): a negative
@@ -29,8 +35,9 @@ complement, at or below ``order x eps`` times the largest entry of its column (o
 spectrum), the rank threshold of LAPACK and ``numpy.linalg.matrix_rank``.
 
 The memory is checked before every allocation through ``room(m)``, a callable that says whether
-an inverse of order ``m`` may be allocated (:func:`inverse_bytes` gives its peak). The
-certification of solutions against an exact operator is :meth:`UpdatableInverse.refine`.
+an inverse of order ``m`` may be allocated (:func:`inverse_bytes` gives its peak). Solutions
+are certified against an exact operator by :func:`refine`, the package's one iterative
+refinement (:meth:`UpdatableInverse.refine` corrects with the current inverse).
 """
 
 from __future__ import annotations
@@ -55,9 +62,47 @@ BYTES_PER_ORDER2 = 28
 Entries = Callable[[np.ndarray, np.ndarray, str], np.ndarray]
 
 
-def inverse_bytes(m: int) -> int:
-    """Peak memory of an :class:`UpdatableInverse` of order ``m`` (bytes)."""
+def inverse_bytes(m: int, *, lower: bool = False, block: int = 512) -> int:
+    """Peak memory of an :class:`UpdatableInverse` of order ``m`` (bytes): with spare rows
+    and a second matrix while it grows (:data:`BYTES_PER_ORDER2`), or for ``lower`` storage
+    one matrix and the ``block`` pending columns with O(m) work arrays."""
+    if lower:
+        return int(8 * m * m + 8 * m * (3 * block + 64))
     return BYTES_PER_ORDER2 * m * m
+
+
+def refine(x: object, residual: Callable[[object], tuple[object, float]],
+           correct: Callable[[object, object], object], tol: float, limit: int
+           ) -> tuple[object, float, int]:
+    r"""Iterative refinement: the certification of every solve in the package.
+
+    ``residual(x)`` returns the residual of ``x`` against the exact operator and its relative
+    norm; while that is above ``tol``, :math:`x \leftarrow` ``correct(x, r)`` (an approximate
+    solve of the residual equation added to ``x``), at most ``limit`` times (Wilkinson's
+    iterative refinement; Higham, *Accuracy and Stability of Numerical Algorithms*, 2002,
+    ch. 12). Returns ``(x, norm of its residual, corrections done)``.
+    """
+    done = 0
+    while True:
+        r, res = residual(x)
+        if res <= tol or done >= limit:
+            return x, res, done
+        x = correct(x, r)
+        done += 1
+
+
+def _compact_lower(flat: np.ndarray, m: int, keep: np.ndarray) -> np.ndarray:
+    """Gather rows and columns ``keep`` of the Fortran ``m x m`` matrix held in ``flat`` into
+    a Fortran ``k x k`` matrix at the start of the same buffer (lower triangle).
+
+    New column ``c`` starts at ``c k <= keep[c] m``, the start of its source column, and
+    ends before the next source column, so a forward sweep never overwrites unread data.
+    """
+    k = keep.size
+    for c in range(k):
+        col = flat[int(keep[c]) * m + keep[c:]]  # lower part of the source column (a copy)
+        flat[c * k + c: c * k + k] = col
+    return flat[: k * k].reshape((k, k), order="F")
 
 
 def _nonsingular(pivots: np.ndarray, scale: np.ndarray) -> bool:
@@ -99,14 +144,21 @@ class UpdatableInverse:
         Pending rank-one terms kept before they are folded in.
     definite
         Whether the matrix is positive definite (module docstring).
+    lower
+        Keep the lower triangle only, for a set that only shrinks (module docstring):
+        :meth:`add` is refused, and every product runs on ``threads``.
     """
 
     threaded_min = 8192  # order from which products with the inverse use the threads
     symv_min = 1024  # order from which products with few columns use the symmetric kernel
 
     def __init__(self, entries: Entries, size: int, *, room: Callable[[int], bool],
-                 threads: int = 1, block: int = 512, definite: bool = True) -> None:
+                 threads: int = 1, block: int = 512, definite: bool = True,
+                 lower: bool = False) -> None:
         self.entries = entries
+        self.lower = lower
+        if lower:  # the matrix is large by choice: every product gets the threads
+            self.threaded_min, self.symv_min = 0, 0
         self.room = room
         self.threads = threads
         self.block = block
@@ -147,6 +199,8 @@ class UpdatableInverse:
         """Take ``buf[:m, :m]`` as the inverse on the unknowns ``ids`` (nothing pending)."""
         self.row[self.ids] = -1
         self.buf, self.m = buf, m
+        if self.lower:  # the flat view of the one buffer, for compaction in place
+            self._flat = buf.reshape(-1, order="F")
         self.ids = np.asarray(ids, dtype=np.int64)
         self.row[self.ids] = np.arange(m)
         self.live = np.ones(m, dtype=bool)
@@ -179,7 +233,7 @@ class UpdatableInverse:
             raise NumericalError(f"the matrix on {ids.size} unknowns is {what}") from exc
         finally:
             self.blas_seconds += time.perf_counter() - t0
-        if self.definite:
+        if self.definite and not self.lower:
             n, b = A.shape[0], 512
             for j in range(0, n, b):  # mirror the lower triangle, a panel at a time
                 A[j:j + b, j + b:] = A[j + b:, j:j + b].T
@@ -194,27 +248,37 @@ class UpdatableInverse:
     def apply(self, B: np.ndarray) -> np.ndarray:
         """The current inverse times ``B`` (one or more columns on the rows; rows of removed
         unknowns must be zero)."""
-        if B.ndim == 1:
+        if B.ndim == 1 and not self.lower:
             return self.apply(B[:, None])[:, 0]
+        if B.ndim == 2 and self.lower:
+            return np.column_stack([self.apply(B[:, j]) for j in range(B.shape[1])])
         t0, m = time.perf_counter(), self.m
         # a product with a large inverse is bound by memory bandwidth: more threads read
         # faster, and a few columns go by the symmetric product, which reads half of it
         with blas_threads(self.threads if m >= self.threaded_min else 1):
-            if B.shape[1] <= 4 and m >= self.symv_min:
+            if self.lower:
+                sol = lapack64.symv(self.buf, B, m)
+            elif B.shape[1] <= 4 and m >= self.symv_min:
                 sol = np.column_stack([lapack64.symv(self.buf, B[:, j], m)
                                        for j in range(B.shape[1])])
             else:
                 sol = self.buf[:m, :m] @ B
             if self.k:
                 V = self.V[:m, : self.k]
-                sol += V @ (self.s[: self.k, None] * (V.T @ B))
+                sgn = self.s[: self.k] if B.ndim == 1 else self.s[: self.k, None]
+                sol += V @ (sgn * (V.T @ B))
         self.blas_seconds += time.perf_counter() - t0
         return sol
 
     def column(self, r: int) -> np.ndarray:
         """Column ``r`` of the current inverse."""
         t0 = time.perf_counter()
-        c = self.buf[: self.m, r].copy()
+        if self.lower:
+            c = np.empty(self.m)
+            c[:r] = self.buf[r, :r]
+            c[r:] = self.buf[r: self.m, r]
+        else:
+            c = self.buf[: self.m, r].copy()
         if self.k:
             c += self.V[: self.m, : self.k] @ (self.s[: self.k] * self.V[r, : self.k])
         self.blas_seconds += time.perf_counter() - t0
@@ -222,17 +286,16 @@ class UpdatableInverse:
 
     def refine(self, x: np.ndarray, residual: Callable[[np.ndarray], tuple[np.ndarray, float]],
                tol: float, refinements: int) -> tuple[np.ndarray, float, int]:
-        r"""Certify ``x`` against an exact operator: ``residual(x)`` returns the residual on the
-        rows and its relative norm; while that is above ``tol``, :math:`x \leftarrow x +
-        A_{SS}^{-1} r`, at most ``refinements`` times. Returns ``(x, norm, refinements
-        done)``."""
-        done = 0
-        while True:
-            r, res = residual(x)
-            if res <= tol or done >= refinements:
-                return x, res, done
-            x = x + self.apply(r)
-            done += 1
+        r"""Certify ``x`` against an exact operator (:func:`refine`): ``residual(x)`` returns
+        the residual on the rows and its relative norm; while that is above ``tol``,
+        :math:`x \leftarrow x + A_{SS}^{-1} r` on the live rows (removed rows stay as they
+        are), at most ``refinements`` times. Returns ``(x, norm, refinements done)``."""
+        def correct(x: np.ndarray, r: np.ndarray) -> np.ndarray:
+            step = self.apply(r)
+            step[~self.live] = 0.0
+            return x + step
+
+        return refine(x, residual, correct, tol, refinements)
 
     # -- pending terms -------------------------------------------------------------------------
     def _push(self, W: np.ndarray, sign: float | np.ndarray) -> None:
@@ -254,23 +317,33 @@ class UpdatableInverse:
             t0 = time.perf_counter()
             m, V = self.m, self.V[: self.m, : self.k]
             M = self.buf[:m, :m]
-            Vs = V * self.s[: self.k]
-            with blas_threads(self.threads):
-                for j in range(0, m, 2048):  # column panels: no copy of M, small temporaries
-                    M[:, j:j + 2048] += Vs @ V[j:j + 2048].T
-            # dead columns are cleared (contiguous); dead rows only feed dead entries of
-            # solutions, which are never read
-            M[:, ~self.live] = 0.0
+            if self.lower:  # a symmetric rank-k update per sign; dead entries are never read
+                sgn = self.s[: self.k]
+                with blas_threads(self.threads):
+                    for sign in (-1.0, 1.0):
+                        if np.all(sgn == sign):
+                            lapack64.syrk_update(M, V, sign)
+                        elif np.any(sgn == sign):
+                            lapack64.syrk_update(M, V[:, sgn == sign], sign)
+            else:
+                Vs = V * self.s[: self.k]
+                with blas_threads(self.threads):
+                    for j in range(0, m, 2048):  # column panels: no copy of M, small temporaries
+                        M[:, j:j + 2048] += Vs @ V[j:j + 2048].T
+                # dead columns are cleared (contiguous); dead rows only feed dead entries of
+                # solutions, which are never read
+                M[:, ~self.live] = 0.0
             self.V[:m, : self.k] = 0.0
             self.k = 0
             self.blas_seconds += time.perf_counter() - t0
 
     # -- updates -------------------------------------------------------------------------------
-    def remove(self, unknown: int) -> bool:
+    def remove(self, unknown: int, column: np.ndarray | None = None) -> bool:
         """Remove ``unknown`` from the set; False when its pivot is not positive (definite)
-        or numerically zero (indefinite, module docstring)."""
+        or numerically zero (indefinite, module docstring). ``column``: its column of the
+        current inverse, when the caller has it already (:meth:`column`)."""
         r = int(self.row[unknown])
-        c = self.column(r)
+        c = self.column(r) if column is None else column
         cr = float(c[r])
         if not (cr > 0 if self.definite else _nonsingular(np.array([cr]), c)):
             return False
@@ -292,17 +365,23 @@ class UpdatableInverse:
         was read before."""
         keep = np.flatnonzero(self.live)
         k = keep.size
+        if self.lower and extra:
+            raise ValueError("a lower-triangle inverse holds a set that only shrinks")
         if k + extra > self.buf.shape[0] and not self.room(k + extra):
             return False
         self.flush()
+        tracked = {key: Tracked(t.b[keep], t.x[keep], t.values)
+                   for key, t in self.tracked.items()}
+        if self.lower:
+            self._adopt(_compact_lower(self._flat, self.m, keep), k, self.ids[keep])
+            self.tracked = tracked
+            return True
         buf = self.buf
         if k + extra > buf.shape[0]:
             cap = k + max(extra, k // 8 + 16)
             buf = np.zeros((cap, cap), order="F")
         for j, src in enumerate(keep):
             buf[:k, j] = self.buf[keep, src]
-        tracked = {key: Tracked(t.b[keep], t.x[keep], t.values)
-                   for key, t in self.tracked.items()}
         self._adopt(buf, k, self.ids[keep])
         self.tracked = tracked
         return True
@@ -314,6 +393,8 @@ class UpdatableInverse:
         (``definite``) or is singular, and None when ``room`` refused the larger buffer
         (nothing changed).
         """
+        if self.lower:
+            raise ValueError("a lower-triangle inverse holds a set that only shrinks")
         if self.m + new.size > self.buf.shape[0]:  # no spare rows left: compact and grow
             if not self.compact(new.size):
                 return None

@@ -1,0 +1,432 @@
+r"""Linear solvers for the reduced block of the coupled model, behind one protocol.
+
+For a contact set :math:`C` and a stick set :math:`S \subseteq C` the event loop solves
+
+.. math::
+
+    \begin{bmatrix} G_{zz}(C,C) & G_{zx}(C,S) \\ G_{xz}(S,C) & G_{xx}(S,S) \end{bmatrix}
+    \begin{bmatrix} f_z(C) \\ f_x(S) \end{bmatrix} = \begin{bmatrix} r_z(C) \\ r_x(S)
+    \end{bmatrix},
+
+an SPD principal block of the full operator (docs/theory/halfspace.rst#matrix-properties).
+:class:`BlockSolver` lists everything the event loop calls. ``"dense"``
+(:class:`DenseBlockSolver`) assembles the block from the closed-form kernels and keeps its
+inverse up to date (:class:`~roughslip.linalg.inverse.UpdatableInverse`), while it fits in
+memory (docs/theory/coupled.rst#coupled-solvers); ``"cg"`` (:class:`MatrixFreeBlockSolver`)
+runs conjugate gradients on the restricted FFT block operator
+(:meth:`roughslip.contact.problem.Problem.restricted_block`). Every solve is certified against
+the FFT operator.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+
+from roughslip.contact.methods import Registry
+from roughslip.contact.problem import Problem
+from roughslip.errors import MemoryLimitError, NumericalError
+from roughslip.linalg.cg import cg
+from roughslip.linalg.inverse import BYTES_PER_ORDER2, Tracked, UpdatableInverse
+from roughslip.linalg.memory import available_bytes
+
+# ------------------------------------------------------------------------------------------------
+# Linear solvers for the reduced block
+# ------------------------------------------------------------------------------------------------
+
+
+class BlockSolver(Protocol):
+    """A linear solver for the reduced block on the contact set C and the stick set S: the
+    contract the event loop uses, and all of it."""
+
+    #: solves so far (:meth:`add_solves` counts those the caller does on the solver's behalf)
+    solves: int
+    #: seconds in dense linear algebra
+    blas_seconds: float
+    #: why the solver went on matrix-free (the dense inverse did not fit), else ""
+    note: str
+    #: the dense test reference: every state factorised afresh, displacements by dense sums
+    reference: bool
+    #: whether the current state is solved through an explicit inverse (then
+    #: :meth:`apply_inverse` is available), else matrix-free
+    dense: bool
+
+    def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
+        """Set the unknowns: f_z on C, f_x on S. ``bulk``: the sets are about to change by
+        many sites at once (no point in keeping an inverse for them)."""
+
+    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Grid fields (f_z, f_x, u_z) for right-hand sides on the grid (used on C and S);
+        ``key`` names the right-hand side, for warm starts and tracked solutions."""
+
+    def solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
+                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """:meth:`solve` for several ``(rz, rx, key)`` at once."""
+
+    def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(u_z, u_x) on the grid for the force fields (f_z, f_x)."""
+
+    def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(f_z, f_x): the current inverse times a right-hand side, uncertified (only while
+        :attr:`dense`)."""
+
+    def residual(self) -> float:
+        """The worst relative residual of the solves so far."""
+
+    def reset(self) -> bool:
+        """Drop what the solver kept between states (an updated inverse), so that the next
+        :meth:`prepare` starts afresh; False when there was nothing to drop."""
+
+    def add_solves(self, n: int) -> None:
+        """Count ``n`` solves done with this solver's operators by the caller."""
+
+
+#: the coupled block solvers, by name (``method`` of :func:`couple`)
+SOLVERS: Registry[type] = Registry("coupled solver")
+
+
+@SOLVERS.register("dense", "the reduced block's inverse, updated at every event")
+class DenseBlockSolver:
+    r"""Reduced block assembled from the operator's kernel tables, solved through its inverse.
+
+    The unknowns are numbered ``2 i`` (:math:`f_z` at site ``i``) and ``2 i + 1``
+    (:math:`f_x`). The explicit inverse of the block on the current unknowns is an
+    :class:`~roughslip.linalg.inverse.UpdatableInverse`: updated when the contact or stick set
+    changes (downdates, bordered additions, blocked BLAS-3 folding, compaction), never
+    recomputed for it, and kept solutions of unchanged right-hand sides are updated with it.
+
+    * When more than a third of the unknowns change at once, the block is factorised afresh.
+    * The squeeze's first passes, which drop every tensile contact at once from the geometric
+      overlap (``prepare(..., bulk=True)``), are solved by warm-started conjugate gradients
+      on the FFT operator when they have more than ``bulk_min`` unknowns: an inverse of the
+      overlap block would cost far more than the rest of the squeeze and pull together, and
+      would be thrown away at the next pass.
+
+    Every solution is certified against the FFT operator: the displacements of the forces,
+    which the event loop needs anyway for the gaps, give the residual on the unknowns; above
+    ``tol`` (relative) it is refined by :math:`x \leftarrow x + M^{-1}_{\rm current} r`, up to
+    ``refinements`` times (:meth:`UpdatableInverse.refine`), and the worst certified residual
+    is reported. With ``reference=True`` every state is factorised from scratch and
+    displacements are dense sums (no FFT at all): the test reference.
+    """
+
+    refinements = 3
+    bulk_min = 2000
+
+    def __init__(self, problem: Problem, *, reference: bool = False, tol: float = 1e-12,
+                 fallback: bool = False, threads: int = 1, **_: object) -> None:
+        # The factorisation and the folding of pending terms (BLAS-3) get ``threads``; the
+        # event loop runs with one BLAS thread: its products are matrix-vector, and idle BLAS
+        # threads spinning beside the FFTs cost more than they gain (measured: N = 128, 5 %
+        # contact, 2.0 s with one thread, 4.9 s with two).
+        #: when an inverse does not fit in memory: go on matrix-free (True, with a :attr:`note`)
+        #: or refuse (False, :class:`MemoryLimitError`)
+        self.fallback = fallback
+        self.note = ""
+        op = problem.operator("zz", "zx", "xx").with_threads(1)
+        self.problem = problem
+        self.ny, self.nx = op.shape
+        self.op = op
+        self.tables = {c: op.tables.pair(c) for c in ("zz", "zx", "xx")}
+        self.reference = reference
+        self.tol = tol
+        self.solves = 0
+        self.worst = 0.0
+        #: the matrix-free solver of the bulk passes, when used
+        self.bulk: MatrixFreeBlockSolver | None = None
+        #: the updated inverse of the block (unknowns ``2 i``: f_z, ``2 i + 1``: f_x)
+        self.inverse = UpdatableInverse(self.entries, 2 * self.ny * self.nx, room=self._room,
+                                        threads=threads)
+        self.dense = True  # False while the bulk passes or the fallback solve matrix-free
+
+    @property
+    def blas_seconds(self) -> float:
+        """Seconds in dense linear algebra (factorisation, products, updates)."""
+        return self.inverse.blas_seconds
+
+    # -- assembly ------------------------------------------------------------------------------
+    def _block(self, ci: np.ndarray, cj: np.ndarray, comp: str) -> np.ndarray:
+        T, w, off = self.tables[comp]
+        iy, ix = np.divmod(ci, self.nx)
+        jy, jx = np.divmod(cj, self.nx)
+        lin_i, lin_j = iy * w + ix, jy * w + jx
+        return T[lin_i[:, None] - lin_j[None, :] + off]
+
+    def entries(self, ids_i: np.ndarray, ids_j: np.ndarray, order: str = "C") -> np.ndarray:
+        """Block entries between two lists of unknowns (u_a at i due to f_b at j)."""
+        ids_i, ids_j = np.asarray(ids_i, dtype=np.int64), np.asarray(ids_j, dtype=np.int64)
+        out = np.empty((ids_i.size, ids_j.size), order=order)
+        for a in (0, 1):  # 0: z, 1: x
+            ri = np.flatnonzero((ids_i & 1) == a)
+            si = ids_i[ri] >> 1
+            for b in (0, 1):
+                cj = np.flatnonzero((ids_j & 1) == b)
+                if not ri.size or not cj.size:
+                    continue
+                sj = ids_j[cj] >> 1
+                if (a, b) == (1, 0):  # G_xz(i - j) = G_zx(j - i)
+                    blk = self._block(sj, si, "zx").T
+                else:
+                    blk = self._block(si, sj, "zx" if a != b else ("zz" if a == 0 else "xx"))
+                out[np.ix_(ri, cj)] = blk
+        return out
+
+    # -- the inverse ---------------------------------------------------------------------------
+    def _room(self, m: int) -> bool:
+        """Whether an inverse for ``m`` unknowns fits in memory (:func:`dense_memory_bytes`).
+        If not: refuse, or with :attr:`fallback` drop the inverse and leave a :attr:`note`."""
+        need, have = _inverse_bytes(m), available_bytes()
+        if need <= have:
+            return True
+        msg = (f"needs ~{need / 2**30:.2f} GiB for {m} unknowns (contact and stick sites) but "
+               f"{have / 2**30:.2f} GiB are available")
+        if not self.fallback:
+            raise MemoryLimitError(
+                f"coupled model, method 'dense': {msg}; use method 'cg' (matrix-free) or "
+                "'auto', a smaller depth or grid, or raise execution.memory_limit_gb")
+        self.note = f"auto chose cg: the dense solver {msg}"
+        self.inverse.reset()
+        return False
+
+    def _factor(self, ids: np.ndarray) -> None:
+        try:
+            self.inverse.factor(ids)
+        except NumericalError:
+            raise NumericalError("coupled model: the coupled block on the contact and stick "
+                                 "sets is not positive definite") from None
+
+    def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
+        bulk = bulk and not self.reference and int(C.sum() + S.sum()) > self.bulk_min
+        if not (self.note or bulk):
+            self._update(C, S)
+            if not self.note:
+                return
+        # matrix-free: the bulk passes, or for good once an inverse did not fit
+        if self.bulk is None:
+            self.bulk = MatrixFreeBlockSolver(self.problem, tol=self.tol)
+        self.bulk.prepare(C, S)
+        self.inverse.reset()
+        self.dense = False
+
+    def _update(self, C: np.ndarray, S: np.ndarray) -> None:
+        """Bring the inverse to the unknowns of C and S: updated when few change, afresh
+        otherwise (or when an update loses positive definiteness)."""
+        self.dense = True
+        inv = self.inverse
+        want = np.zeros(inv.row.size, dtype=bool)
+        want[2 * np.flatnonzero(C)] = True
+        want[2 * np.flatnonzero(S) + 1] = True
+        have = inv.row >= 0
+        gone = np.flatnonzero(have & ~want)
+        new = np.flatnonzero(want & ~have)
+        ok = not (self.reference or not inv.ready
+                  or gone.size + new.size > max(4, int(inv.live.sum()) // 3))
+        # stops at the first failed removal; an addition fails only on a non-positive Schur
+        # complement (None: the memory did not allow it, and the note says so)
+        ok = ok and all(inv.remove(int(u)) for u in gone)
+        ok = ok and (not new.size or inv.add(new) is not False)
+        if not ok:
+            self._factor(np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1]))
+        elif (~inv.live).sum() > 0.25 * inv.m:
+            inv.compact(0)
+
+    def residual(self) -> float:
+        return self.worst
+
+    def reset(self) -> bool:
+        """Drop the updated inverse: the next :meth:`prepare` factorises afresh. True: there
+        was one to drop."""
+        had = self.inverse.ready
+        self.inverse.reset()
+        return had
+
+    def add_solves(self, n: int) -> None:
+        self.solves += n
+
+    # -- solutions -----------------------------------------------------------------------------
+    def _layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The live rows, the site of each, and whether it holds f_x (else f_z)."""
+        inv = self.inverse
+        rows = np.flatnonzero(inv.live)
+        ids = inv.ids[rows]
+        return rows, ids >> 1, (ids & 1).astype(bool)
+
+    def _to_rows(self, rz: np.ndarray, rx: np.ndarray, layout) -> np.ndarray:
+        """The right-hand side on the rows (zero on dead rows)."""
+        rows, sites, isx = layout
+        b = np.zeros(self.inverse.m)
+        b[rows] = np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
+        return b
+
+    def _to_fields(self, x: np.ndarray, layout, shape: tuple[int, ...]
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """The solution on the rows as force fields (f_z, f_x)."""
+        rows, sites, isx = layout
+        fz, fx = np.zeros(shape), np.zeros(shape)
+        fz.ravel()[sites[~isx]] = x[rows[~isx]]
+        fx.ravel()[sites[isx]] = x[rows[isx]]
+        return fz, fx
+
+    def _displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(u_z, u_x) on the grid: FFT, or dense sums for the reference."""
+        if not self.reference:
+            return self.op.apply_block(fz, fx)
+        n = self.ny * self.nx
+        src = np.concatenate([2 * np.flatnonzero(fz.ravel()), 2 * np.flatnonzero(fx.ravel()) + 1])
+        val = np.where(src % 2 == 1, fx.ravel()[src >> 1], fz.ravel()[src >> 1])
+        uz = self.entries(2 * np.arange(n), src) @ val
+        ux = self.entries(2 * np.arange(n) + 1, src) @ val
+        return uz.reshape(fz.shape), ux.reshape(fz.shape)
+
+    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = ""
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return self.solve_many([(rz, rx, key)])[0]
+
+    def solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
+                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """(f_z, f_x, u_z) on the grid for each ``(rz, rx, key)``: the tracked solution when
+        the right-hand side on the unknowns is unchanged, else one product with the inverse
+        for all the new ones (read from memory once); each certified (class docstring)."""
+        self.solves += len(rhs)
+        if not self.dense:
+            out = self.bulk.solve_many(rhs)
+            self.worst = max(self.worst, self.bulk.worst)
+            return out
+        inv = self.inverse
+        layout = self._layout()
+        rows, sites, isx = layout
+        bs, xs, todo = [], [], []
+        for k, (rz, rx, key) in enumerate(rhs):
+            b = self._to_rows(rz, rx, layout)
+            hit = inv.tracked.get(key)
+            if hit is not None and np.array_equal(hit.b, b):
+                xs.append(hit.x)
+            else:
+                xs.append(None)
+                todo.append(k)
+            bs.append(b)
+        if todo:
+            X = inv.apply(np.column_stack([bs[k] for k in todo]))
+            for j, k in enumerate(todo):
+                xs[k] = np.ascontiguousarray(X[:, j])
+        out = []
+        for (rz, rx, key), b, x in zip(rhs, bs, xs, strict=True):
+            scale = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
+            last: list[np.ndarray] = []
+
+            def residual(x, b=b, rz=rz, last=last, scale=scale):
+                fz, fx = self._to_fields(x, layout, rz.shape)
+                uz, ux = self._displacements(fz, fx)
+                last[:] = [fz, fx, uz]
+                r = np.zeros(inv.m)
+                r[rows] = b[rows] - np.where(isx, ux.ravel()[sites], uz.ravel()[sites])
+                return r, float(np.linalg.norm(r)) / scale
+
+            x, res, _ = inv.refine(x, residual, math.inf if self.reference else self.tol,
+                                   self.refinements)
+            self.worst = max(self.worst, res)
+            inv.tracked[key] = Tracked(b, x, _rhs_values(rz.copy(), rx.copy()))
+            out.append(tuple(last))
+        return out
+
+    def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self._displacements(fz, fx)
+
+    def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(f_z, f_x) = the current inverse times the right-hand side, uncertified (the inner
+        products of the Coulomb solves, whose result is certified as a whole)."""
+        layout = self._layout()
+        x = self.inverse.apply(self._to_rows(rz, rx, layout))
+        return self._to_fields(x, layout, rz.shape)
+
+
+def _rhs_values(rz: np.ndarray, rx: np.ndarray):
+    """The right-hand side of unknowns (``2 i``: rz at site i, ``2 i + 1``: rx), for the
+    bordering of a tracked solution."""
+    def values(ids: np.ndarray) -> np.ndarray:
+        return np.where((ids & 1).astype(bool), rx.ravel()[ids >> 1], rz.ravel()[ids >> 1])
+    return values
+
+
+@SOLVERS.register("cg", "matrix-free: warm-started CG on the restricted FFT block operator")
+class MatrixFreeBlockSolver:
+    """Conjugate gradients (:func:`roughslip.linalg.cg.cg`) on the restricted block operator,
+    warm-started from the previous solution of the same right-hand side."""
+
+    def __init__(self, problem: Problem, *, tol: float = 1e-12, max_iter: int = 20_000,
+                 **_: object) -> None:
+        self.problem, self.tol, self.max_iter = problem, tol, max_iter
+        self.op = problem.operator("zz", "zx", "xx")
+        self.solves = 0
+        self.worst = 0.0
+        self.blas_seconds, self.note = 0.0, ""  # no dense linear algebra, no fallback
+        self.reference, self.dense = False, False
+        self.prev: dict[str, np.ndarray] = {}
+
+    def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
+        self.A = self.problem.restricted_block(C, S)
+
+    def residual(self) -> float:
+        return self.worst
+
+    def reset(self) -> bool:
+        return False  # nothing kept that a fresh start would compute differently
+
+    def add_solves(self, n: int) -> None:
+        self.solves += n
+
+    def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError("the matrix-free solver keeps no inverse (dense is False)")
+
+    def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = ""
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self.solves += 1
+        r = cg(self.A, np.stack([rz, rx]), x0=self.prev.get(key), tol=self.tol,
+               max_iter=self.max_iter)
+        self.worst = max(self.worst, r.residual)
+        self.prev[key] = r.x
+        return r.x[0], r.x[1], self.op.apply_block(r.x[0], r.x[1])[0]
+
+    def solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
+                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        return [self.solve(rz, rx, key) for rz, rx, key in rhs]
+
+    def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.op.apply_block(fz, fx)
+
+
+#: dense solver's peak memory per squared unknown count (bytes): that of the updatable inverse
+DENSE_BYTES_PER_UNKNOWN2 = BYTES_PER_ORDER2
+
+
+def dense_memory_bytes(sites: int) -> int:
+    """Peak memory of ``method="dense"`` for ``sites`` contact sites, all bonded (bytes):
+    ``m = 2 sites`` unknowns."""
+    return _inverse_bytes(2 * int(sites))
+
+
+def _inverse_bytes(m: int) -> int:
+    """Peak memory of the dense solver's inverse on ``m`` unknowns (bytes)."""
+    return DENSE_BYTES_PER_UNKNOWN2 * m * m
+
+
+def choose_solver(method: str) -> str:
+    """The solver class name for ``method`` (``auto`` starts dense; the dense solver checks its
+    memory before each factorisation and, under ``auto``, falls back to ``cg``)."""
+    if method == "auto":
+        return "dense"
+    SOLVERS.get(method)
+    return method
+
+
+def make_solver(problem: Problem, method: str, reference: bool, tol: float,
+                 max_iter: int) -> tuple[BlockSolver, str]:
+    """The block solver for ``method`` (``auto`` starts dense and may fall back to CG) and
+    the name of its class."""
+    name = choose_solver(method)
+    solver = SOLVERS.get(name)(problem, reference=reference, tol=tol, max_iter=max_iter,
+                               threads=problem.threads, fallback=method == "auto")
+    return solver, name

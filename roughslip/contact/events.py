@@ -1,0 +1,157 @@
+r"""The event loop of the exact, piecewise-linear models (docs/theory/coupled.rst#coupled).
+
+Between events every force, displacement and gap is affine in the loop's parameter :math:`D`
+(the pull :math:`D_x`, or the depth :math:`D_z` of an indentation). A state says on which
+interval of :math:`D` it is admissible and which constraint ends it (its event table); the
+loop moves to that event, applies it, re-solves, and resolves any violation at constant drive
+(an avalanche) before the drive moves on. :func:`argext` is the package's one tie rule: among
+values within a relative ``TIE`` of the extreme, the lowest flat index.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from roughslip.errors import NumericalError
+
+if TYPE_CHECKING:
+    from roughslip.contact.state import ContactState
+
+TIE = 1e-9
+#: a slipping bond sticks again when its slip rate (per unit pull) opposes its force by more
+RATE_TIE = 1e-9
+
+
+@dataclass(frozen=True)
+class Event:
+    """One recorded state of the pull."""
+
+    dx: float
+    fx: float  # total tangential force F_x
+    fz: float  # total normal force F_z at the same D_x
+    kind: str  # "start", "slip+", "slip-", "lost", "gained", "stick" (a slipping bond sticks)
+    site: int  # flat index (-1 for "start")
+    dz: float = math.nan  # the depth D_z at the same D_x (it moves when the force is held)
+
+
+
+
+def argext(a: np.ndarray, mask: np.ndarray, how: str) -> int:
+    vals = np.where(mask, a, np.inf if how == "min" else -np.inf).ravel()
+    ext = vals.min() if how == "min" else vals.max()
+    if not math.isfinite(ext):  # an infinite extreme (a bond with no normal force left)
+        return int(np.flatnonzero((vals == ext) & mask.ravel())[0])
+    close = np.abs(vals - ext) <= TIE * max(abs(ext), np.finfo(float).tiny)
+    return int(np.flatnonzero(close & mask.ravel())[0])
+
+
+@dataclass
+class Snapshot:
+    """The state at one displacement: totals and fields."""
+
+    fx_total: float
+    fz_total: float
+    dx: float
+    fz: np.ndarray
+    fx: np.ndarray
+    stick: np.ndarray
+    contact: np.ndarray
+
+    @classmethod
+    def of(cls, st: ContactState, D: float) -> Snapshot:
+        fz, fx, _ = st.at(D)
+        F_x, F_z = st.totals(D)
+        return cls(F_x, F_z, D, fz.copy(), fx.copy(), st.S.copy(), st.C.copy())
+
+
+@dataclass
+class EventPath:
+    """The pull path: events, the peak, and how the loop ended."""
+
+    events: list[Event]
+    states: list | None
+    peak: Snapshot
+    transient: int = 0
+    message: str = ""
+    #: (contact sites, stick sites) at every recorded event
+    counts: list[tuple[int, int]] = field(default_factory=list)
+
+
+def follow_events(st: ContactState, limit: int, record_states: bool, end: float = math.inf
+                  ) -> EventPath:
+    """Follow the events from D = 0 (module docstring): for a pull until no bond is left, for
+    a driven depth (:func:`~roughslip.contact.coupled.indent`) until ``end``."""
+    path = EventPath([], [] if record_states else None, Snapshot.of(st, 0.0))
+
+    def record(D: float, kind: str, site: int) -> None:
+        F_x, F_z = st.totals(D)
+        path.events.append(Event(st.dx_at(D), F_x, F_z, kind, site, st.depth_at(D)))
+        path.counts.append((int(st.C.sum()), int(st.S.sum())))
+        if path.states is not None:
+            fz, fx, g = st.at(D)
+            path.states.append((D, fz.copy(), fx.copy(), g.copy(), st.C.copy(), st.S.copy()))
+
+    record(0.0, "start", -1)
+    st.pulling = True
+    D = 0.0
+    first = True
+    # until no bond holds; under the Coulomb law also until no slipping bond turns back
+    # (a bond slipping against the pull sticks again, even when every other one slips)
+    while (D < end if math.isfinite(end) else st.S.any() or st.reversal() is not None):
+        if len(path.events) + path.transient > limit:
+            path.message = f"stopped after {limit} events"
+            break
+        lo, hi, kind, j = st.interval(D)
+        if first and math.isfinite(hi) and hi > 0:
+            st.Dscale = hi  # the first event sets the displacement scale
+            first = False
+        tol_d = TIE * max(st.Dscale, abs(D))
+        if (lo > D + tol_d or lo > hi + tol_d) and st.violation(D) is None:
+            # Admissible at D within the value tolerances of every constraint, which the
+            # test in D missed: a constraint that changes slowly with D (a gap closing at a
+            # small rate, say) puts its root far from D for a violation far below the
+            # solver's residual. Take the state as admissible from D on.
+            lo = min(lo, D, hi)
+        feasible = lo <= hi + tol_d
+        if feasible and lo <= D + tol_d and hi >= D - tol_d:
+            # admissible at D, but a slipping bond would turn back: it sticks again, unless
+            # an event is due at D itself (a bound reached at once), which goes first (it
+            # changes the rates: a new contact that sticks and at once slips would otherwise
+            # turn the whole slip zone back and forth)
+            j_back = st.reversal() if hi > D + tol_d else None
+            if j_back is not None:
+                record(D, "stick", j_back)
+                st.apply("stick", j_back, D)
+                st.solve()
+                continue
+            if hi > end:  # the driven depth reaches its end before the next event
+                D = end
+                record(D, "end", -1)
+                break
+            if not math.isfinite(hi):
+                path.message = "no further event: the remaining bonds never break"
+                break
+            D = max(D, hi)  # the next event of a stable state
+            at = D
+        elif feasible and hi < D:
+            at = hi  # an avalanche state, recorded at its own limit (below D)
+        else:
+            v = st.violation(D)  # transient: admissible at no D up to the current one
+            if v is None:
+                raise NumericalError("inconsistent state (no violation but no admissible "
+                                     "displacement)")
+            st.apply(*v, D)
+            st.solve()
+            path.transient += 1
+            continue
+        record(at, kind, j)
+        F_x, _ = st.totals(at)
+        if F_x > path.peak.fx_total:
+            path.peak = Snapshot.of(st, at)
+        st.apply(kind, j, at)
+        st.solve()
+    return path

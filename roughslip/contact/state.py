@@ -1,0 +1,444 @@
+r"""The contact and stick sets of the coupled model and their solution, affine in the drive.
+
+For a contact set :math:`C` (:math:`u_z = \bar u_z` imposed, :math:`f_z` unknown) and a stick
+set :math:`S \subseteq C` (:math:`u_x = D_x` imposed, :math:`f_x` unknown; other sites carry
+what the slip law gives them) every force, displacement and gap is affine in :math:`D_x`:
+:math:`f = f^0 + D_x f^1`, :math:`g = g^0 + D_x g^1`. :class:`ContactState` solves for both
+parts with a :class:`~roughslip.contact.blocksolvers.BlockSolver` and gives the event loop
+(:mod:`roughslip.contact.events`) its constraints (docs/theory/coupled.rst#coupled).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+from scipy import linalg
+from scipy.sparse.linalg import LinearOperator, gmres
+
+from roughslip.contact.events import RATE_TIE, TIE, argext
+from roughslip.errors import NumericalError
+
+
+class ContactState:
+    r"""The contact and stick sets, and the solution on them as affine functions of D_x.
+
+    Displacement control (``force`` None) holds :math:`D_z`: the normal right-hand side is
+    :math:`\bar u = b + D_z` with :math:`b = h - \max h`. Load control holds
+    :math:`F_z = \sum_C f_z = F`, and :math:`D_z` becomes an unknown: with the solutions
+    :math:`f^b, f^d, f^1` for the right-hand sides :math:`(b, 0)`, :math:`(1_C, 0)` and
+    :math:`(0, 1_S)`, the force constraint gives :math:`D_z = d_0 + d_1 D_x` with
+    :math:`d_0 = (F - \sum f^b_z)/\sum f^d_z`, :math:`d_1 = -\sum f^1_z/\sum f^d_z`, and
+    every force stays affine in :math:`D_x`: :math:`f = (f^b + d_0 f^d) + D_x (f^1 + d_1 f^d)`.
+    The events are found exactly as under displacement control.
+    """
+
+    def __init__(self, solver, base: np.ndarray, lam: float, C: np.ndarray, *,
+                 depth: float | None = None, force: float | None = None,
+                 gained: str = "unbonded", slip_law: str = "break", tol: float = 1e-12,
+                 drive: str = "x"):
+        self.solver, self.base, self.lam = solver, base, lam
+        self.gained = gained
+        self.slip_law, self.tol = slip_law, tol
+        #: slip direction of the sites in C but not in S: +-1, a slipping bond carrying
+        #: f_x = sigma lam f_z (Coulomb law); 0, no tangential force (a broken bond, or a
+        #: contact that never was a bond)
+        self.sigma = np.zeros(base.shape)
+        self.worst = 0.0  # worst relative residual of the solves with slip forces
+        self.u1x: np.ndarray | None = None  # rate of u_x in D_x, with slipping bonds
+        self.gmres_iterations = 0
+        #: the last forces (f_z, f_x) with slip by right-hand side: GMRES's starting points
+        self._warm: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self.pulling = False  # contacts gained while pulling follow the rule ``gained``
+        #: bond offsets: a bond formed at D_x = D_g holds u_x = D_x + o, o = u_x(D_g) - D_g
+        self.offset = np.zeros(base.shape)
+        self.depth, self.force = depth, force
+        self.C = C.copy()
+        self.S = C.copy()
+        self.ones = np.ones(base.shape)
+        self.zero = np.zeros(base.shape)
+        self.scale_g = float(np.max(base + (depth if depth is not None else 0.0)))
+        self.Dscale = 1.0  # displacement scale for tolerances (set from the first event)
+        self.d0, self.d1 = (depth if depth is not None else math.nan), 0.0
+        #: solve for the rate in D_x too (the pull); the squeeze at D_x = 0 needs none
+        self.slope = True
+        #: what the loop's parameter D moves: "x", the pull D_x (at a depth or force held);
+        #: "z", the depth D_z itself at D_x = 0, up to ``depth`` (frictional indentation,
+        #: :func:`indent`; ``depth`` then only sets the gap scale)
+        self.drive = drive
+
+    @property
+    def slipping(self) -> np.ndarray:
+        """The slipping bonds: contact sites off the stick set with a slip direction."""
+        return self.C & ~self.S & (self.sigma != 0)
+
+    def hold_depth(self, depth: float) -> None:
+        """Switch to displacement control at ``depth`` (then call :meth:`solve`)."""
+        self.depth, self.force = depth, None
+
+    def hold_force(self, force: float) -> None:
+        """Switch to load control at ``force`` (then call :meth:`solve`)."""
+        self.depth, self.force = None, force
+
+    def solve(self, bulk: bool = False) -> None:
+        """Solve the current sets (``bulk``: see :meth:`BlockSolver.prepare`). A non-finite
+        solution from an updated inverse (round-off grown through many updates) is recomputed
+        from a fresh factorisation; one that stays non-finite is an error, never a silent
+        NaN."""
+        self._solve(bulk)
+        if self._finite():
+            return
+        if self.solver.reset():
+            self._solve(bulk)
+            if self._finite():
+                return
+        raise NumericalError("non-finite forces in the solve of the contact and stick sets")
+
+    def _finite(self) -> bool:
+        return all(np.all(np.isfinite(a)) for a in (*self.f0, *self.f1, self.g0, self.g1))
+
+    def _solve(self, bulk: bool = False) -> None:
+        """Solve for the state at D_x = 0 and, with :attr:`slope`, for its rate in D_x (the
+        squeeze's corrections at D_x = 0 need no rate: one solve per state); with slipping
+        bonds, also the rate of :math:`u_x` (one more FFT product), for :meth:`reversal`."""
+        self._solve_forces(bulk)
+        self.u1x = None
+        if self.slope and self.slipping.any():
+            self.u1x = self.solver.displacements(*self.f1)[1]
+
+    def _solve_forces(self, bulk: bool) -> None:
+        s = self.solver
+        s.prepare(self.C, self.S, bulk=bulk)
+        if self.drive == "z":  # u_z = b + D on C: f = f(b) + D f(1_C), g = u_z - b - D
+            sols = self._solve_many([(self.base, self.offset, "0"),
+                                     (self.ones, self.zero, "1")])
+            self.f0, self.g0 = sols[0][:2], sols[0][2] - self.base
+            self.f1, self.g1 = sols[1][:2], sols[1][2] - 1.0
+            self.d0, self.d1 = 0.0, 1.0
+            return
+        slope = self.slope and bool(self.S.any())
+        tail = [(self.zero, self.ones, "1")] if slope else []
+        if self.force is None:
+            ubar = self.base + self.depth
+            sols = self._solve_many([(ubar, self.offset, "0"), *tail])
+            self.f0, self.g0 = sols[0][:2], sols[0][2] - ubar
+            self.f1, self.g1 = (sols[1][:2], sols[1][2]) if slope else (
+                (self.zero, self.zero), self.zero)
+            self.d0, self.d1 = self.depth, 0.0
+            return
+        sols = self._solve_many([(self.base, self.offset, "b"), (self.ones, self.zero, "d"),
+                                 *tail])
+        (fbz, fbx, ub), (fdz, fdx, ud) = sols[0], sols[1]
+        f1z, f1x, u1 = sols[2] if slope else (self.zero, self.zero, self.zero)
+        sd = float(fdz.sum())
+        if not sd > 0:
+            raise NumericalError("load control: the contact set carries no force under a "
+                                 "uniform approach (no contact left)")
+        self.d0 = (self.force - float(fbz.sum())) / sd
+        self.d1 = -float(f1z.sum()) / sd
+        self.f0 = (fbz + self.d0 * fdz, fbx + self.d0 * fdx)
+        self.f1 = (f1z + self.d1 * fdz, f1x + self.d1 * fdx)
+        self.g0 = ub + self.d0 * ud - self.base - self.d0
+        self.g1 = u1 + self.d1 * ud - self.d1
+        self.scale_g = max(self.scale_g, float(np.max(self.base)) + self.d0)
+
+    def _solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
+                    ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        r"""(f_z, f_x, u_z) on the grid for each right-hand side ``(r_z, r_x, key)``, with the
+        slip forces of the Coulomb law: on the slip sites :math:`P` (in C, not in S,
+        :math:`\sigma \ne 0`), :math:`f_x = \sigma\lambda f_z`.
+
+        With :math:`K` the block on (C, S) that the solver inverts and :math:`H` the
+        displacements on (C, S) of tangential forces on P, the system is
+        :math:`K y + H\,\mathrm{diag}(\sigma\lambda)\,y_z(P) = r`: not symmetric. Its
+        solution is :math:`y = y_0 - K^{-1}H w t` with :math:`y_0 = K^{-1} r` and
+        :math:`t = f_z(P)` the solution of the :math:`|P|`-sized system
+        :math:`(I + E_P^T K^{-1} H w)\,t = E_P^T y_0` (:math:`w = \sigma\lambda`), solved by
+        GMRES warm-started from the last state's slip forces: each iteration one FFT product
+        and one solve with :math:`K`, and the iteration matrix is of the order of
+        :math:`\lambda` times the coupling :math:`G_{zx}/G_{zz}`, so a few iterations suffice.
+        Every solution is certified against the FFT operator on the full system and refined
+        when its residual is above tol. The dense reference solves the non-symmetric system
+        directly instead.
+        """
+        P = self.slipping
+        if not P.any():
+            return self.solver.solve_many(rhs)
+        w = self.lam * self.sigma[P]
+        if self.solver.reference:
+            return self._solve_direct(rhs, P, w)
+        solve = self._slip_solve if self.solver.dense else self._slip_solve_free
+        out = []
+        for rz, rx, key in rhs:
+            fz, fx = solve(rz, rx, key, P, w)
+            scale = max(float(np.linalg.norm(np.concatenate([rz[self.C], rx[self.S]]))),
+                        np.finfo(float).tiny)
+            for attempt in range(3):
+                uz, ux = self.solver.displacements(fz, fx)
+                ez, ex = np.where(self.C, rz - uz, 0.0), np.where(self.S, rx - ux, 0.0)
+                res = float(np.linalg.norm(np.concatenate([ez[self.C], ex[self.S]]))) / scale
+                if res <= self.tol or attempt == 2:
+                    break
+                dz, dx = solve(ez, ex, "refine", P, w)
+                fz, fx = fz + dz, fx + dx
+            self.worst = max(self.worst, res)
+            out.append((fz, fx, uz))
+        return out
+
+    def _slip_solve(self, rz: np.ndarray, rx: np.ndarray, key: str, P: np.ndarray,
+                    w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The forces with the slip law on P for one right-hand side (:meth:`_solve_many`)."""
+        s = self.solver
+        fz0, fx0, _ = s.solve(rz, rx, key)
+
+        def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            fxs = np.zeros(self.base.shape)
+            fxs[P] = w * t
+            return s.apply_inverse(*s.displacements(self.zero, fxs))
+
+        n = int(P.sum())
+        b = fz0[P]
+
+        def matvec(t: np.ndarray) -> np.ndarray:
+            self.gmres_iterations += 1
+            return t + correction(np.ravel(t))[0][P]
+
+        A = LinearOperator((n, n), matvec=matvec, dtype=float)
+        prev = self._warm.get(key)
+        x0 = prev[0][P] if prev is not None else b
+        bnorm = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
+        # a GMRES that stops short shows in the certified residual of the whole solution
+        t, _ = gmres(A, b, x0=x0, rtol=0.0, atol=0.1 * self.tol * bnorm,
+                     restart=min(n, 50), maxiter=max(20, n))
+        fz1, fx1 = correction(t)
+        fz, fx = fz0 - fz1, fx0 - fx1
+        fx[P] = w * fz[P]
+        self._warm[key] = (fz, fx)
+        return fz, fx
+
+    def _slip_solve_free(self, rz: np.ndarray, rx: np.ndarray, key: str, P: np.ndarray,
+                         w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Matrix-free: GMRES on the whole non-symmetric system, one FFT product per
+        iteration, warm-started from the last solution of the same right-hand side."""
+        C, S = self.C, self.S
+        nc, n = int(C.sum()), int(C.sum() + S.sum())
+
+        def fields(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            fz, fx = np.zeros(self.base.shape), np.zeros(self.base.shape)
+            fz[C] = y[:nc]
+            fx[S] = y[nc:]
+            fx[P] = w * fz[P]
+            return fz, fx
+
+        def matvec(y: np.ndarray) -> np.ndarray:
+            self.gmres_iterations += 1
+            uz, ux = self.solver.displacements(*fields(np.ravel(y)))
+            return np.concatenate([uz[C], ux[S]])
+
+        b = np.concatenate([rz[C], rx[S]])
+        prev = self._warm.get(key)
+        x0 = None if prev is None else np.concatenate([prev[0][C], prev[1][S]])
+        bnorm = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
+        y, _ = gmres(LinearOperator((n, n), matvec=matvec, dtype=float), b, x0=x0, rtol=0.0,
+                     atol=0.1 * self.tol * bnorm, restart=min(n, 200), maxiter=50)
+        self.solver.add_solves(1)
+        fz, fx = fields(y)
+        self._warm[key] = (fz, fx)
+        return fz, fx
+
+    def _solve_direct(self, rhs: list[tuple[np.ndarray, np.ndarray, str]], P: np.ndarray,
+                      w: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """The reference: the non-symmetric system with the slip forces, assembled by dense
+        sums and solved directly (LU)."""
+        s = self.solver
+        s.add_solves(len(rhs))
+        ids = np.concatenate([2 * np.flatnonzero(self.C), 2 * np.flatnonzero(self.S) + 1])
+        A = s.entries(ids, ids)
+        pz = np.flatnonzero(P)
+        cols = np.searchsorted(ids[: int(self.C.sum())], 2 * pz)  # f_z(P) among the unknowns
+        A[:, cols] += s.entries(ids, 2 * pz + 1) * w
+        sites, isx = ids >> 1, (ids & 1).astype(bool)
+        B = np.column_stack([np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
+                             for rz, rx, _ in rhs])
+        Y = linalg.solve(A, B, check_finite=False)
+        out = []
+        for k, (rz, _, _) in enumerate(rhs):
+            fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
+            fz.ravel()[sites[~isx]] = Y[~isx, k]
+            fx.ravel()[sites[isx]] = Y[isx, k]
+            fx[P] = w * fz[P]
+            out.append((fz, fx, s.displacements(fz, fx)[0]))
+        return out
+
+    def depth_at(self, D: float) -> float:
+        """:math:`D_z` at pull displacement ``D``."""
+        return self.d0 + self.d1 * D
+
+    def dx_at(self, D: float) -> float:
+        """:math:`D_x` at the loop's parameter ``D`` (0 when the depth is driven)."""
+        return D if self.drive == "x" else 0.0
+
+    def at(self, D: float):
+        if not math.isfinite(D):
+            raise NumericalError(f"the pull reached a non-finite displacement D_x = {D!r}")
+        if not self.slope and D != 0:
+            raise NumericalError(f"the state at D_x = {D!r} needs its rate (internal error)")
+        fz = self.f0[0] + D * self.f1[0]
+        fx = self.f0[1] + D * self.f1[1]
+        g = self.g0 + D * self.g1
+        return fz, fx, g
+
+    def violation(self, D: float):
+        """The first violation to resolve at D: (kind, flat index) or None."""
+        fz, fx, g = self.at(D)
+        fscale = max(float(np.max(np.abs(fz))), np.finfo(float).tiny)
+        bad = self.C & (fz < -TIE * fscale)
+        if bad.any():
+            return "lost", argext(fz, bad, "min")
+        bad = ~self.C & (g < -TIE * max(self.scale_g, np.finfo(float).tiny))
+        if bad.any():
+            return "gained", argext(g, bad, "min")
+        over = np.zeros(fz.shape)
+        np.divide(np.abs(fx), self.lam * fz, out=over, where=self.S & (fz > 0))
+        over[self.S & (fz <= 0)] = np.inf
+        bad = self.S & (over > 1 + TIE)
+        if bad.any():
+            j = argext(over, bad, "max")
+            return ("slip+" if fx.ravel()[j] > 0 else "slip-"), j
+        return None
+
+    def apply(self, kind: str, j: int, D: float = 0.0) -> None:
+        """Update the sets for an event at site ``j`` at pull displacement ``D``."""
+        C, S = self.C.ravel(), self.S.ravel()
+        if kind == "lost":
+            C[j] = False
+            S[j] = False
+            self.sigma.ravel()[j] = 0.0
+        elif kind == "stick":  # a slipping bond sticks again where it is
+            self._bond_here(j, D)
+            self.sigma.ravel()[j] = 0.0
+        elif kind == "gained":
+            C[j] = True
+            if self.pulling and self.gained == "bonded":
+                self._bond_here(j, D)
+        else:  # a bond fails: it breaks, or slips in the direction of its force (Coulomb)
+            S[j] = False
+            if self.slip_law == "coulomb":
+                self.sigma.ravel()[j] = 1.0 if kind == "slip+" else -1.0
+
+    def _bond_here(self, j: int, D: float) -> None:
+        """Bond site ``j`` at the elastic point where it is at ``D``: its offset makes the
+        bond hold :math:`u_x = D_x + o` from here, so no force jumps."""
+        fz, fx, _ = self.at(D)
+        ux = self.solver.displacements(fz, fx)[1]
+        self.offset.ravel()[j] = ux.ravel()[j] - self.dx_at(D)
+        self.S.ravel()[j] = True
+
+    def reversal(self) -> int | None:
+        r"""A slipping bond whose slip would run against its force, or None: the one that
+        does so most (the lowest flat index among ties).
+
+        A bond slipping with :math:`f_x = \sigma\lambda f_z` lags behind the rigid surface,
+        :math:`\sigma\,(\partial u_x/\partial D - v) \le 0` with :math:`v` the rigid
+        surface's tangential rate (1 in a pull, 0 when the depth is driven). The rate is
+        constant over a
+        state and changes only when the sets change, so a reversal is found at the start of a
+        state, never inside one; such a bond sticks again where it is (its force is
+        continuous: it starts at its bound and moves inwards).
+        """
+        if self.u1x is None:
+            return None
+        P = self.slipping
+        rigid = 1.0 if self.drive == "x" else 0.0  # the rigid surface's tangential rate
+        back = np.where(P, self.sigma * (self.u1x - rigid), -np.inf).ravel()
+        top = float(back.max())
+        if not top > RATE_TIE:
+            return None
+        return int(np.flatnonzero(back >= top - TIE * max(1.0, top))[0])
+
+    def interval(self, D: float) -> tuple[float, float, str, int]:
+        r"""The displacements at which this state is admissible, ``[lo, hi]``, and the event
+        (kind, flat index) that ends it at ``hi``, for a state reached at pull displacement
+        ``D``. A constraint is flat when its change over the displacement scale
+        :math:`\max(D_{\rm scale}, |D|)` is below the tolerance; a violated flat constraint
+        makes the state admissible nowhere (``lo = inf``, ``hi = -inf``).
+
+        Every constraint is affine, :math:`a + bD \ge 0`: :math:`f_z \ge 0` on C,
+        :math:`g \ge 0` off C, :math:`\lambda f_z \mp f_x \ge 0` on S
+        (docs/theory/coupled.rst#coupled).
+        Ties at ``hi`` go to the lowest flat index, then to the kinds in that order.
+        """
+        (fz0, fx0), (fz1, fx1) = self.f0, self.f1
+        lam = self.lam
+        # the scale over which a rate matters: the first event's displacement, or how far the
+        # pull has come (a rate negligible over the first event may not be over the pull)
+        Dref = max(self.Dscale, abs(D))
+        fs = max(float(np.abs(fz0).max()), float(np.abs(fz1).max()) * Dref,
+                 np.finfo(float).tiny)
+        gs = max(self.scale_g, np.finfo(float).tiny)
+        cons = (
+            ("lost", self.C, fz0, fz1, fs),
+            ("gained", ~self.C, self.g0, self.g1, gs),
+            ("slip+", self.S, lam * fz0 - fx0, lam * fz1 - fx1, fs),
+            ("slip-", self.S, lam * fz0 + fx0, lam * fz1 + fx1, fs),
+        )
+        lo, hi, kind, site = -math.inf, math.inf, "", -1
+        for name, mask, a, b, scale in cons:
+            m = mask.ravel()
+            a, b = a.ravel(), b.ravel()
+            tiny = TIE * scale
+            flat = m & (np.abs(b) * Dref <= tiny)
+            if np.any(flat & (a < -tiny)):
+                return math.inf, -math.inf, name, int(np.flatnonzero(flat & (a < -tiny))[0])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                root = -a / b
+            up = m & ~flat & (b < 0)
+            if up.any():
+                r = np.where(up, root, np.inf)
+                v = float(r.min())
+                tol = TIE * max(abs(v), self.Dscale)
+                j = int(np.flatnonzero(up & (r <= v + tol))[0])
+                if v < hi - tol or (abs(v - hi) <= tol and j < site):
+                    hi, kind, site = v, name, j
+            down = m & ~flat & (b > 0)
+            if down.any():
+                lo = max(lo, float(np.where(down, root, -np.inf).max()))
+        return lo, hi, kind, site
+
+    def totals(self, D: float) -> tuple[float, float]:
+        fz, fx, _ = self.at(D)
+        return float(fx.sum()), float(fz.sum())
+
+
+def squeeze_bonded(st: ContactState) -> int:
+    """The squeeze at D_x = 0 with every contact bonded; returns the bonds released.
+
+    First the report's removal of all negative forces at once (the set only shrinks, so this
+    ends), then every remaining violation one at a time, most violated first: a lost contact
+    leaves, a penetrating site enters contact unbonded (bonded it may need a tensile force),
+    an overloaded bond is released. The states at D_x = 0 need no rate in D_x
+    (:attr:`ContactState.slope` is off until the pull).
+    """
+    st.slope = False
+    while True:
+        st.solve(bulk=True)
+        fz, _, _ = st.at(0.0)
+        fscale = max(float(np.abs(fz).max()), np.finfo(float).tiny)
+        neg = st.C & (fz < -TIE * fscale)
+        if not neg.any():
+            break
+        st.C &= ~neg
+        st.S &= ~neg
+        st.sigma[neg] = 0.0
+    st.solve()  # the updated inverse from here on (the bulk passes may have used CG)
+    seen: set[bytes] = set()
+    while (v := st.violation(0.0)) is not None:
+        st.apply(*v)
+        key = hashlib.blake2b(st.C.tobytes() + st.S.tobytes(), digest_size=16).digest()
+        if key in seen:
+            raise NumericalError("coupled squeeze: the contact and stick sets cycle at "
+                                 "D_x = 0 (no admissible state reached)")
+        seen.add(key)
+        st.solve()
+    return int((st.C & ~st.S).sum())
