@@ -352,6 +352,7 @@ def test_a_slow_rate_is_flat_only_on_the_scale_of_the_pull_so_far():
     interval came out empty, [inf, -inf]; the loop then evaluated the state at D = -inf
     (a NaN from 0 x inf). Over the pull so far the gap is not flat: it has been open since
     D = 0.1. A non-finite displacement is an error, never a NaN."""
+    from roughslip.contact.laws import LAWS
     from roughslip.contact.state import ContactState as _State
     from roughslip.errors import NumericalError
 
@@ -359,6 +360,7 @@ def test_a_slow_rate_is_flat_only_on_the_scale_of_the_pull_so_far():
     st.C = np.array([[True, True, False]])
     st.S = np.array([[True, False, False]])
     st.lam, st.Dscale, st.scale_g, st.slope = 0.2, 8.6e-6, 2.0, True
+    st.law = LAWS.get("break")
     st.f0 = (np.array([[0.4, 0.3, 0.0]]), np.array([[0.01, 0.0, 0.0]]))
     st.f1 = (np.array([[0.0, 0.01, 0.0]]), np.array([[0.1, 0.0, 0.0]]))
     st.g0 = np.array([[0.0, 0.0, -1.6e-5]])

@@ -9,8 +9,8 @@ import pytest
 
 from roughslip.analysis.verify import hertz_scene
 from roughslip.contact.analytic import cattaneo_mindlin, mindlin_bonded_punch_stiffness
+from roughslip.contact.bonds import Bonds as _Bonds
 from roughslip.contact.pull import (
-    _Bonds,
     bond_spectrum,
     choose_method,
     coulomb_force_at,

@@ -307,7 +307,8 @@ def collect_bursts(paths: list[str | Path]) -> BurstSample:
             raise InputError(f"{path}: has no pull (pull.enabled = false)")
         if pull.get("slip_law", "break") != "break" or cfg.get("coupling", {}).get("enabled"):
             raise InputError(f"{path}: bursts need the decoupled break law (this run has "
-                             "slip_law = 'coulomb' or coupling.enabled)")
+                             f"slip_law = {pull.get('slip_law', 'break')!r} or "
+                             "coupling.enabled)")
         if "pull_curve" not in cfg.get("output", {}).get("fields", []):
             raise InputError(f"{path}: no pull curves stored; run with 'pull_curve' in "
                              "output.fields")

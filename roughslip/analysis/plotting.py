@@ -11,6 +11,7 @@ import numpy as np
 
 from roughslip.analysis.fit import fit_power_law, quantity
 from roughslip.analysis.summary import axis_unit, length_unit, pixel_size
+from roughslip.contact.laws import LAWS
 from roughslip.errors import InputError, io_failure
 from roughslip.run.store import read_run
 
@@ -331,7 +332,7 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
     coupled = bool(cfg.get("coupling", {}).get("enabled"))
     law = "coupled" if coupled else pull.get("slip_law", "break")
     fig, ax = plt.subplots(figsize=(6, 4.2))
-    what = {"break": "break sequence", "coulomb": "slip events"}.get(law, "events")
+    what = LAWS.get(law).curve if law in LAWS else "events"
     ax.plot(dx, fx, ".", color="0.6", ms=2.5, label=f"{what} $(D_{{x,lim}}, F_{{x,lim}})$")
     i = int(np.argmax(fx))
     if law == "break" and pull.get("method") != "batch":

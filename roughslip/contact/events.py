@@ -40,13 +40,22 @@ class Event:
 
 
 
-def argext(a: np.ndarray, mask: np.ndarray, how: str) -> int:
-    vals = np.where(mask, a, np.inf if how == "min" else -np.inf).ravel()
+def argext(a: np.ndarray, mask: np.ndarray | None, how: str) -> int:
+    """The flat index of the extreme (``how``: ``"min"`` or ``"max"``) of ``a`` over ``mask``
+    (all of ``a`` when None), ties to the lowest index: the package's one tie rule. Values
+    within a relative :data:`TIE` of the extreme tie with it; an infinite extreme ties only
+    with itself."""
+    if mask is None:
+        vals = a.ravel()
+        inside = np.ones(vals.shape, dtype=bool)
+    else:
+        vals = np.where(mask, a, np.inf if how == "min" else -np.inf).ravel()
+        inside = mask.ravel()
     ext = vals.min() if how == "min" else vals.max()
     if not math.isfinite(ext):  # an infinite extreme (a bond with no normal force left)
-        return int(np.flatnonzero((vals == ext) & mask.ravel())[0])
+        return int(np.flatnonzero((vals == ext) & inside)[0])
     close = np.abs(vals - ext) <= TIE * max(abs(ext), np.finfo(float).tiny)
-    return int(np.flatnonzero(close & mask.ravel())[0])
+    return int(np.flatnonzero(close & inside)[0])
 
 
 @dataclass

@@ -42,6 +42,11 @@ class Registry(Generic[T]):
 
         return deco
 
+    def remove(self, name: str) -> None:
+        """Take ``name`` out of the registry (a strategy registered for a test)."""
+        self._items.pop(name)
+        self._summary.pop(name)
+
     def names(self) -> tuple[str, ...]:
         """Registered names, in registration order."""
         return tuple(self._items)

@@ -18,7 +18,9 @@ from scipy import linalg
 from scipy.sparse.linalg import LinearOperator, gmres
 
 from roughslip.contact.events import RATE_TIE, TIE, argext
+from roughslip.contact.laws import LAWS
 from roughslip.errors import NumericalError
+from roughslip.linalg.inverse import refine
 
 
 class ContactState:
@@ -41,6 +43,7 @@ class ContactState:
         self.solver, self.base, self.lam = solver, base, lam
         self.gained = gained
         self.slip_law, self.tol = slip_law, tol
+        self.law = LAWS.get(slip_law, "slip_law")
         #: slip direction of the sites in C but not in S: +-1, a slipping bond carrying
         #: f_x = sigma lam f_z (Coulomb law); 0, no tangential force (a broken bond, or a
         #: contact that never was a bond)
@@ -165,25 +168,30 @@ class ContactState:
         P = self.slipping
         if not P.any():
             return self.solver.solve_many(rhs)
-        w = self.lam * self.sigma[P]
+        w = self.law.carried(self.lam, self.sigma[P])
         if self.solver.reference:
             return self._solve_direct(rhs, P, w)
         solve = self._slip_solve if self.solver.dense else self._slip_solve_free
         out = []
         for rz, rx, key in rhs:
-            fz, fx = solve(rz, rx, key, P, w)
             scale = max(float(np.linalg.norm(np.concatenate([rz[self.C], rx[self.S]]))),
                         np.finfo(float).tiny)
-            for attempt in range(3):
-                uz, ux = self.solver.displacements(fz, fx)
+            last: list[np.ndarray] = []
+
+            def residual(f, rz=rz, rx=rx, scale=scale, last=last):
+                uz, ux = self.solver.displacements(*f)
+                last[:] = [uz]
                 ez, ex = np.where(self.C, rz - uz, 0.0), np.where(self.S, rx - ux, 0.0)
                 res = float(np.linalg.norm(np.concatenate([ez[self.C], ex[self.S]]))) / scale
-                if res <= self.tol or attempt == 2:
-                    break
-                dz, dx = solve(ez, ex, "refine", P, w)
-                fz, fx = fz + dz, fx + dx
+                return (ez, ex), res
+
+            def correct(f, e):
+                dz, dx = solve(*e, "refine", P, w)
+                return f[0] + dz, f[1] + dx
+
+            (fz, fx), res, _ = refine(solve(rz, rx, key, P, w), residual, correct, self.tol, 2)
             self.worst = max(self.worst, res)
-            out.append((fz, fx, uz))
+            out.append((fz, fx, last[0]))
         return out
 
     def _slip_solve(self, rz: np.ndarray, rx: np.ndarray, key: str, P: np.ndarray,
@@ -299,9 +307,7 @@ class ContactState:
         bad = ~self.C & (g < -TIE * max(self.scale_g, np.finfo(float).tiny))
         if bad.any():
             return "gained", argext(g, bad, "min")
-        over = np.zeros(fz.shape)
-        np.divide(np.abs(fx), self.lam * fz, out=over, where=self.S & (fz > 0))
-        over[self.S & (fz <= 0)] = np.inf
+        over = self.law.overload(self.lam, self.S, fz, fx)
         bad = self.S & (over > 1 + TIE)
         if bad.any():
             j = argext(over, bad, "max")
@@ -322,10 +328,9 @@ class ContactState:
             C[j] = True
             if self.pulling and self.gained == "bonded":
                 self._bond_here(j, D)
-        else:  # a bond fails: it breaks, or slips in the direction of its force (Coulomb)
+        else:  # a bond fails: what it carries after is the slip law's
             S[j] = False
-            if self.slip_law == "coulomb":
-                self.sigma.ravel()[j] = 1.0 if kind == "slip+" else -1.0
+            self.sigma.ravel()[j] = self.law.failed_sign(kind)
 
     def _bond_here(self, j: int, D: float) -> None:
         """Bond site ``j`` at the elastic point where it is at ``D``: its offset makes the
@@ -347,7 +352,7 @@ class ContactState:
         state, never inside one; such a bond sticks again where it is (its force is
         continuous: it starts at its bound and moves inwards).
         """
-        if self.u1x is None:
+        if self.u1x is None or not self.law.reverses:
             return None
         P = self.slipping
         rigid = 1.0 if self.drive == "x" else 0.0  # the rigid surface's tangential rate
@@ -369,7 +374,7 @@ class ContactState:
         (docs/theory/coupled.rst#coupled).
         Ties at ``hi`` go to the lowest flat index, then to the kinds in that order.
         """
-        (fz0, fx0), (fz1, fx1) = self.f0, self.f1
+        fz0, fz1 = self.f0[0], self.f1[0]
         lam = self.lam
         # the scale over which a rate matters: the first event's displacement, or how far the
         # pull has come (a rate negligible over the first event may not be over the pull)
@@ -380,8 +385,7 @@ class ContactState:
         cons = (
             ("lost", self.C, fz0, fz1, fs),
             ("gained", ~self.C, self.g0, self.g1, gs),
-            ("slip+", self.S, lam * fz0 - fx0, lam * fz1 - fx1, fs),
-            ("slip-", self.S, lam * fz0 + fx0, lam * fz1 + fx1, fs),
+            *self.law.stick_rows(lam, self.S, self.f0, self.f1, fs),
         )
         lo, hi, kind, site = -math.inf, math.inf, "", -1
         for name, mask, a, b, scale in cons:

@@ -204,7 +204,8 @@ class UpdatableInverse:
         self.ids = np.asarray(ids, dtype=np.int64)
         self.row[self.ids] = np.arange(m)
         self.live = np.ones(m, dtype=bool)
-        self.V = np.zeros((buf.shape[0], self.block), order="F")
+        if not (self.lower and self.V.shape[0] >= m):  # lower: the pending columns shrink too
+            self.V = np.zeros((buf.shape[0], self.block), order="F")
         self.k = 0
 
     # -- factorising ---------------------------------------------------------------------------
@@ -280,7 +281,11 @@ class UpdatableInverse:
         else:
             c = self.buf[: self.m, r].copy()
         if self.k:
-            c += self.V[: self.m, : self.k] @ (self.s[: self.k] * self.V[r, : self.k])
+            V, sgn = self.V[: self.m, : self.k], self.s[: self.k]
+            if self.lower and np.all(sgn == -1.0):  # removals from a definite matrix
+                c -= V @ V[r]
+            else:
+                c += V @ (sgn * V[r])
         self.blas_seconds += time.perf_counter() - t0
         return c
 

@@ -27,8 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from roughslip.contact.laws import LAWS
 from roughslip.contact.pull import METHODS as PULL_METHODS
-from roughslip.contact.pull import SLIP_LAWS, methods_for
+from roughslip.contact.pull import methods_for
 from roughslip.contact.squeeze import METHODS as SQUEEZE_METHODS
 from roughslip.errors import ConfigError
 from roughslip.run import schema
@@ -246,9 +247,7 @@ class PullConfig:
 
     enabled: bool = _f(False, "run the pull stage")
     lam: float = _f(0.2, "local friction coefficient lambda", _positive)
-    slip_law: str = _f("break", "break: a slipped bond carries no force; coulomb: lam f_z "
-                       "(with coupling: as f_z changes, and a bond turned back sticks again)",
-                       choices=SLIP_LAWS)
+    slip_law: str = _f("break", LAWS.describe(), choices=LAWS.names())
     method: str = _f("auto", PULL_METHODS.describe(), choices=PULL_METHODS.names())
     tol: float = _f(1e-10, "relative tolerance of the tangential solves", _tol_rule)
     batch_size: int = _f(16, "sites broken per solve by method = 'batch'", _at_least(1))
@@ -909,6 +908,9 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
     if cfg.coupling.enabled and not cfg.pull.enabled:
         raise ctx.fail("coupling.enabled", True, "needs pull.enabled = true")
     if cfg.pull.enabled and not cfg.coupling.enabled:
+        if not LAWS.get(cfg.pull.slip_law).pull_runs:
+            raise ctx.fail("pull.slip_law", cfg.pull.slip_law,
+                           "has no decoupled pull method; needs coupling.enabled = true")
         laws = methods_for(cfg.pull.slip_law)
         if cfg.pull.method not in laws:
             raise ctx.fail("pull.method", cfg.pull.method,

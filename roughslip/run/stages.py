@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from roughslip.contact.coupled import COUPLED_TOL, couple
+from roughslip.contact.laws import LAWS
 from roughslip.contact.problem import Problem
 from roughslip.contact.pull import SlipResult, pull
 from roughslip.contact.squeeze import NormalResult, NormalSolver
@@ -141,7 +142,7 @@ class _CoupledSample:
             raise NumericalError(f"{where}: {exc}") from None
         if cfg.execution.strict and not r.converged:
             raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
-        failed = "slipping" if r.slip_law == "coulomb" else "released"
+        failed = LAWS.get(r.slip_law).failed
         # one solve gives squeeze and pull: the squeeze has no iteration count of its own, and
         # its time is the part of the solve before the pull starts
         rec = Record(

@@ -1,0 +1,360 @@
+r"""The bonds of a squeezed contact and what every decoupled pull method shares.
+
+After the squeeze every contact site (:math:`f_z > 0`) is a bond; pulled by :math:`D_x`, the
+stick set :math:`S` holds :math:`u_x = D_x` through :math:`G_{xx}[S,S]` (docs/theory/pull.rst).
+:class:`Bonds` holds the sites, :math:`\lambda f_z`, and the tangential operator;
+:func:`bond_inverse` the inverse of :math:`G_{xx}` on them, updated as bonds leave
+(:class:`~roughslip.linalg.inverse.UpdatableInverse` in its lower-triangle layout);
+:func:`certify` checks a tracked solution against the FFT operator with the package's one
+iterative refinement; :class:`BreakCurve` accumulates a break sequence and its peak.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from roughslip.contact.events import argext
+from roughslip.contact.squeeze import NormalResult
+from roughslip.elastic.operators import ElasticOperator
+from roughslip.errors import MemoryLimitError, NumericalError
+from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
+from roughslip.linalg.memory import available_bytes
+from roughslip.linalg.restricted import Restricted
+
+
+@dataclass(frozen=True)
+class SlipResult:
+    r"""Outcome of a pull.
+
+    Attributes
+    ----------
+    friction_force : float
+        :math:`F_{\rm friction} = \max F_{x,\rm lim}` (break law) or :math:`\lambda F_n`
+        (Coulomb law: full sliding).
+    peak_index : int
+        Index of the maximum in the pull curve.
+    dx_lim, fx_lim : ndarray
+        The pull curve: the displacement and pull force at which each bond breaks (break law),
+        or at which each site starts to slip (Coulomb law), in order.
+    broken_site : ndarray of int
+        Flat indices (``iy * nx + ix``) of the sites, in the same order.
+    stick_at_peak : ndarray of bool
+        The stick set just before the peak break.
+    fx_at_peak : ndarray
+        Tangential pixel forces at the peak (:math:`D_x = D_{x,\rm lim}` of the peak state).
+    converged : bool
+        All solves met their tolerance (and, for ``"inverse"``, every certification passed).
+    method : str
+        The method actually used (``"auto"`` resolved).
+    error_estimate : float
+        Estimated relative error of ``friction_force``, NaN when not estimated. With
+        ``pull(..., estimate_error=True)``: ``solve_error_estimate + normal_error_estimate``,
+        the errors of the pull's own solves and of the squeeze's normal forces it starts
+        from. Within a factor 3.2 of the true error on every verify scene. The approximate
+        ``"batch"`` method has none (NaN): its error is a staircase in the batch size that no
+        cheap comparison estimates.
+    solve_error_estimate : float
+        The pull's own part: :func:`refinement_estimate` (one step of iterative refinement
+        on the peak state) for the break law, at the rounding level for ``"inverse"``; 0 for
+        the Coulomb law, whose friction force :math:`\sum_i s_i\lambda f_{z,i}` does not
+        depend on the tangential solves.
+    normal_error_estimate : float
+        The squeeze's part, :func:`normal_share` (how the estimated error of the normal
+        forces moves the friction force).
+    error_bound : float
+        With ``estimate_error=True``: :math:`\hat\kappa\,\rho`, the condition estimate
+        times the worst relative residual ``residual`` (see :func:`bond_spectrum`), an
+        *estimate of a bound* on the relative error of the tangential forces. On the verify
+        scenes it is never below the error of the friction force and up to
+        :math:`7\cdot10^6` times above it; NaN otherwise.
+    condition : float
+        With ``estimate_error=True``: :math:`\hat\kappa`, the Lanczos estimate of the
+        condition number of :math:`G_{xx}` on the initial bonds (the exact value bounds that
+        of every later stick set); NaN otherwise.
+    """
+
+    friction_force: float
+    peak_index: int
+    dx_lim: np.ndarray
+    fx_lim: np.ndarray
+    broken_site: np.ndarray
+    stick_at_peak: np.ndarray
+    fx_at_peak: np.ndarray
+    converged: bool
+    seconds: float
+    method: str
+    slip_law: str = "break"
+    lam: float = 0.2
+    error_estimate: float = math.nan
+    n_bonds: int = 0
+    steps: int = 0
+    early_stopped: bool = False
+    solves: int = 0
+    residual: float = 0.0
+    message: str = ""
+    normal_force: float = 0.0
+    condition: float = math.nan
+    error_bound: float = math.nan
+    solve_error_estimate: float = math.nan
+    normal_error_estimate: float = math.nan
+
+    @property
+    def peak_dx(self) -> float:
+        """Pull displacement at the peak."""
+        return float(self.dx_lim[self.peak_index]) if self.dx_lim.size else 0.0
+
+
+@dataclass(frozen=True)
+class PullOptions:
+    """The settings every pull method reads (validated by :func:`pull`)."""
+
+    slip_law: str = "break"
+    tol: float = 1e-10
+    early_stop: bool = True
+    batch_size: int = 16
+    block: int = 128
+    max_iter: int = 10_000
+    #: BLAS threads of the dense methods
+    threads: int = 1
+
+
+class Bonds:
+    """The bonded sites of a squeezed contact and the tangential operator on the grid."""
+
+    def __init__(self, normal: NormalResult, lam: float, threads: int | None = None):
+        self.normal = normal
+        self.problem = normal.problem
+        self.grid = normal.grid
+        self.shape = normal.grid.shape
+        self.lam = lam
+        self.sites = np.flatnonzero(normal.contact.ravel() & (normal.fz.ravel() > 0))
+        self.n = int(self.sites.size)
+        self.fz = normal.fz.ravel()[self.sites].astype(float)
+        self.cap = lam * self.fz  # lambda f_z per bond
+        op = self.problem.operator("xx")
+        self.op: ElasticOperator = op if threads is None else op.with_threads(threads)
+
+    def apply(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
+        return self.op.apply("xx", v, out=out)
+
+    def restricted(self, positions: np.ndarray | None = None) -> Restricted:
+        """:math:`G_{xx}[S, S]` on the bonds at ``positions`` (all bonds by default)."""
+        mask = self.mask(np.arange(self.n) if positions is None else positions)
+        return Restricted(self.apply, mask)
+
+    def field(self, values: np.ndarray, positions: np.ndarray | None = None) -> np.ndarray:
+        out = np.zeros(self.shape)
+        sites = self.sites if positions is None else self.sites[positions]
+        out.ravel()[sites] = values
+        return out
+
+    def mask(self, positions: np.ndarray) -> np.ndarray:
+        m = np.zeros(self.shape, dtype=bool)
+        m.ravel()[self.sites[positions]] = True
+        return m
+
+    def entries(self, i: np.ndarray, j: np.ndarray, order: str = "F") -> np.ndarray:
+        """:math:`G_{xx}` between the bonds at positions ``i`` and ``j`` (the assembler of
+        :func:`bond_inverse`); all bonds by columns (:meth:`dense_into`)."""
+        n = self.n
+        if i.size == n and j.size == n and np.array_equal(i, np.arange(n)) and \
+                np.array_equal(j, i):
+            return self.dense(order=order)
+        T, w, off = self.op.tables.pair("xx")
+        nx = self.shape[1]
+        li = (lambda s: s[0] * w + s[1])(np.divmod(self.sites[i], nx))
+        lj = (lambda s: s[0] * w + s[1])(np.divmod(self.sites[j], nx))
+        return np.array(T[li[:, None] - lj[None, :] + off], order=order)
+
+    def dense(self, positions: np.ndarray | None = None, order: str = "F") -> np.ndarray:
+        """:math:`G_{xx}[S,S]` assembled from the closed-form kernel."""
+        n = self.n if positions is None else len(positions)
+        A = np.empty((n, n), order=order)
+        return self.dense_into(A, positions)
+
+    def dense_into(self, A: np.ndarray, positions: np.ndarray | None = None) -> np.ndarray:
+        """Fill the Fortran-ordered ``A`` with :math:`G_{xx}[S,S]`, one column at a time.
+
+        The operator's pair table gives one linear index per pair of sites (open or periodic);
+        gathering a column at a time keeps the index vector and the table in cache (six
+        times faster than panels of columns).
+        """
+        nx = self.shape[1]
+        T, w, off = self.op.tables.pair("xx")
+        sites = self.sites if positions is None else self.sites[positions]
+        iy, ix = np.divmod(sites, nx)
+        lin = (iy * w + ix).astype(np.intp)
+        for c in range(sites.size):
+            A[:, c] = T[lin + (off - lin[c])]
+        return A
+
+
+def select(phi: np.ndarray, cap: np.ndarray) -> tuple[int, float]:
+    r"""Position of the next bond to break and the maximum ratio :math:`|\varphi|/(\lambda
+    f_z)` (ties: :func:`~roughslip.contact.events.argext`)."""
+    ratio = np.abs(phi) / cap
+    m = float(ratio.max())
+    if not math.isfinite(m):
+        raise NumericalError("pull: non-finite tangential force ratio")
+    return argext(ratio, None, "max"), m
+
+
+class BreakCurve:
+    """Accumulates the pull curve and the peak state."""
+
+    def __init__(self, bonds: Bonds, early_stop: bool):
+        self.b = bonds
+        self.early_stop = early_stop
+        self.dx: list[float] = []
+        self.fx: list[float] = []
+        self.site: list[int] = []
+        self.best = -math.inf
+        self.peak = 0
+        self.peak_state: tuple[np.ndarray, np.ndarray, float] | None = None
+        self.stopped = False
+
+    def record(self, phi_sum: float, m: float, site_pos: int,
+               stick: Callable[[], tuple[np.ndarray, np.ndarray]]) -> None:
+        r"""Append one break: :math:`D_{x,\rm lim} = 1/m`, :math:`F_{x,\rm lim} =
+        D_{x,\rm lim}\sum\varphi`.
+
+        ``stick()`` returns the stick set (bond positions) and its :math:`\varphi`; it is
+        called only when the step is a new peak."""
+        dx = 1.0 / m
+        flim = phi_sum * dx
+        self.dx.append(dx)
+        self.fx.append(flim)
+        self.site.append(int(self.b.sites[site_pos]))
+        if flim > self.best:
+            self.best = flim
+            self.peak = len(self.fx) - 1
+            pos, phi = stick()
+            self.peak_state = (pos, phi * dx, dx)
+
+    def should_stop(self, cap_sum_after: float) -> bool:
+        """Exact early stop: every later F_x,lim <= lambda * sum of f_z over the stick set."""
+        if self.early_stop and cap_sum_after <= self.best:
+            self.stopped = True
+        return self.stopped
+
+    def result(self, t0: float, method: str, **kw) -> SlipResult:
+        b = self.b
+        if self.peak_state is None:
+            stick, fx = np.zeros(b.shape, bool), np.zeros(b.shape)
+        else:
+            pos, f, _ = self.peak_state
+            stick, fx = b.mask(pos), b.field(f, pos)
+        return SlipResult(
+            friction_force=max(self.best, 0.0), peak_index=self.peak,
+            dx_lim=np.array(self.dx), fx_lim=np.array(self.fx),
+            broken_site=np.array(self.site, dtype=np.int64), stick_at_peak=stick,
+            fx_at_peak=fx, seconds=time.perf_counter() - t0, method=method, lam=b.lam,
+            n_bonds=b.n, steps=len(self.fx), early_stopped=self.stopped,
+            normal_force=b.normal.normal_force, **kw,
+        )
+
+
+def _no_new(ids: np.ndarray) -> np.ndarray:
+    raise AssertionError("the stick set of a pull only shrinks")  # pragma: no cover
+
+
+def bond_inverse(b: Bonds, block: int, threads: int) -> UpdatableInverse:
+    r"""The inverse of :math:`G_{xx}` on all bonds, in the lower-triangle layout of
+    :class:`~roughslip.linalg.inverse.UpdatableInverse` (unknown ``i``: bond position ``i``):
+    one :math:`n \times n` matrix, compacted in place as bonds leave.
+
+    Raises :class:`MemoryLimitError` before allocating when it does not fit
+    (:func:`~roughslip.linalg.inverse.inverse_bytes`), and :class:`NumericalError` when
+    :math:`G_{xx}` on the bonds is not positive definite.
+    """
+    n = b.n
+    need = inverse_bytes(n, lower=True, block=block)
+
+    def room(m: int) -> bool:
+        if need > available_bytes():
+            raise MemoryLimitError(
+                f"the inverse of G_xx on {n} bonds needs ~{need / 2**30:.1f} GiB but "
+                f"{available_bytes() / 2**30:.1f} GiB are available; use pull method 'cg' "
+                "(exact, matrix-free) or 'batch' (approximate)")
+        return True
+
+    inv = UpdatableInverse(b.entries, n, room=room, threads=threads, block=block, lower=True)
+    try:
+        inv.factor(np.arange(n))
+    except NumericalError as exc:
+        raise NumericalError(f"G_xx on the stick set: {exc}") from None
+    return inv
+
+
+def track(inv: UpdatableInverse, name: str, rhs: np.ndarray) -> np.ndarray:
+    """Keep the solution for ``rhs`` (on the rows) current through the removals."""
+    x = inv.apply(rhs)
+    inv.tracked[name] = Tracked(rhs.copy(), x, _no_new)
+    return x
+
+
+class BondRows:
+    r""":math:`\lambda f_z` on the rows of a bond inverse (:func:`bond_inverse`), infinite once
+    the bond has left the stick set, and the count of bonds left: compacted with the
+    inverse."""
+
+    def __init__(self, b: Bonds) -> None:
+        self.cap = b.cap.copy()
+        self.alive = b.n
+
+    def remove(self, inv: UpdatableInverse, row: int) -> None:
+        """Remove the bond of ``row`` from the inverse (its tracked solutions follow)."""
+        if not inv.remove(int(inv.ids[row]), column=inv.column(row)):
+            raise NumericalError("lost positive definiteness in the inverse update")
+        self.cap[row] = math.inf
+        self.alive -= 1
+
+    def fold(self, inv: UpdatableInverse) -> bool:
+        """Once ``block`` removals are pending, fold them in and compact when a quarter of
+        the rows are dead; True when it did (the moment to certify)."""
+        if inv.k < inv.block:
+            return False
+        inv.flush()
+        if self.alive < 0.75 * inv.m:
+            self.cap = self.cap[inv.live]
+            inv.compact()
+        return True
+
+
+def stick_residual(b: Bonds, pos: np.ndarray, v: np.ndarray, rhs: np.ndarray | float
+                   ) -> tuple[np.ndarray, float]:
+    r"""Residual :math:`r = \mathrm{rhs} - G_{xx}[S,S]\,v` on the stick set ``pos`` (bond
+    positions), by the FFT operator, and its norm relative to that of ``rhs``."""
+    u = b.restricted(pos).matvec(v)
+    rhs = np.broadcast_to(np.asarray(rhs, dtype=float), u.shape)
+    r = rhs - u
+    return r, float(np.linalg.norm(r)) / max(float(np.linalg.norm(rhs)), 1e-300)
+
+
+def certify(b: Bonds, inv: UpdatableInverse, name: str, load: np.ndarray | None, tol: float
+            ) -> tuple[float, int]:
+    r"""Check the tracked solution ``name`` against the FFT operator, refining it if needed
+    (:meth:`~roughslip.linalg.inverse.UpdatableInverse.refine`, at most 3 times).
+
+    It must satisfy :math:`(G_{xx} v)_i = 1` on the live bonds (:math:`\varphi`, ``load``
+    None) or :math:`(G_{xx} v)_i = (G_{xx} f_L)_i` for the grid field ``load``
+    :math:`= f_L` of fixed slip forces (:math:`\psi`). Returns the relative residual and the
+    number of refinements.
+    """
+    t, live = inv.tracked[name], inv.live
+    pos = inv.ids[live]
+    rhs = 1.0 if load is None else b.apply(load, np.empty(b.shape)).ravel()[b.sites[pos]]
+
+    def residual(x: np.ndarray) -> tuple[np.ndarray, float]:
+        r, res = stick_residual(b, pos, x[live], rhs)
+        full = np.zeros(inv.m)
+        full[live] = r
+        return full, res
+
+    t.x, res, nref = inv.refine(t.x, residual, tol, 3)
+    return res, nref

@@ -1,0 +1,149 @@
+r"""The break law's pull methods: a bond whose :math:`|f_x|` reaches :math:`\lambda f_z` breaks
+and carries nothing after (docs/theory/pull.rst#break-law; [Report2003] §4.6-4.7 with errata
+T17 and T18).
+
+On the stick set :math:`S`, :math:`G_{xx}[S,S]\,\varphi = 1_S` and :math:`f_x = D_x\varphi`;
+the next bond breaks at :math:`D_{x,\rm lim} = 1/\max_i |\varphi_i|/(\lambda f_{z,i})`. The
+methods differ in how they get :math:`\varphi` for each stick set (:mod:`roughslip.contact.pull`
+lists them).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from roughslip.contact.bonds import (
+    BondRows,
+    Bonds,
+    BreakCurve,
+    PullOptions,
+    SlipResult,
+    bond_inverse,
+    certify,
+    select,
+    stick_residual,
+    track,
+)
+from roughslip.linalg.cg import CGResult, cg
+
+
+def _solve_phi(b: Bonds, alive_pos: np.ndarray, tol: float, x0: np.ndarray | None,
+               max_iter: int) -> tuple[np.ndarray, CGResult]:
+    r""":math:`\varphi` on the stick set: :math:`G_{xx}[S,S]\varphi = 1_S` by CG."""
+    A = b.restricted(alive_pos)
+    x0f = None if x0 is None else b.field(x0, alive_pos)
+    r = cg(A, A.weights, x0=x0f, tol=tol, max_iter=max_iter)
+    return A.gather(r.x), r
+
+
+def _break_literal(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    """The report's algorithm: one CG solve from zero per break, every bond."""
+    return _break_solves(b, opt, t0, warm=False)
+
+
+def _break_cg(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    """Matrix-free exact: one warm-started CG solve per break, with the early stop."""
+    return _break_solves(b, opt, t0, warm=True)
+
+
+def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> SlipResult:
+    """One CG solve per break (cold from zero, or warm from the previous solution)."""
+    tol, max_iter = opt.tol, opt.max_iter
+    method = "cg" if warm else "literal"
+    curve = BreakCurve(b, opt.early_stop and warm)
+    alive = np.arange(b.n)
+    phi = None
+    ok, solves, iters, worst = True, 0, 0, 0.0
+    cap_sum = float(b.cap.sum())
+    while alive.size:
+        phi, r = _solve_phi(b, alive, tol, phi if warm else None, max_iter)
+        solves += 1
+        iters += r.iterations
+        worst = max(worst, r.residual)
+        ok &= r.converged
+        j, m = select(phi, b.cap[alive])
+        curve.record(float(phi.sum()), m, alive[j], lambda a=alive, p=phi: (a.copy(), p))
+        cap_sum -= float(b.cap[alive[j]])
+        if curve.should_stop(cap_sum):
+            break
+        alive = np.delete(alive, j)
+        phi = np.delete(phi, j)
+    return curve.result(t0, method, converged=bool(ok), solves=solves, residual=worst,
+                        message=f"{solves} CG solves, {iters} iterations")
+
+
+def _break_inverse(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    r"""Exact break law on the updated inverse (:func:`~roughslip.contact.bonds.bond_inverse`):
+    :math:`O(n)` per break plus blocked BLAS-3 updates; :math:`\varphi` is certified against
+    the FFT operator after each block."""
+    tol, block = opt.tol, opt.block
+    curve = BreakCurve(b, opt.early_stop)
+    inv = bond_inverse(b, block, opt.threads)
+    track(inv, "phi", np.ones(b.n))
+    rows = BondRows(b)
+    cap_sum = float(b.cap.sum())
+    worst, refinements, ok = 0.0, 0, True
+    while rows.alive:
+        phi, cap, pos = inv.tracked["phi"].x, rows.cap, inv.ids
+        j, m = select(phi, cap)
+        live = np.isfinite(cap)
+        curve.record(float(phi.sum()), m, pos[j],
+                     lambda p=pos, f=phi, lv=live: (p[lv], f[lv]))
+        cap_sum -= float(cap[j])
+        if curve.should_stop(cap_sum) or rows.alive == 1:
+            break
+        rows.remove(inv, j)
+        if rows.fold(inv):
+            res, nref = certify(b, inv, "phi", None, tol)
+            worst, refinements = max(worst, res), refinements + nref
+            ok &= res <= tol
+    if curve.peak_state is not None:  # the state that gives the friction force, certified
+        pos, f, dx = curve.peak_state
+        _, res = stick_residual(b, pos, f / dx, 1.0)
+        worst, ok = max(worst, res), ok and res <= tol
+    return curve.result(t0, "inverse", converged=bool(ok), residual=worst,
+                        solves=refinements,
+                        message=f"{b.n} bonds, block {block}, {refinements} refinements")
+
+
+def _break_batch(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    """Approximate: break the ``batch_size`` largest-ratio bonds per solve (biased low).
+
+    It has no error estimate (``error_estimate`` is NaN). Its error is a staircase in the
+    batch size, not a smooth function of it: on the rough verify scenes one size gives the
+    exact friction force and the next -18 %, so no comparison of batch sizes estimates it
+    (docs/methods.rst#estimates-against-truth).
+    """
+    res = _batch_pass(b, opt, t0, opt.batch_size)
+    return replace(res, error_estimate=math.nan,
+                   message=res.message + "; approximate, no error estimate")
+
+
+def _batch_pass(b: Bonds, opt: PullOptions, t0: float, size: int) -> SlipResult:
+    """One batch pass with ``size`` bonds broken per solve."""
+    tol, max_iter = opt.tol, opt.max_iter
+    curve = BreakCurve(b, opt.early_stop)
+    alive = np.arange(b.n)
+    phi = None
+    ok, solves, worst = True, 0, 0.0
+    cap_sum = float(b.cap.sum())
+    while alive.size:
+        phi, r = _solve_phi(b, alive, tol, phi, max_iter)
+        solves += 1
+        worst = max(worst, r.residual)
+        ok &= r.converged
+        j, m = select(phi, b.cap[alive])
+        curve.record(float(phi.sum()), m, alive[j], lambda a=alive, p=phi: (a.copy(), p))
+        ratio = np.abs(phi) / b.cap[alive]
+        order = np.argsort(-ratio, kind="stable")[:size]
+        cap_sum -= float(b.cap[alive[order]].sum())
+        if curve.should_stop(cap_sum):
+            break
+        keep = np.ones(alive.size, bool)
+        keep[order] = False
+        alive, phi = alive[keep], phi[keep]
+    return curve.result(t0, "batch", converged=bool(ok), solves=solves, residual=worst,
+                        message=f"{solves} CG solves, {size} bonds per solve")

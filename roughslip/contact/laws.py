@@ -1,0 +1,113 @@
+r"""Slip laws: what a bond does once its tangential force reaches its strength.
+
+Every law shares the failure criterion of a stick bond, :math:`|f_x| \le \lambda f_z`: two
+affine constraint rows per stick site, :math:`\lambda f_z - f_x \ge 0` (event ``"slip+"``) and
+:math:`\lambda f_z + f_x \ge 0` (``"slip-"``). A law says the rest:
+
+* **what a failed bond carries**: its slip direction :math:`\sigma` after an event
+  (:meth:`SlipLaw.failed_sign`; 0 for nothing) and the force of a slipping bond,
+  :math:`f_x = w f_z` with :math:`w` from :meth:`SlipLaw.carried`;
+* **its constraint rows** (:meth:`SlipLaw.stick_rows`) and how overloaded a bond is
+  (:meth:`SlipLaw.overload`), which the event loop turns into events;
+* **its reversal rule** (:attr:`SlipLaw.reverses`): whether a slipping bond whose slip the
+  drive would turn around sticks again where it is (event ``"stick"``);
+* **its decoupled pull methods** (:attr:`SlipLaw.pull_runs`, by name of
+  :data:`roughslip.contact.pull.METHODS`).
+
+The laws are registered in :data:`LAWS`, which the configuration reads for the choices and the
+help of ``pull.slip_law``. docs/extending.md says how to add one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from roughslip.contact.breaking import _break_batch, _break_cg, _break_inverse, _break_literal
+from roughslip.contact.methods import Registry
+from roughslip.contact.sliding import _coulomb
+
+#: a constraint row: (event kind, where it applies, value at D = 0, rate in D, force scale)
+Row = tuple[str, np.ndarray, np.ndarray, np.ndarray, float]
+
+
+@dataclass(frozen=True)
+class SlipLaw:
+    """A slip law (module docstring). Subclass it and override what differs.
+
+    Attributes
+    ----------
+    name
+        Its name in :data:`LAWS` and in ``pull.slip_law``.
+    failed
+        What the run's notes call the contact sites without a bond when the pull starts
+        (``"released"``, ``"slipping"``).
+    curve
+        What the plots call its pull curve (``"break sequence"``, ``"slip events"``).
+    reverses
+        A slipping bond whose slip the drive would turn around sticks again.
+    pull_runs
+        Its decoupled pull methods: ``{method name: run(bonds, options, t0)}``.
+    """
+
+    name: str
+    failed: str = "released"
+    curve: str = "events"
+    reverses: bool = False
+    pull_runs: dict[str, Callable] = field(default_factory=dict)
+
+    def failed_sign(self, kind: str) -> float:
+        """The slip direction a bond keeps after the failure event ``kind`` (``"slip+"`` or
+        ``"slip-"``); 0: it carries no tangential force."""
+        return 0.0
+
+    def carried(self, lam: float, sigma: np.ndarray) -> np.ndarray:
+        r""":math:`w` of the slipping bonds with directions ``sigma``: they carry
+        :math:`f_x = w f_z`."""
+        return lam * sigma
+
+    def stick_rows(self, lam: float, S: np.ndarray, f0: tuple[np.ndarray, np.ndarray],
+                   f1: tuple[np.ndarray, np.ndarray], scale: float) -> list[Row]:
+        r"""The constraints of the stick sites ``S`` for forces :math:`f = f^0 + D f^1`
+        (``(f_z, f_x)`` pairs): :math:`\lambda f_z \mp f_x \ge 0`."""
+        (fz0, fx0), (fz1, fx1) = f0, f1
+        return [("slip+", S, lam * fz0 - fx0, lam * fz1 - fx1, scale),
+                ("slip-", S, lam * fz0 + fx0, lam * fz1 + fx1, scale)]
+
+    def overload(self, lam: float, S: np.ndarray, fz: np.ndarray, fx: np.ndarray
+                 ) -> np.ndarray:
+        r""":math:`|f_x|/(\lambda f_z)` on the stick sites ``S`` (infinite where
+        :math:`f_z \le 0`), 0 elsewhere: above 1 a bond is overloaded."""
+        over = np.zeros(fz.shape)
+        np.divide(np.abs(fx), lam * fz, out=over, where=S & (fz > 0))
+        over[S & (fz <= 0)] = np.inf
+        return over
+
+
+@dataclass(frozen=True)
+class BreakLaw(SlipLaw):
+    """The report's law: a failed bond breaks and carries nothing after."""
+
+
+@dataclass(frozen=True)
+class CoulombLaw(SlipLaw):
+    r"""Coulomb friction: a failed bond slips in the direction of its force, carrying
+    :math:`f_x = \sigma\lambda f_z` as :math:`f_z` changes, and sticks again where it is
+    when the drive would turn its slip around."""
+
+    def failed_sign(self, kind: str) -> float:
+        return 1.0 if kind == "slip+" else -1.0
+
+
+#: the slip laws, by name (the configuration's ``pull.slip_law``)
+LAWS: Registry[SlipLaw] = Registry("slip law")
+
+LAWS.register("break", "a failed bond carries no force (the report's law)")(BreakLaw(
+    "break", failed="released", curve="break sequence",
+    pull_runs={"literal": _break_literal, "inverse": _break_inverse, "cg": _break_cg,
+               "batch": _break_batch}))
+LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(
+    "coulomb", failed="slipping", curve="slip events", reverses=True,
+    pull_runs={"inverse": _coulomb}))

@@ -1,0 +1,126 @@
+"""Slip laws as registry entries: a law defined here, kinetic friction, runs through the
+coupled model and the indentation with no change to the package."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from roughslip.contact.coupled import couple, indent
+from roughslip.contact.laws import LAWS, CoulombLaw
+from roughslip.contact.problem import Problem
+from roughslip.contact.pull import pull
+from roughslip.contact.squeeze import squeeze
+from roughslip.elastic.operators import Grid, Material
+from roughslip.errors import InputError
+from roughslip.surfaces.synthetic import sample_rng, self_affine
+
+
+@dataclass(frozen=True)
+class KineticLaw(CoulombLaw):
+    r"""Static and kinetic friction: a bond fails at :math:`|f_x| = \lambda f_z` and then
+    slips carrying :math:`\sigma\lambda_k f_z`, :math:`\lambda_k = r\lambda` (the limit of a
+    slip-weakening law whose weakening length goes to zero)."""
+
+    ratio: float = 1.0
+
+    def carried(self, lam: float, sigma: np.ndarray) -> np.ndarray:
+        return (self.ratio * lam) * sigma
+
+
+@pytest.fixture
+def kinetic():
+    """Register kinetic laws at r = 1 and r = 0.6 for one test."""
+    names = {"kinetic-1": 1.0, "kinetic-0.6": 0.6}
+    for name, ratio in names.items():
+        LAWS.register(name, f"kinetic friction, lam_k = {ratio} lam")(
+            KineticLaw(name, failed="slipping", curve="slip events", reverses=True,
+                       ratio=ratio))
+    yield names
+    for name in names:
+        LAWS.remove(name)
+
+
+def _problem(n: int = 24, nu: float = 0.25, seed: int = 4) -> Problem:
+    h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(seed, 0))
+    return Problem(h, Grid((n, n), 1.0), Material(1.0, nu))
+
+
+def _same(a, b) -> None:
+    for name in ("dx", "fx", "fz", "dz"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+    assert [e.kind for e in a.events] == [e.kind for e in b.events]
+    assert [e.site for e in a.events] == [e.site for e in b.events]
+    for name in ("fz0", "fx0", "fz_peak", "fx_peak"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+
+
+def test_a_registered_law_at_its_coulomb_limit_gives_the_coulomb_numbers(kinetic):
+    """The law reaches the coupled model through the registry alone: at r = 1 the results
+    are the Coulomb law's, bit for bit, event for event."""
+    p = _problem()
+    _same(couple(p, depth=1.2, lam=0.3, slip_law="kinetic-1"),
+          couple(p, depth=1.2, lam=0.3, slip_law="coulomb"))
+
+
+def test_a_registered_law_matches_the_dense_reference_and_its_own_bound(kinetic):
+    """At r = 0.6: the updated inverse against the reference (every state factorised afresh,
+    displacements by dense sums), and every slipping bond carries exactly
+    sigma 0.6 lam f_z in every recorded state."""
+    p = _problem(n=20)
+    lam = 0.3
+    ref = couple(p, depth=1.2, lam=lam, slip_law="kinetic-0.6", method="dense",
+                 reference=True, record_states=True)
+    fast = couple(p, depth=1.2, lam=lam, slip_law="kinetic-0.6", method="dense",
+                  record_states=True)
+    assert [e.kind for e in fast.events] == [e.kind for e in ref.events]
+    assert fast.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
+    np.testing.assert_allclose(fast.fx, ref.fx, rtol=1e-7, atol=1e-9 * np.abs(ref.fx).max())
+    kinds = {e.kind for e in fast.events}
+    assert {"slip+"} <= kinds
+    slipping = 0
+    for (_, fz, fx, _, C, S) in fast.states:
+        P = C & ~S & (fx != 0)
+        slipping += int(P.sum())
+        np.testing.assert_allclose(np.abs(fx[P]), 0.6 * lam * fz[P], rtol=1e-12)
+        assert np.all(np.abs(fx[S]) <= lam * fz[S] * (1 + 1e-8) + 1e-12)
+    assert slipping > 0
+    # a weaker slip force than Coulomb's: less friction at the peak on this scene
+    coul = couple(p, depth=1.2, lam=lam, slip_law="coulomb", method="dense")
+    assert fast.friction_force < coul.friction_force
+
+
+def test_a_registered_law_drives_the_indentation(kinetic):
+    """The frictional indentation runs the same law; at r = 1 it is the Coulomb one."""
+    n = 64
+    x = np.arange(n) - n / 2 + 0.5
+    h = np.tile(-(x**2) / (2 * 400.0), (1, 1))
+    p = Problem(h, Grid((1, n), 1.0, boundary="periodic"), Material(1.0, 0.3))
+    a = indent(p, depth=0.3, lam=0.3, slip_law="kinetic-1")
+    b = indent(p, depth=0.3, lam=0.3, slip_law="coulomb")
+    assert a.fx.tobytes() == b.fx.tobytes() and a.fz.tobytes() == b.fz.tobytes()
+    assert a.slip_law == "kinetic-1"
+
+
+def test_a_law_without_decoupled_methods_says_so(kinetic):
+    """The decoupled pull has no method for the new law: a one-line error naming them."""
+    normal = squeeze(_problem(n=16).heights, depth=1.0, nu=0.25)
+    with pytest.raises(InputError, match=r"slip_law = 'kinetic-0.6' has no exact decoupled "
+                                         r"pull method; use the coupled model"):
+        pull(normal, slip_law="kinetic-0.6")
+    with pytest.raises(InputError, match=r"slip_law = 'nope': unknown slip law; choose one "
+                                         r"of break, coulomb"):
+        pull(normal, slip_law="nope")
+
+
+def test_the_configuration_offers_the_registered_laws():
+    """``pull.slip_law`` takes its choices and help from the registry."""
+    import dataclasses
+
+    from roughslip.run.config import PullConfig
+
+    meta = {f.name: f.metadata for f in dataclasses.fields(PullConfig)}["slip_law"]
+    assert meta["choices"] == LAWS.names() == ("break", "coulomb")
+    assert LAWS.summary("coulomb") in meta["doc"]
