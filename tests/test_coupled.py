@@ -622,3 +622,22 @@ def test_the_dense_solver_refines_when_its_residual_is_above_tol():
     assert ref.converged and not tight.converged
     assert tight.friction_force == pytest.approx(ref.friction_force, rel=1e-12)
     assert tight.residual < 1e-15
+
+
+def test_the_coupled_squeeze_under_load_honours_the_squeeze_method():
+    """Under load control the starting contact set comes from the frictionless squeeze by
+    the chosen method; the coupled squeeze corrects it exactly, so both methods give the same
+    answer to the solver's tolerance, and an unknown method is an error that names it."""
+    from roughslip.contact.coupled import couple
+    from roughslip.contact.problem import Problem
+    from roughslip.elastic.operators import Grid, Material
+
+    h = self_affine((20, 20), hurst=0.8, rms_height=1.0, rng=sample_rng(2, 0))
+    p = Problem(h, Grid((20, 20), 1.0), Material(1.0, 0.25))
+    pk = couple(p, force=6.0, lam=0.2, squeeze_method="pk")
+    act = couple(p, force=6.0, lam=0.2, squeeze_method="active-set")
+    assert act.friction_force == pytest.approx(pk.friction_force, rel=1e-9)
+    assert act.normal_force == pytest.approx(6.0, rel=1e-10)
+    assert np.array_equal(act.contact0, pk.contact0)
+    with pytest.raises(InputError, match="method = 'nope': unknown squeeze method"):
+        couple(p, force=6.0, lam=0.2, squeeze_method="nope")

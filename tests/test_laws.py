@@ -124,3 +124,25 @@ def test_the_configuration_offers_the_registered_laws():
     meta = {f.name: f.metadata for f in dataclasses.fields(PullConfig)}["slip_law"]
     assert meta["choices"] == LAWS.names() == ("break", "coulomb")
     assert LAWS.summary("coulomb") in meta["doc"]
+
+
+def test_the_pull_and_the_coupled_model_share_their_curve_and_peak_names():
+    """Both results give the same curve type (D_x, F_x, F_z, D_z, kind, site per event) and
+    the same peak fields; at nu = 1/2 the Coulomb curves are the same events."""
+    p = _problem(n=20, nu=0.5)
+    c = couple(p, depth=1.2, lam=0.3, slip_law="coulomb")
+    normal = squeeze(p.heights, depth=1.2, nu=0.5, tol=1e-13)
+    d = pull(normal, lam=0.3, slip_law="coulomb", tol=1e-13)
+    cc, dc = c.curve, d.curve
+    assert type(cc) is type(dc)
+    assert cc.kind[0] == "start" and set(cc.kind[1:]) <= {"slip+", "slip-"}
+    assert dc.kind == cc.kind[1:]
+    np.testing.assert_array_equal(dc.site, cc.site[1:])
+    np.testing.assert_allclose(dc.dx, cc.dx[1:], rtol=1e-7)
+    np.testing.assert_allclose(dc.fx, cc.fx[1:], rtol=1e-7)
+    np.testing.assert_allclose(dc.fz, cc.fz[1:], rtol=1e-7)
+    for name in ("friction_force", "peak_dx", "fx_peak", "stick_peak", "fx_at_peak",
+                 "stick_at_peak", "normal_force_at_peak"):
+        assert hasattr(c, name) and hasattr(d, name), name
+    broken = pull(normal, lam=0.3).curve
+    assert set(broken.kind) == {"break"} and np.all(np.isnan(broken.dz))

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from roughslip.contact.events import argext
+from roughslip.contact.events import Curve, argext
 from roughslip.contact.squeeze import NormalResult
 from roughslip.elastic.operators import ElasticOperator
 from roughslip.errors import MemoryLimitError, NumericalError
@@ -102,11 +102,38 @@ class SlipResult:
     error_bound: float = math.nan
     solve_error_estimate: float = math.nan
     normal_error_estimate: float = math.nan
+    #: the kind of each event of the curve (``"slip+"``, ``"slip-"``, ``"stick"``; empty for
+    #: the break law's sequence, whose events are all breaks)
+    kinds: tuple[str, ...] = ()
 
     @property
     def peak_dx(self) -> float:
         """Pull displacement at the peak."""
         return float(self.dx_lim[self.peak_index]) if self.dx_lim.size else 0.0
+
+    @property
+    def fx_peak(self) -> np.ndarray:
+        """:attr:`fx_at_peak`, by the coupled model's name."""
+        return self.fx_at_peak
+
+    @property
+    def stick_peak(self) -> np.ndarray:
+        """:attr:`stick_at_peak`, by the coupled model's name."""
+        return self.stick_at_peak
+
+    @property
+    def normal_force_at_peak(self) -> float:
+        """:math:`F_z` at the peak: the squeeze's, which the decoupled pull does not move."""
+        return self.normal_force
+
+    @property
+    def curve(self) -> Curve:
+        """The pull curve in the vocabulary of the coupled model (:class:`Curve`): one entry
+        per event, kind ``"break"`` under the break law; :math:`D_z` is not followed (NaN)."""
+        n = self.dx_lim.size
+        kinds = self.kinds if len(self.kinds) == n else ("break",) * n
+        return Curve(self.dx_lim.copy(), self.fx_lim.copy(), np.full(n, self.normal_force),
+                     np.full(n, math.nan), tuple(kinds), self.broken_site.copy())
 
 
 @dataclass(frozen=True)
@@ -121,6 +148,9 @@ class PullOptions:
     max_iter: int = 10_000
     #: BLAS threads of the dense methods
     threads: int = 1
+    #: the slip law itself (:data:`roughslip.contact.laws.LAWS`), for the methods that run
+    #: every law
+    law: object = None
 
 
 class Bonds:
@@ -336,19 +366,22 @@ def stick_residual(b: Bonds, pos: np.ndarray, v: np.ndarray, rhs: np.ndarray | f
     return r, float(np.linalg.norm(r)) / max(float(np.linalg.norm(rhs)), 1e-300)
 
 
-def certify(b: Bonds, inv: UpdatableInverse, name: str, load: np.ndarray | None, tol: float
-            ) -> tuple[float, int]:
+def certify(b: Bonds, inv: UpdatableInverse, name: str, load: np.ndarray | None, tol: float,
+            shift: np.ndarray | None = None) -> tuple[float, int]:
     r"""Check the tracked solution ``name`` against the FFT operator, refining it if needed
     (:meth:`~roughslip.linalg.inverse.UpdatableInverse.refine`, at most 3 times).
 
     It must satisfy :math:`(G_{xx} v)_i = 1` on the live bonds (:math:`\varphi`, ``load``
     None) or :math:`(G_{xx} v)_i = (G_{xx} f_L)_i` for the grid field ``load``
-    :math:`= f_L` of fixed slip forces (:math:`\psi`). Returns the relative residual and the
-    number of refinements.
+    :math:`= f_L` of fixed slip forces (:math:`\psi`), minus ``shift`` (per bond position:
+    the offsets of bonds that stuck again). Returns the relative residual and the number of
+    refinements.
     """
     t, live = inv.tracked[name], inv.live
     pos = inv.ids[live]
     rhs = 1.0 if load is None else b.apply(load, np.empty(b.shape)).ravel()[b.sites[pos]]
+    if shift is not None and np.any(shift[pos]):
+        rhs = rhs - shift[pos]
 
     def residual(x: np.ndarray) -> tuple[np.ndarray, float]:
         r, res = stick_residual(b, pos, x[live], rhs)

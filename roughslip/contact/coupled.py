@@ -61,7 +61,15 @@ from roughslip.contact.blocksolvers import (  # noqa: F401  (the coupled model's
     dense_memory_bytes,
     make_solver,
 )
-from roughslip.contact.events import Event, EventPath, Snapshot, follow_events
+from roughslip.contact.events import (  # noqa: F401  (TIE, RATE_TIE: public here too)
+    RATE_TIE,
+    TIE,
+    Curve,
+    Event,
+    EventPath,
+    Snapshot,
+    follow_events,
+)
 from roughslip.contact.problem import Problem, finite
 from roughslip.contact.pull import check_friction
 from roughslip.contact.state import ContactState, squeeze_bonded
@@ -133,6 +141,22 @@ class CoupledResult:
     def dz(self) -> np.ndarray:
         return np.array([e.dz for e in self.events])
 
+    @property
+    def curve(self) -> Curve:
+        """The pull curve (:class:`~roughslip.contact.events.Curve`), as the decoupled pull's
+        :attr:`~roughslip.contact.bonds.SlipResult.curve`."""
+        return Curve.of(self.events)
+
+    @property
+    def fx_at_peak(self) -> np.ndarray:
+        """:attr:`fx_peak`, by the decoupled pull's name."""
+        return self.fx_peak
+
+    @property
+    def stick_at_peak(self) -> np.ndarray:
+        """:attr:`stick_peak`, by the decoupled pull's name."""
+        return self.stick_peak
+
 
 #: the largest tolerance a run gives the coupled model (``pull.tol``, at most this)
 COUPLED_TOL = 1e-10
@@ -175,13 +199,13 @@ def _check_finite(where: str, **fields: np.ndarray) -> None:
             raise NumericalError(f"{where}: non-finite {name}")
 
 
-def _initial_contact(problem: Problem, force: float) -> np.ndarray:
+def _initial_contact(problem: Problem, force: float, method: str = "pk") -> np.ndarray:
     """A starting contact set for a squeeze to ``force``: the geometric overlap at the depth
-    the frictionless squeeze needs for that force, widened by 10 %. The set is then corrected
-    by the same removals and additions as under displacement control."""
+    the frictionless squeeze (by ``method``) needs for that force, widened by 10 %. The set is
+    then corrected by the same removals and additions as under displacement control."""
     from roughslip.contact.squeeze import NormalSolver
 
-    r = NormalSolver(problem, tol=1e-8).solve(force=force)
+    r = NormalSolver(problem, method=method, tol=1e-8).solve(force=force)
     return problem.overlap(1.1 * r.depth + 1e-12 * max(problem.grid.a, 1.0)) > 0
 
 
@@ -200,6 +224,7 @@ def couple(
     max_events: int | None = None,
     reference: bool = False,
     record_states: bool = False,
+    squeeze_method: str = "pk",
 ) -> CoupledResult:
     r"""Squeeze a problem with bonded contacts and pull it with the coupled model until every
     bond has broken (module docstring; [Report2003] §6.1 with errata T25 and T26).
@@ -246,13 +271,18 @@ def couple(
         With ``dense``: also compute displacements by dense sums (no FFT at all).
     record_states : bool
         Keep the full state at every event (for checks on small grids).
+    squeeze_method : str
+        The frictionless squeeze (a name of :data:`roughslip.contact.squeeze.METHODS`) that
+        finds the starting contact set under load control, at tolerance 1e-8; the coupled
+        squeeze then corrects that set exactly.
 
     Returns
     -------
     CoupledResult
     """
     t0 = time.perf_counter()
-    geo = _check_couple(problem, depth, force, lam, pull_control, gained, slip_law)
+    geo = _check_couple(problem, depth, force, lam, pull_control, gained, slip_law,
+                        squeeze_method)
     depth = None if depth is None else finite(depth, "depth")
     force = None if force is None else finite(force, "force")
     if not geo.any():
@@ -306,7 +336,8 @@ def couple(
 
 
 def _check_couple(problem: Problem, depth: float | None, force: float | None, lam: float,
-                  pull_control: str, gained: str, slip_law: str) -> np.ndarray:
+                  pull_control: str, gained: str, slip_law: str, squeeze_method: str = "pk"
+                  ) -> np.ndarray:
     """Validate the arguments of :func:`couple`; returns the starting contact set."""
     check_friction(lam, slip_law)
     if (depth is None) == (force is None):
@@ -320,7 +351,9 @@ def _check_couple(problem: Problem, depth: float | None, force: float | None, la
     force = finite(force, "force")
     if force < 0:
         raise InputError(f"force = {force:g}: must be >= 0")
-    return _initial_contact(problem, force) if force > 0 else np.zeros(problem.shape, bool)
+    if force == 0:
+        return np.zeros(problem.shape, bool)
+    return _initial_contact(problem, force, squeeze_method)
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -40,6 +40,27 @@ class Event:
 
 
 
+@dataclass(frozen=True)
+class Curve:
+    """A pull curve, one entry per event: the vocabulary the decoupled pull
+    (:attr:`roughslip.contact.bonds.SlipResult.curve`) and the coupled model
+    (:attr:`roughslip.contact.coupled.CoupledResult.curve`) share."""
+
+    dx: np.ndarray  # D_x
+    fx: np.ndarray  # F_x, the total tangential force
+    fz: np.ndarray  # F_z, the total normal force at the same D_x
+    dz: np.ndarray  # D_z (NaN where the model does not follow it)
+    kind: tuple[str, ...]  # "start", "break", "slip+", "slip-", "stick", "lost", "gained"
+    site: np.ndarray  # flat index of the event's site (-1: none)
+
+    @classmethod
+    def of(cls, events: list[Event]) -> Curve:
+        return cls(np.array([e.dx for e in events]), np.array([e.fx for e in events]),
+                   np.array([e.fz for e in events]), np.array([e.dz for e in events]),
+                   tuple(e.kind for e in events),
+                   np.array([e.site for e in events], dtype=np.int64))
+
+
 def argext(a: np.ndarray, mask: np.ndarray | None, how: str) -> int:
     """The flat index of the extreme (``how``: ``"min"`` or ``"max"``) of ``a`` over ``mask``
     (all of ``a`` when None), ties to the lowest index: the package's one tie rule. Values
@@ -58,17 +79,53 @@ def argext(a: np.ndarray, mask: np.ndarray | None, how: str) -> int:
     return int(np.flatnonzero(close & inside)[0])
 
 
+def event_table(cons, D: float, Dref: float, Dscale: float
+                ) -> tuple[float, float, str, int]:
+    r"""The interval ``[lo, hi]`` of the drive on which every constraint row holds, and the
+    event (kind, index) that ends it at ``hi``.
+
+    ``cons`` lists rows ``(kind, mask, a, b, scale)``: :math:`a + bD \ge 0` where ``mask``.
+    A row is flat when its change over ``Dref`` is below ``TIE x scale``; a violated flat row
+    makes the state admissible nowhere (``lo = inf``, ``hi = -inf``). Ties at ``hi`` (within
+    a relative ``TIE`` of ``max(|hi|, Dscale)``) go to the lowest index, then to the earlier
+    row kind.
+    """
+    lo, hi, kind, site = -math.inf, math.inf, "", -1
+    for name, mask, a, b, scale in cons:
+        m = mask.ravel()
+        a, b = a.ravel(), b.ravel()
+        tiny = TIE * scale
+        flat = m & (np.abs(b) * Dref <= tiny)
+        if np.any(flat & (a < -tiny)):
+            return math.inf, -math.inf, name, int(np.flatnonzero(flat & (a < -tiny))[0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            root = -a / b
+        up = m & ~flat & (b < 0)
+        if up.any():
+            r = np.where(up, root, np.inf)
+            v = float(r.min())
+            tol = TIE * max(abs(v), Dscale)
+            j = int(np.flatnonzero(up & (r <= v + tol))[0])
+            if v < hi - tol or (abs(v - hi) <= tol and j < site):
+                hi, kind, site = v, name, j
+        down = m & ~flat & (b > 0)
+        if down.any():
+            lo = max(lo, float(np.where(down, root, -np.inf).max()))
+    return lo, hi, kind, site
+
+
 @dataclass
 class Snapshot:
-    """The state at one displacement: totals and fields."""
+    """The state at one displacement: totals and fields (the fields are None for a state that
+    keeps none: the decoupled pull's, whose result is the state at full sliding)."""
 
     fx_total: float
     fz_total: float
     dx: float
-    fz: np.ndarray
-    fx: np.ndarray
-    stick: np.ndarray
-    contact: np.ndarray
+    fz: np.ndarray | None
+    fx: np.ndarray | None
+    stick: np.ndarray | None
+    contact: np.ndarray | None
 
     @classmethod
     def of(cls, st: ContactState, D: float) -> Snapshot:
@@ -90,11 +147,43 @@ class EventPath:
     counts: list[tuple[int, int]] = field(default_factory=list)
 
 
-def follow_events(st: ContactState, limit: int, record_states: bool, end: float = math.inf
+class EventState(Protocol):
+    """What :func:`follow_events` asks of a state: the coupled model's
+    :class:`~roughslip.contact.state.ContactState` and the decoupled pull's
+    :class:`~roughslip.contact.sliding.TangentialState` implement it. Sites are flat grid
+    indices."""
+
+    C: np.ndarray  # contact sites (bool grid)
+    S: np.ndarray  # stick sites (bool grid)
+    Dscale: float  # the displacement scale of the tolerances (set from the first event)
+    pulling: bool  # set when the drive starts
+
+    def interval(self, D: float) -> tuple[float, float, str, int]: ...
+
+    def violation(self, D: float) -> tuple[str, int] | None: ...
+
+    def reversal(self) -> int | None: ...
+
+    def apply(self, kind: str, j: int, D: float = 0.0) -> None: ...
+
+    def solve(self) -> None: ...
+
+    def at(self, D: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+    def totals(self, D: float) -> tuple[float, float]: ...
+
+    def snapshot(self, D: float) -> Snapshot: ...
+
+    def dx_at(self, D: float) -> float: ...
+
+    def depth_at(self, D: float) -> float: ...
+
+
+def follow_events(st: EventState, limit: int, record_states: bool, end: float = math.inf
                   ) -> EventPath:
     """Follow the events from D = 0 (module docstring): for a pull until no bond is left, for
     a driven depth (:func:`~roughslip.contact.coupled.indent`) until ``end``."""
-    path = EventPath([], [] if record_states else None, Snapshot.of(st, 0.0))
+    path = EventPath([], [] if record_states else None, st.snapshot(0.0))
 
     def record(D: float, kind: str, site: int) -> None:
         F_x, F_z = st.totals(D)
@@ -160,7 +249,7 @@ def follow_events(st: ContactState, limit: int, record_states: bool, end: float 
         record(at, kind, j)
         F_x, _ = st.totals(at)
         if F_x > path.peak.fx_total:
-            path.peak = Snapshot.of(st, at)
+            path.peak = st.snapshot(at)
         st.apply(kind, j, at)
         st.solve()
     return path

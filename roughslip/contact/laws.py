@@ -27,7 +27,7 @@ import numpy as np
 
 from roughslip.contact.breaking import _break_batch, _break_cg, _break_inverse, _break_literal
 from roughslip.contact.methods import Registry
-from roughslip.contact.sliding import _coulomb
+from roughslip.contact.sliding import slide
 
 #: a constraint row: (event kind, where it applies, value at D = 0, rate in D, force scale)
 Row = tuple[str, np.ndarray, np.ndarray, np.ndarray, float]
@@ -110,4 +110,4 @@ LAWS.register("break", "a failed bond carries no force (the report's law)")(Brea
                "batch": _break_batch}))
 LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(
     "coulomb", failed="slipping", curve="slip events", reverses=True,
-    pull_runs={"inverse": _coulomb}))
+    pull_runs={"inverse": slide}))

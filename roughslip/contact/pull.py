@@ -48,6 +48,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from roughslip.contact.bonds import Bonds, BreakCurve, PullOptions, SlipResult
+from roughslip.contact.events import TIE
 from roughslip.contact.laws import LAWS
 from roughslip.contact.methods import Registry
 from roughslip.contact.pull_estimates import (  # noqa: F401  (public here too)
@@ -66,6 +67,9 @@ from roughslip.linalg.threads import blas_threads
 #: the slip laws' names when this module was loaded (:data:`roughslip.contact.laws.LAWS` is
 #: the registry)
 SLIP_LAWS = LAWS.names()
+#: deprecated: the tie rule is :func:`roughslip.contact.events.argext` with
+#: :data:`roughslip.contact.events.TIE`
+TIE_TOL = TIE
 
 
 @dataclass(frozen=True)
@@ -98,12 +102,16 @@ def inverse_memory_bytes(n: int, block: int = 128) -> int:
 def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
     """Pull force :math:`Q(D_x)` on the exact piecewise-linear Coulomb curve.
 
-    Before the first slip event :math:`Q = K D_x` with the full-stick stiffness.
+    Before the first slip event :math:`Q = K D_x` with the full-stick stiffness. The states
+    of an avalanche are recorded at their own limits, below the drive that set it off; the
+    curve under a monotone drive is the envelope of the events not passed by the drive.
     """
-    if result.slip_law != "coulomb":
-        raise InputError("coulomb_force_at needs a Coulomb-law result")
-    xs = np.concatenate([[0.0], result.dx_lim])
-    ys = np.concatenate([[0.0], result.fx_lim])
+    if result.slip_law == "break":
+        raise InputError("coulomb_force_at needs a result of a law whose bonds slip")
+    x, y = result.dx_lim, result.fx_lim
+    keep = x >= np.maximum.accumulate(x) if x.size else np.zeros(0, bool)
+    xs = np.concatenate([[0.0], x[keep]])
+    ys = np.concatenate([[0.0], y[keep]])
     return np.interp(dx, xs, ys, right=result.friction_force)
 
 
@@ -216,7 +224,7 @@ def pull(
         raise InputError(f"threads = {threads!r}: must be >= 1")
     opt = PullOptions(slip_law=slip_law, tol=float(tol), early_stop=bool(early_stop),
                       batch_size=int(batch_size), block=int(block), max_iter=int(max_iter),
-                      threads=threads)
+                      threads=threads, law=LAWS.get(slip_law))
     b = Bonds(normal, float(lam))
     if b.n == 0:
         return BreakCurve(b, early_stop).result(t0, method, converged=True,

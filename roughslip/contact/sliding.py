@@ -1,6 +1,24 @@
-r"""The decoupled Coulomb pull: a bond whose :math:`|f_x|` reaches :math:`\lambda f_z` slips,
-carrying :math:`f_x = \pm\lambda f_z` (docs/theory/pull.rst; for a Hertz contact this is
-Cattaneo–Mindlin, docs/methods.rst#cattaneo-mindlin).
+r"""The decoupled pull as a state of the event loop: every slip law on the bonds of a squeeze
+(docs/theory/pull.rst; for a Hertz contact under the Coulomb law this is Cattaneo–Mindlin,
+docs/methods.rst#cattaneo-mindlin).
+
+The normal forces are those of the squeeze and do not change. With the stick set :math:`S` and
+the slipping set :math:`L`, whose bonds carry fixed forces :math:`f_L = w f_z` (the slip law's
+:meth:`~roughslip.contact.laws.SlipLaw.carried`; nothing under the break law), the stick forces
+are affine in the pull:
+
+.. math:: f_S = D\,\varphi - \psi, \qquad G_{SS}\varphi = 1_S, \qquad
+          G_{SS}\psi = G_{SL} f_L - o_S,
+
+with :math:`o` the offsets of bonds that stuck again. When bond :math:`k` fails,
+:math:`\varphi \leftarrow \varphi - c\,\varphi_k/c_k` and
+:math:`\psi \leftarrow \psi - c\,(\psi_k + f_{L,k})/c_k` (:math:`c` the column of
+:math:`G_{SS}^{-1}`), in :math:`O(n)` on the updated inverse
+(:func:`~roughslip.contact.bonds.bond_inverse`); both are certified against the FFT operator
+after each block. The events, the avalanches at constant drive and the reversal rule are the
+event loop's (:func:`~roughslip.contact.events.follow_events`), the same as in the coupled
+model. A bond that sticks again (rare: none on the rough test scenes) changes the stick set
+upwards, and the inverse is factorised afresh on it.
 """
 
 from __future__ import annotations
@@ -20,71 +38,181 @@ from roughslip.contact.bonds import (
     certify,
     track,
 )
+from roughslip.contact.events import RATE_TIE, TIE, Snapshot, argext, event_table, follow_events
 from roughslip.errors import NumericalError
 from roughslip.linalg.inverse import Tracked
 
 
-def _coulomb(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
-    r"""Event-driven Coulomb slip: the exact piecewise-linear :math:`F_x(D_x)` to full sliding.
+class TangentialState:
+    """The bonds of a squeeze under a slip law, affine in the pull (module docstring); an
+    :class:`~roughslip.contact.events.EventState`."""
 
-    With stick set :math:`S` and slip set :math:`L` carrying :math:`f_x = s\,\lambda f_z`
-    (:math:`s = \pm 1`, monotonic loading, no re-sticking), the stick forces are
-    :math:`f_S = D\,\varphi - \psi` with :math:`\varphi = G_{SS}^{-1}1` and
-    :math:`\psi = G_{SS}^{-1}G_{SL}f_L`. The next stick site to reach :math:`\pm\lambda f_z`
-    slips; if that happens below the current :math:`D` it slips at once (an avalanche). When
-    site :math:`k` moves to :math:`L`, :math:`\varphi \leftarrow \varphi - c\varphi_k/c_k`
-    and :math:`\psi \leftarrow \psi - c(\psi_k + s_k\lambda f_{z,k})/c_k`
-    (:func:`~roughslip.contact.bonds.bond_inverse`). Both are certified against the FFT
-    operator after each block.
-    """
-    n, tol = b.n, opt.tol
-    inv = bond_inverse(b, opt.block, opt.threads)
-    track(inv, "phi", np.ones(n))
-    inv.tracked["psi"] = Tracked(np.zeros(n), np.zeros(n), _no_new)
-    rows = BondRows(b)
-    sign = np.zeros(n)  # slip direction per bond position
-    dx, fx, sites = [], [], []
-    D, slip_sum = 0.0, 0.0
-    worst, refinements, ok = 0.0, 0, True
-    while rows.alive:
-        phi, psi = inv.tracked["phi"].x, inv.tracked["psi"].x
-        cap, pos = rows.cap, inv.ids
-        with np.errstate(divide="ignore", invalid="ignore"):
-            d_pos = np.where(phi > 0, (cap + psi) / phi, np.inf)
-            d_neg = np.where(phi < 0, (psi - cap) / phi, np.inf)
-        d_pos[~np.isfinite(cap)] = np.inf
-        d_neg[~np.isfinite(cap)] = np.inf
-        dk = np.minimum(d_pos, d_neg)
-        k = int(np.argmin(dk))
-        if not math.isfinite(float(dk[k])):
-            raise NumericalError("Coulomb pull: no stick site can reach its bound")
-        D = max(D, float(dk[k]))
-        s_k = 1.0 if d_pos[k] <= d_neg[k] else -1.0
-        F = D * float(phi.sum()) - float(psi.sum()) + slip_sum
-        dx.append(D)
-        fx.append(F)
-        sites.append(int(b.sites[pos[k]]))
-        capk = float(cap[k])
-        sign[pos[k]] = s_k
-        slip_sum += s_k * capk
-        if rows.alive == 1:
-            break
-        # the bond's slip force joins the load: psi <- psi - c (psi_k + s_k cap_k) / c_k,
-        # which the removal does for the tracked psi with psi_k so raised
-        psi[k] += s_k * capk
-        rows.remove(inv, k)
-        if rows.fold(inv):
-            r1, n1 = certify(b, inv, "phi", None, tol)
-            r2, n2 = certify(b, inv, "psi", b.field(sign * b.cap), tol)
-            worst, refinements = max(worst, r1, r2), refinements + n1 + n2
-            ok &= max(r1, r2) <= tol
-    total = float((sign * b.cap).sum())
+    def __init__(self, b: Bonds, opt: PullOptions) -> None:
+        self.b, self.law, self.opt = b, opt.law, opt
+        n = b.n
+        self.inv = bond_inverse(b, opt.block, opt.threads)
+        track(self.inv, "phi", np.ones(n))
+        self.inv.tracked["psi"] = Tracked(np.zeros(n), np.zeros(n), _no_new)
+        self.rows = BondRows(b)
+        self.sigma = np.zeros(n)  # slip direction per bond position (0: sticks or carries 0)
+        self.slip = np.zeros(n)  # f_x carried by each failed bond (bond positions)
+        self.offset = np.zeros(n)  # a bond stuck again holds u_x = D + offset
+        self.slip_sum = 0.0
+        self.fz_total = float(b.normal.fz.sum())
+        self.position = np.full(b.shape[0] * b.shape[1], -1, dtype=np.int64)
+        self.position[b.sites] = np.arange(n)
+        self.C = b.mask(np.arange(n))
+        self.S = self.C.copy()
+        self.Dscale, self.pulling = 1.0, False
+        self.worst, self.refinements, self.ok = 0.0, 0, True
+        self._rate: np.ndarray | None = None  # u_x rate on the grid, per stick set
+
+    # -- the affine state ----------------------------------------------------------------------
+    def _rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """phi, psi, f_z and the live mask on the rows of the inverse."""
+        t = self.inv.tracked
+        return t["phi"].x, t["psi"].x, self.b.fz[self.inv.ids], np.isfinite(self.rows.cap)
+
+    def dx_at(self, D: float) -> float:
+        return D
+
+    def depth_at(self, D: float) -> float:
+        return float(self.b.normal.depth)
+
+    def totals(self, D: float) -> tuple[float, float]:
+        phi, psi = self.inv.tracked["phi"].x, self.inv.tracked["psi"].x
+        return D * float(phi.sum()) - float(psi.sum()) + self.slip_sum, self.fz_total
+
+    def at(self, D: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not math.isfinite(D):
+            raise NumericalError(f"the pull reached a non-finite displacement D_x = {D!r}")
+        phi, psi, _, live = self._rows()
+        fx = self.b.field(self.slip)
+        fx.ravel()[self.b.sites[self.inv.ids[live]]] = (D * phi - psi)[live]
+        return self.b.field(self.b.fz), fx, np.zeros(self.b.shape)
+
+    def snapshot(self, D: float) -> Snapshot:
+        """The totals at ``D``; no fields (the pull's result is the state at full sliding)."""
+        F_x, F_z = self.totals(D)
+        return Snapshot(F_x, F_z, D, None, None, None, None)
+
+    def _site(self, row: int) -> int:
+        return int(self.b.sites[self.inv.ids[row]])
+
+    def interval(self, D: float) -> tuple[float, float, str, int]:
+        """The admissible interval of the drive and the event ending it: the stick rows of the
+        slip law on the live bonds (:func:`~roughslip.contact.events.event_table`)."""
+        phi, psi, fz, live = self._rows()
+        Dref = max(self.Dscale, abs(D))
+        fs = max(float(np.abs(fz).max()), np.finfo(float).tiny)
+        zero = np.zeros(phi.shape)
+        cons = self.law.stick_rows(self.b.lam, live, (fz, -psi), (zero, phi), fs)
+        lo, hi, kind, row = event_table(cons, D, Dref, self.Dscale)
+        return lo, hi, kind, (self._site(row) if row >= 0 else -1)
+
+    def violation(self, D: float) -> tuple[str, int] | None:
+        phi, psi, fz, live = self._rows()
+        fx = D * phi - psi
+        over = self.law.overload(self.b.lam, live, fz, fx)
+        bad = live & (over > 1 + TIE)
+        if not bad.any():
+            return None
+        j = argext(over, bad, "max")
+        return ("slip+" if fx[j] > 0 else "slip-"), self._site(j)
+
+    def reversal(self) -> int | None:
+        """A slipping bond whose slip the pull would turn around (as
+        :meth:`roughslip.contact.state.ContactState.reversal`): one FFT product per stick set,
+        only under a law that reverses and while bonds slip."""
+        slipping = self.sigma != 0
+        if not (self.law.reverses and slipping.any()):
+            return None
+        if self._rate is None:
+            phi, _, _, live = self._rows()
+            v = np.zeros(self.b.shape)
+            v.ravel()[self.b.sites[self.inv.ids[live]]] = phi[live]
+            self._rate = self.b.apply(v, np.empty(self.b.shape)).ravel()
+        u1 = self._rate[self.b.sites]
+        back = np.where(slipping, self.sigma * (u1 - 1.0), -np.inf)
+        top = float(back.max())
+        if not top > RATE_TIE:
+            return None
+        return int(self.b.sites[np.flatnonzero(back >= top - TIE * max(1.0, top))[0]])
+
+    # -- events --------------------------------------------------------------------------------
+    def apply(self, kind: str, j: int, D: float = 0.0) -> None:
+        pos = int(self.position[j])
+        self._rate = None
+        if kind == "stick":
+            self._stick_again(pos, j, D)
+            return
+        if kind not in ("slip+", "slip-"):
+            raise NumericalError(f"decoupled pull: no event {kind!r} (internal error)")
+        r = int(self.inv.row[pos])
+        s = self.law.failed_sign(kind)
+        carried = float(self.law.carried(self.b.lam, np.array([s]))[0] * self.b.fz[pos])
+        # psi <- psi - c (psi_k + f_L,k) / c_k: the removal does it with psi_k so raised
+        self.inv.tracked["psi"].x[r] += carried
+        self.rows.remove(self.inv, r)
+        self.sigma[pos], self.slip[pos] = s, carried
+        self.slip_sum += carried
+        self.S.ravel()[j] = False
+        if self.rows.fold(self.inv):
+            self._certify()
+
+    def _load(self) -> np.ndarray:
+        return self.b.field(self.slip)
+
+    def _certify(self) -> None:
+        r1, n1 = certify(self.b, self.inv, "phi", None, self.opt.tol)
+        r2, n2 = certify(self.b, self.inv, "psi", self._load(), self.opt.tol,
+                         shift=self.offset)
+        self.worst = max(self.worst, r1, r2)
+        self.refinements += n1 + n2
+        self.ok &= max(r1, r2) <= self.opt.tol
+
+    def _stick_again(self, pos: int, j: int, D: float) -> None:
+        """Bond ``pos`` sticks where it is: it holds its current u_x from here (offset), and
+        the inverse is factorised afresh on the larger stick set."""
+        _, fx, _ = self.at(D)
+        ux = self.b.apply(fx, np.empty(self.b.shape)).ravel()[j]
+        self.offset[pos] = ux - D
+        self.slip_sum -= self.slip[pos]
+        self.sigma[pos] = self.slip[pos] = 0.0
+        self.S.ravel()[j] = True
+        stick = self.position[np.flatnonzero(self.S.ravel())]
+        self.inv.factor(stick)
+        track(self.inv, "phi", np.ones(stick.size))
+        rhs = self.b.apply(self._load(), np.empty(self.b.shape)).ravel()[self.b.sites[stick]]
+        track(self.inv, "psi", rhs - self.offset[stick])
+        self.rows.cap = self.b.cap[stick].copy()
+        self.rows.alive = stick.size
+        self._certify()
+
+    def solve(self) -> None:
+        """Nothing to do: every event updates the solutions in place."""
+
+
+def slide(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    r"""The decoupled pull under ``opt.slip_law`` to full sliding, by the event loop: the exact
+    piecewise-linear :math:`F_x(D_x)` (module docstring). ``friction_force`` is
+    :math:`\sum_i f_{L,i}` once every bond slips (:math:`\lambda F_n` under the Coulomb law with
+    every force in the pull's direction)."""
+    st = TangentialState(b, opt)
+    path = follow_events(st, 20 * b.n + 100, False)
+    ev = [e for e in path.events if e.kind != "start"]
+    if st.S.any() and not path.message:
+        raise NumericalError("decoupled pull: bonds left sticking at the end (internal error)")
+    sticks = sum(e.kind == "stick" for e in ev)
     return SlipResult(
-        friction_force=total, peak_index=len(fx) - 1, dx_lim=np.array(dx),
-        fx_lim=np.array(fx), broken_site=np.array(sites, dtype=np.int64),
-        stick_at_peak=np.zeros(b.shape, bool), fx_at_peak=b.field(sign * b.cap),
-        converged=bool(ok), seconds=time.perf_counter() - t0, method="inverse",
-        slip_law="coulomb", lam=b.lam, n_bonds=n, steps=len(fx), residual=worst,
-        solves=refinements, normal_force=b.normal.normal_force,
-        message="exact event sequence to full sliding",
+        friction_force=float(st.slip.sum()), peak_index=len(ev) - 1,
+        dx_lim=np.array([e.dx for e in ev]), fx_lim=np.array([e.fx for e in ev]),
+        broken_site=np.array([e.site for e in ev], dtype=np.int64),
+        stick_at_peak=np.zeros(b.shape, bool), fx_at_peak=b.field(st.slip),
+        converged=bool(st.ok) and not path.message, seconds=time.perf_counter() - t0,
+        method="inverse", slip_law=opt.slip_law, lam=b.lam, n_bonds=b.n, steps=len(ev),
+        residual=st.worst, solves=st.refinements, normal_force=b.normal.normal_force,
+        message=path.message or ("exact event sequence to full sliding"
+                                 + (f", {sticks} bond(s) stuck again" if sticks else "")),
+        kinds=tuple(e.kind for e in ev),
     )

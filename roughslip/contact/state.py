@@ -17,7 +17,7 @@ import numpy as np
 from scipy import linalg
 from scipy.sparse.linalg import LinearOperator, gmres
 
-from roughslip.contact.events import RATE_TIE, TIE, argext
+from roughslip.contact.events import RATE_TIE, TIE, Snapshot, argext, event_table
 from roughslip.contact.laws import LAWS
 from roughslip.errors import NumericalError
 from roughslip.linalg.inverse import refine
@@ -387,28 +387,11 @@ class ContactState:
             ("gained", ~self.C, self.g0, self.g1, gs),
             *self.law.stick_rows(lam, self.S, self.f0, self.f1, fs),
         )
-        lo, hi, kind, site = -math.inf, math.inf, "", -1
-        for name, mask, a, b, scale in cons:
-            m = mask.ravel()
-            a, b = a.ravel(), b.ravel()
-            tiny = TIE * scale
-            flat = m & (np.abs(b) * Dref <= tiny)
-            if np.any(flat & (a < -tiny)):
-                return math.inf, -math.inf, name, int(np.flatnonzero(flat & (a < -tiny))[0])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                root = -a / b
-            up = m & ~flat & (b < 0)
-            if up.any():
-                r = np.where(up, root, np.inf)
-                v = float(r.min())
-                tol = TIE * max(abs(v), self.Dscale)
-                j = int(np.flatnonzero(up & (r <= v + tol))[0])
-                if v < hi - tol or (abs(v - hi) <= tol and j < site):
-                    hi, kind, site = v, name, j
-            down = m & ~flat & (b > 0)
-            if down.any():
-                lo = max(lo, float(np.where(down, root, -np.inf).max()))
-        return lo, hi, kind, site
+        return event_table(cons, D, Dref, self.Dscale)
+
+    def snapshot(self, D: float) -> Snapshot:
+        """The totals and fields at ``D`` (copies)."""
+        return Snapshot.of(self, D)
 
     def totals(self, D: float) -> tuple[float, float]:
         fz, fx, _ = self.at(D)

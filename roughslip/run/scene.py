@@ -231,7 +231,7 @@ def _analytic(sc: SurfaceConfig, grid: Grid, where: str) -> np.ndarray:
 
 #: keys the coupled model does not read: it solves the squeeze and the pull with its own block
 #: solver and event tracking (docs/theory/coupled.rst), from a Polonsky-Keer contact at 1e-8
-_COUPLED_IGNORES = {"squeeze": ("method", "tol", "max_iter", "warm_start"),
+_COUPLED_IGNORES = {"squeeze": ("tol", "max_iter", "warm_start"),
                     "pull": ("method", "batch_size", "error_estimate", "early_stop")}
 
 def _unused_under_coupling(cfg: RunConfig) -> list[str]:

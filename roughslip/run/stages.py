@@ -137,7 +137,7 @@ class _CoupledSample:
         try:
             r = couple(pb, **by, lam=cfg.pull.lam, pull_control=cfg.coupling.pull_control,
                        gained=cfg.coupling.gained, slip_law=cfg.pull.slip_law,
-                       tol=min(cfg.pull.tol, COUPLED_TOL))
+                       tol=min(cfg.pull.tol, COUPLED_TOL), squeeze_method=cfg.squeeze.method)
         except NumericalError as exc:
             raise NumericalError(f"{where}: {exc}") from None
         if cfg.execution.strict and not r.converged:
