@@ -319,3 +319,23 @@ def test_error_estimate_covers_the_squeeze(slip_law, squeeze_tol):
     assert 0.9 * err <= res.error_estimate <= 1.1 * err
     assert res.normal_error_estimate > 100 * res.solve_error_estimate
     assert "normal forces" in res.message
+
+
+def test_coulomb_force_at_follows_the_drive_past_an_avalanche():
+    """Avalanche states are recorded at their own limits, below the drive that set them off;
+    the curve under a monotone drive skips them (an interpolation through them would run
+    backwards), and a break-law result is refused."""
+    from dataclasses import replace
+
+    from roughslip.contact.bonds import SlipResult
+
+    z = np.zeros((1, 3))
+    res = SlipResult(friction_force=5.0, peak_index=3, dx_lim=np.array([1.0, 2.0, 1.5, 3.0]),
+                     fx_lim=np.array([1.0, 3.0, 2.5, 5.0]), broken_site=np.arange(4),
+                     stick_at_peak=z.astype(bool), fx_at_peak=z, converged=True, seconds=0.0,
+                     method="inverse", slip_law="coulomb",
+                     kinds=("slip+", "slip+", "slip+", "slip+"))
+    q = coulomb_force_at(res, np.array([0.5, 1.5, 2.0, 2.5, 4.0]))
+    np.testing.assert_allclose(q, [0.5, 2.0, 3.0, 4.0, 5.0])
+    with pytest.raises(InputError, match="needs a result of a law whose bonds slip"):
+        coulomb_force_at(replace(res, slip_law="break"), 1.0)

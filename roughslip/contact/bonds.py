@@ -289,7 +289,9 @@ class BreakCurve:
         )
 
 
-def _no_new(ids: np.ndarray) -> np.ndarray:
+def shrinking_only(ids: np.ndarray) -> np.ndarray:
+    """The right-hand side of added unknowns for a tracked solution of a pull's inverse: there
+    are none, the stick set only shrinks (a bond that sticks again refactorises)."""
     raise AssertionError("the stick set of a pull only shrinks")  # pragma: no cover
 
 
@@ -324,7 +326,7 @@ def bond_inverse(b: Bonds, block: int, threads: int) -> UpdatableInverse:
 def track(inv: UpdatableInverse, name: str, rhs: np.ndarray) -> np.ndarray:
     """Keep the solution for ``rhs`` (on the rows) current through the removals."""
     x = inv.apply(rhs)
-    inv.tracked[name] = Tracked(rhs.copy(), x, _no_new)
+    inv.tracked[name] = Tracked(rhs.copy(), x, shrinking_only)
     return x
 
 

@@ -39,12 +39,12 @@ def _solve_phi(b: Bonds, alive_pos: np.ndarray, tol: float, x0: np.ndarray | Non
     return A.gather(r.x), r
 
 
-def _break_literal(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def break_literal(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
     """The report's algorithm: one CG solve from zero per break, every bond."""
     return _break_solves(b, opt, t0, warm=False)
 
 
-def _break_cg(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def break_cg(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
     """Matrix-free exact: one warm-started CG solve per break, with the early stop."""
     return _break_solves(b, opt, t0, warm=True)
 
@@ -75,7 +75,7 @@ def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> SlipR
                         message=f"{solves} CG solves, {iters} iterations")
 
 
-def _break_inverse(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def break_inverse(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
     r"""Exact break law on the updated inverse (:func:`~roughslip.contact.bonds.bond_inverse`):
     :math:`O(n)` per break plus blocked BLAS-3 updates; :math:`\varphi` is certified against
     the FFT operator after each block."""
@@ -109,7 +109,7 @@ def _break_inverse(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
                         message=f"{b.n} bonds, block {block}, {refinements} refinements")
 
 
-def _break_batch(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def break_batch(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
     """Approximate: break the ``batch_size`` largest-ratio bonds per solve (biased low).
 
     It has no error estimate (``error_estimate`` is NaN). Its error is a staircase in the

@@ -12,14 +12,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from roughslip.errors import NumericalError
-
-if TYPE_CHECKING:
-    from roughslip.contact.state import ContactState
 
 TIE = 1e-9
 #: a slipping bond sticks again when its slip rate (per unit pull) opposes its force by more
@@ -128,7 +125,7 @@ class Snapshot:
     contact: np.ndarray | None
 
     @classmethod
-    def of(cls, st: ContactState, D: float) -> Snapshot:
+    def of(cls, st: EventState, D: float) -> Snapshot:
         fz, fx, _ = st.at(D)
         F_x, F_z = st.totals(D)
         return cls(F_x, F_z, D, fz.copy(), fx.copy(), st.S.copy(), st.C.copy())

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from roughslip.contact.breaking import _break_batch, _break_cg, _break_inverse, _break_literal
+from roughslip.contact.breaking import break_batch, break_cg, break_inverse, break_literal
 from roughslip.contact.methods import Registry
 from roughslip.contact.sliding import slide
 
@@ -106,8 +106,8 @@ LAWS: Registry[SlipLaw] = Registry("slip law")
 
 LAWS.register("break", "a failed bond carries no force (the report's law)")(BreakLaw(
     "break", failed="released", curve="break sequence",
-    pull_runs={"literal": _break_literal, "inverse": _break_inverse, "cg": _break_cg,
-               "batch": _break_batch}))
+    pull_runs={"literal": break_literal, "inverse": break_inverse, "cg": break_cg,
+               "batch": break_batch}))
 LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(
     "coulomb", failed="slipping", curve="slip events", reverses=True,
     pull_runs={"inverse": slide}))

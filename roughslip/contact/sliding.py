@@ -33,9 +33,9 @@ from roughslip.contact.bonds import (
     Bonds,
     PullOptions,
     SlipResult,
-    _no_new,
     bond_inverse,
     certify,
+    shrinking_only,
     track,
 )
 from roughslip.contact.events import RATE_TIE, TIE, Snapshot, argext, event_table, follow_events
@@ -52,7 +52,7 @@ class TangentialState:
         n = b.n
         self.inv = bond_inverse(b, opt.block, opt.threads)
         track(self.inv, "phi", np.ones(n))
-        self.inv.tracked["psi"] = Tracked(np.zeros(n), np.zeros(n), _no_new)
+        self.inv.tracked["psi"] = Tracked(np.zeros(n), np.zeros(n), shrinking_only)
         self.rows = BondRows(b)
         self.sigma = np.zeros(n)  # slip direction per bond position (0: sticks or carries 0)
         self.slip = np.zeros(n)  # f_x carried by each failed bond (bond positions)
