@@ -339,3 +339,47 @@ def test_coulomb_force_at_follows_the_drive_past_an_avalanche():
     np.testing.assert_allclose(q, [0.5, 2.0, 3.0, 4.0, 5.0])
     with pytest.raises(InputError, match="needs a result of a law whose bonds slip"):
         coulomb_force_at(replace(res, slip_law="break"), 1.0)
+
+
+def test_a_slipping_bond_that_sticks_again_keeps_its_force_and_the_equilibrium():
+    """The decoupled state's re-stick (no rough scene tested so far needs one, so it is
+    forced here): after some slip events a slipping bond sticks again at the current pull;
+    no force jumps, and on every stick bond, before and after further events, the FFT-free
+    dense equilibrium G_xx f = D + offset holds, slip forces included."""
+    from roughslip.contact.bonds import Bonds, PullOptions
+    from roughslip.contact.laws import LAWS
+    from roughslip.contact.sliding import TangentialState
+
+    h = self_affine((20, 20), hurst=0.8, rms_height=1.0, rng=sample_rng(3, 0))
+    normal = squeeze(h, depth=1.2, nu=0.3, tol=1e-13)
+    b = Bonds(normal, 0.3)
+    st = TangentialState(b, PullOptions(slip_law="coulomb", law=LAWS.get("coulomb"),
+                                        tol=1e-12, block=4))
+    G = b.dense()
+
+    def check(D: float) -> None:
+        f = st.at(D)[1].ravel()[b.sites]
+        stick = st.S.ravel()[b.sites]
+        u = G @ f
+        want = D + st.offset[stick]
+        assert np.abs(u[stick] - want).max() <= 1e-9 * np.abs(want).max()
+
+    D = 0.0
+    for _ in range(8):  # eight slip events along the pull
+        _, hi, kind, j = st.interval(D)
+        D = max(D, hi)
+        st.apply(kind, j, D)
+        check(D)
+    j = int(b.sites[np.flatnonzero(st.sigma)[0]])
+    before, refined = st.at(D)[1], st.refinements
+    st.apply("stick", j, D)
+    assert st.refinements == refined  # the fresh solutions needed no refinement
+    np.testing.assert_allclose(st.at(D)[1], before, rtol=0, atol=1e-10 * np.abs(before).max())
+    assert st.S.ravel()[j] and st.sigma[st.position[j]] == 0 and st.offset[st.position[j]] != 0
+    check(D)
+    for _ in range(6):  # the pull goes on with the offset in the equilibrium
+        _, hi, kind, k = st.interval(D)
+        D = max(D, hi)
+        st.apply(kind, k, D)
+        check(D)
+    assert st.ok and st.worst <= 1e-12

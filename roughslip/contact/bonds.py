@@ -190,16 +190,18 @@ class Bonds:
 
     def entries(self, i: np.ndarray, j: np.ndarray, order: str = "F") -> np.ndarray:
         """:math:`G_{xx}` between the bonds at positions ``i`` and ``j`` (the assembler of
-        :func:`bond_inverse`); all bonds by columns (:meth:`dense_into`)."""
-        n = self.n
-        if i.size == n and j.size == n and np.array_equal(i, np.arange(n)) and \
-                np.array_equal(j, i):
-            return self.dense(order=order)
-        T, w, off = self.op.tables.pair("xx")
-        nx = self.shape[1]
-        li = (lambda s: s[0] * w + s[1])(np.divmod(self.sites[i], nx))
-        lj = (lambda s: s[0] * w + s[1])(np.divmod(self.sites[j], nx))
-        return np.array(T[li[:, None] - lj[None, :] + off], order=order)
+        :func:`bond_inverse`); a square block by columns (:meth:`dense_into`)."""
+        if np.array_equal(i, j):
+            return self.dense(i, order=order)
+        T, _, off = self.op.tables.pair("xx")
+        return np.array(T[self._lin(i)[:, None] - self._lin(j)[None, :] + off], order=order)
+
+    def _lin(self, positions: np.ndarray | None = None) -> np.ndarray:
+        """The index of each bond's site in the pair table of :math:`G_{xx}`."""
+        _, w, _ = self.op.tables.pair("xx")
+        sites = self.sites if positions is None else self.sites[positions]
+        iy, ix = np.divmod(sites, self.shape[1])
+        return (iy * w + ix).astype(np.intp)
 
     def dense(self, positions: np.ndarray | None = None, order: str = "F") -> np.ndarray:
         """:math:`G_{xx}[S,S]` assembled from the closed-form kernel."""
@@ -214,12 +216,9 @@ class Bonds:
         gathering a column at a time keeps the index vector and the table in cache (six
         times faster than panels of columns).
         """
-        nx = self.shape[1]
-        T, w, off = self.op.tables.pair("xx")
-        sites = self.sites if positions is None else self.sites[positions]
-        iy, ix = np.divmod(sites, nx)
-        lin = (iy * w + ix).astype(np.intp)
-        for c in range(sites.size):
+        T, _, off = self.op.tables.pair("xx")
+        lin = self._lin(positions)
+        for c in range(lin.size):
             A[:, c] = T[lin + (off - lin[c])]
         return A
 
@@ -341,7 +340,7 @@ class BondRows:
 
     def remove(self, inv: UpdatableInverse, row: int) -> None:
         """Remove the bond of ``row`` from the inverse (its tracked solutions follow)."""
-        if not inv.remove(int(inv.ids[row]), column=inv.column(row)):
+        if not inv.remove(int(inv.ids[row])):
             raise NumericalError("lost positive definiteness in the inverse update")
         self.cap[row] = math.inf
         self.alive -= 1

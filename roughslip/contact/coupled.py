@@ -29,17 +29,19 @@ reported with :math:`F_z` at the same :math:`D_x` (erratum T26
 reduces exactly to the decoupled one.
 
 The squeeze goes to a depth or to a normal force, and the pull holds either the depth (the
-report's pull) or the normal force, with the depth following (``_State``,
-docs/theory/coupled.rst#coupled-load-control).
+report's pull) or the normal force, with the depth following
+(:class:`~roughslip.contact.state.ContactState`, docs/theory/coupled.rst#coupled-load-control).
 
 Under the Coulomb law a failed bond slips, carrying :math:`f_x = \sigma\lambda f_z` in the
 direction :math:`\sigma` of its force as :math:`f_z` changes (the system is then not
-symmetric: ``_State._solve_many``), and a slipping bond whose slip the pull would turn around
-sticks again where it is (``_State.reversal``; docs/theory/coupled.rst#coupled-coulomb).
+symmetric: ``ContactState._solve_many``), and a slipping bond whose slip the pull would turn around
+sticks again where it is (the law's reversal rule,
+:meth:`~roughslip.contact.laws.SlipLaw.turned_back`; docs/theory/coupled.rst#coupled-coulomb).
 
-Solvers (registered in :data:`SOLVERS`): ``"dense"`` assembles the reduced block from the
-closed-form kernels and keeps its inverse up to date, O(m) per removed unknown, while it fits
-in memory (docs/theory/coupled.rst#coupled-solvers); ``"cg"`` runs conjugate gradients
+Solvers (registered in :data:`~roughslip.contact.blocksolvers.SOLVERS`): ``"dense"`` assembles
+the reduced block from the closed-form kernels and keeps its inverse up to date, O(m) per
+removed unknown, while it fits in memory (docs/theory/coupled.rst#coupled-solvers); ``"cg"``
+runs conjugate gradients
 (:func:`roughslip.linalg.cg.cg`) on the restricted FFT block operator
 (:meth:`roughslip.contact.problem.Problem.restricted_block`). Both follow the same event logic,
 and every solve is certified against the FFT operator.

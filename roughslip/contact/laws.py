@@ -9,8 +9,9 @@ affine constraint rows per stick site, :math:`\lambda f_z - f_x \ge 0` (event ``
   :math:`f_x = w f_z` with :math:`w` from :meth:`SlipLaw.carried`;
 * **its constraint rows** (:meth:`SlipLaw.stick_rows`) and how overloaded a bond is
   (:meth:`SlipLaw.overload`), which the event loop turns into events;
-* **its reversal rule** (:attr:`SlipLaw.reverses`): whether a slipping bond whose slip the
-  drive would turn around sticks again where it is (event ``"stick"``);
+* **its reversal rule** (:attr:`SlipLaw.reverses`, :meth:`SlipLaw.turned_back`): whether a
+  slipping bond whose slip the drive would turn around sticks again where it is (event
+  ``"stick"``);
 * **its decoupled pull methods** (:attr:`SlipLaw.pull_runs`, by name of
   :data:`roughslip.contact.pull.METHODS`).
 
@@ -26,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from roughslip.contact.breaking import break_batch, break_cg, break_inverse, break_literal
+from roughslip.contact.events import RATE_TIE, TIE
 from roughslip.contact.methods import Registry
 from roughslip.contact.sliding import slide
 
@@ -48,6 +50,11 @@ class SlipLaw:
         What the plots call its pull curve (``"break sequence"``, ``"slip events"``).
     reverses
         A slipping bond whose slip the drive would turn around sticks again.
+    slides
+        Failed bonds carry force, so the contact ends sliding: the decoupled friction force
+        is the sum of the forces they carry, which no tangential solve enters (its error is
+        the normal forces' alone). Otherwise the friction force is the peak of the pull
+        curve.
     pull_runs
         Its decoupled pull methods: ``{method name: run(bonds, options, t0)}``.
     """
@@ -56,6 +63,7 @@ class SlipLaw:
     failed: str = "released"
     curve: str = "events"
     reverses: bool = False
+    slides: bool = False
     pull_runs: dict[str, Callable] = field(default_factory=dict)
 
     def failed_sign(self, kind: str) -> float:
@@ -75,6 +83,26 @@ class SlipLaw:
         (fz0, fx0), (fz1, fx1) = f0, f1
         return [("slip+", S, lam * fz0 - fx0, lam * fz1 - fx1, scale),
                 ("slip-", S, lam * fz0 + fx0, lam * fz1 + fx1, scale)]
+
+    def turned_back(self, slipping: np.ndarray, sigma: np.ndarray, rate: np.ndarray,
+                    rigid: float) -> int | None:
+        r"""The reversal rule: the slipping bond (flat index) that sticks again, or None.
+
+        A bond slipping in direction :math:`\sigma` lags behind the rigid surface,
+        :math:`\sigma\,(\partial u_x/\partial D - v) \le 0`, with ``rate`` the
+        :math:`\partial u_x/\partial D` of the bonds and ``rigid`` the surface's tangential
+        rate :math:`v` (1 in a pull, 0 when the depth is driven). Under a law that
+        :attr:`reverses`, the bond whose slip would run against its force by the most (above
+        ``RATE_TIE``; ties to the lowest index) sticks again where it is: its force is
+        continuous, starting at its bound and moving inwards.
+        """
+        if not self.reverses:
+            return None
+        back = np.where(slipping, sigma * (rate - rigid), -np.inf).ravel()
+        top = float(back.max())
+        if not top > RATE_TIE:
+            return None
+        return int(np.flatnonzero(back >= top - TIE * max(1.0, top))[0])
 
     def overload(self, lam: float, S: np.ndarray, fz: np.ndarray, fx: np.ndarray
                  ) -> np.ndarray:
@@ -109,5 +137,5 @@ LAWS.register("break", "a failed bond carries no force (the report's law)")(Brea
     pull_runs={"literal": break_literal, "inverse": break_inverse, "cg": break_cg,
                "batch": break_batch}))
 LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(
-    "coulomb", failed="slipping", curve="slip events", reverses=True,
+    "coulomb", failed="slipping", curve="slip events", reverses=True, slides=True,
     pull_runs={"inverse": slide}))

@@ -106,7 +106,7 @@ def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
     of an avalanche are recorded at their own limits, below the drive that set it off; the
     curve under a monotone drive is the envelope of the events not passed by the drive.
     """
-    if result.slip_law == "break":
+    if not LAWS.get(result.slip_law).slides:
         raise InputError("coulomb_force_at needs a result of a law whose bonds slip")
     x, y = result.dx_lim, result.fx_lim
     keep = x >= np.maximum.accumulate(x) if x.size else np.zeros(0, bool)
@@ -214,7 +214,8 @@ def pull(
     """
     t0 = time.perf_counter()
     check_friction(lam, slip_law)
-    impl = METHODS.get(method)
+    law = LAWS.get(slip_law)
+    METHODS.get(method)
     if not 0 < tol < 1:
         raise InputError(f"tol = {tol!r}: must satisfy 0 < tol < 1")
     if int(batch_size) < 1 or int(block) < 1:
@@ -224,7 +225,7 @@ def pull(
         raise InputError(f"threads = {threads!r}: must be >= 1")
     opt = PullOptions(slip_law=slip_law, tol=float(tol), early_stop=bool(early_stop),
                       batch_size=int(batch_size), block=int(block), max_iter=int(max_iter),
-                      threads=threads, law=LAWS.get(slip_law))
+                      threads=threads, law=law)
     b = Bonds(normal, float(lam))
     if b.n == 0:
         return BreakCurve(b, early_stop).result(t0, method, converged=True,
@@ -232,7 +233,7 @@ def pull(
                                             slip_law=slip_law)
     chosen = choose_method(b.n, slip_law=slip_law) if method == "auto" else method
     impl = METHODS.get(chosen)
-    run = LAWS.get(slip_law).pull_runs.get(chosen)
+    run = law.pull_runs.get(chosen)
     if run is None:
         raise InputError(f"slip_law = {slip_law!r} supports methods "
                          f"{', '.join(methods_for(slip_law))}, not {chosen!r}")
@@ -251,7 +252,8 @@ def pull(
         res = replace(res, condition=kappa, error_bound=kappa * res.residual,
                       seconds=time.perf_counter() - t0)
         if res.method != "batch":  # batch has no estimate (NaN)
-            solve = 0.0 if slip_law == "coulomb" else refinement_estimate(normal, res)
+            # a sliding law's friction force takes no tangential solve
+            solve = 0.0 if law.slides else refinement_estimate(normal, res)
             part = abs(normal_share(normal, res))
             res = replace(res, error_estimate=solve + part, solve_error_estimate=solve,
                           normal_error_estimate=part, seconds=time.perf_counter() - t0,

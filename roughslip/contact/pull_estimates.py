@@ -11,6 +11,7 @@ import numpy as np
 from roughslip.contact.bonds import Bonds, SlipResult
 from roughslip.contact.estimates import REFINE_TOL as SQUEEZE_REFINE_TOL
 from roughslip.contact.estimates import squeeze_correction
+from roughslip.contact.laws import LAWS
 from roughslip.contact.squeeze import NormalResult
 from roughslip.errors import InputError, NumericalError
 from roughslip.linalg.cg import cg
@@ -61,8 +62,9 @@ def refinement_estimate(normal: NormalResult, result: SlipResult, *,
     float
         :math:`\hat e`; 0 when the peak state has no stick sites.
     """
-    if result.slip_law != "break":
-        raise InputError("refinement_estimate needs a break-law result")
+    if LAWS.get(result.slip_law).slides:
+        raise InputError("refinement_estimate needs a break-law result, whose friction force "
+                         f"is a peak of the pull curve (slip_law = {result.slip_law!r} slides)")
     stick = np.asarray(result.stick_at_peak, dtype=bool)
     if not stick.any() or not result.peak_dx > 0:
         return 0.0
@@ -99,7 +101,7 @@ def normal_share(normal: NormalResult, result: SlipResult, *,
     """
     delta = squeeze_correction(normal, tol=tol).ravel()
     fz = normal.fz.ravel()
-    if result.slip_law == "coulomb":
+    if LAWS.get(result.slip_law).slides:  # F = sum of w_i f_z,i, w_i = s_i |w_i|
         s = np.sign(np.asarray(result.fx_at_peak).ravel())
         total = float((s * (fz + delta)).sum())
         return -float((s * delta).sum()) / total if total else 0.0

@@ -17,7 +17,7 @@ import numpy as np
 from scipy import linalg
 from scipy.sparse.linalg import LinearOperator, gmres
 
-from roughslip.contact.events import RATE_TIE, TIE, Snapshot, argext, event_table
+from roughslip.contact.events import TIE, Snapshot, argext, event_table
 from roughslip.contact.laws import LAWS
 from roughslip.errors import NumericalError
 from roughslip.linalg.inverse import refine
@@ -341,26 +341,14 @@ class ContactState:
         self.S.ravel()[j] = True
 
     def reversal(self) -> int | None:
-        r"""A slipping bond whose slip would run against its force, or None: the one that
-        does so most (the lowest flat index among ties).
-
-        A bond slipping with :math:`f_x = \sigma\lambda f_z` lags behind the rigid surface,
-        :math:`\sigma\,(\partial u_x/\partial D - v) \le 0` with :math:`v` the rigid
-        surface's tangential rate (1 in a pull, 0 when the depth is driven). The rate is
-        constant over a
-        state and changes only when the sets change, so a reversal is found at the start of a
-        state, never inside one; such a bond sticks again where it is (its force is
-        continuous: it starts at its bound and moves inwards).
-        """
-        if self.u1x is None or not self.law.reverses:
+        """A slipping bond whose slip would run against its force (the slip law's
+        :meth:`~roughslip.contact.laws.SlipLaw.turned_back`), or None. The rate is constant
+        over a state and changes only when the sets change, so a reversal is found at the
+        start of a state, never inside one."""
+        if self.u1x is None:
             return None
-        P = self.slipping
         rigid = 1.0 if self.drive == "x" else 0.0  # the rigid surface's tangential rate
-        back = np.where(P, self.sigma * (self.u1x - rigid), -np.inf).ravel()
-        top = float(back.max())
-        if not top > RATE_TIE:
-            return None
-        return int(np.flatnonzero(back >= top - TIE * max(1.0, top))[0])
+        return self.law.turned_back(self.slipping, self.sigma, self.u1x, rigid)
 
     def interval(self, D: float) -> tuple[float, float, str, int]:
         r"""The displacements at which this state is admissible, ``[lo, hi]``, and the event

@@ -146,7 +146,8 @@ class UpdatableInverse:
         Whether the matrix is positive definite (module docstring).
     lower
         Keep the lower triangle only, for a set that only shrinks (module docstring):
-        :meth:`add` is refused, and every product runs on ``threads``.
+        :meth:`add` is refused, and every product runs on ``threads``. Positive definite
+        matrices only (every pending term then has the sign -1).
     """
 
     threaded_min = 8192  # order from which products with the inverse use the threads
@@ -155,10 +156,12 @@ class UpdatableInverse:
     def __init__(self, entries: Entries, size: int, *, room: Callable[[int], bool],
                  threads: int = 1, block: int = 512, definite: bool = True,
                  lower: bool = False) -> None:
+        if lower and not definite:
+            raise ValueError("the lower-triangle layout holds a positive definite matrix")
         self.entries = entries
         self.lower = lower
         if lower:  # the matrix is large by choice: every product gets the threads
-            self.threaded_min, self.symv_min = 0, 0
+            self.threaded_min = 0
         self.room = room
         self.threads = threads
         self.block = block
@@ -282,7 +285,7 @@ class UpdatableInverse:
             c = self.buf[: self.m, r].copy()
         if self.k:
             V, sgn = self.V[: self.m, : self.k], self.s[: self.k]
-            if self.lower and np.all(sgn == -1.0):  # removals from a definite matrix
+            if self.lower:  # removals from a definite matrix: every sign is -1
                 c -= V @ V[r]
             else:
                 c += V @ (sgn * V[r])
@@ -322,14 +325,9 @@ class UpdatableInverse:
             t0 = time.perf_counter()
             m, V = self.m, self.V[: self.m, : self.k]
             M = self.buf[:m, :m]
-            if self.lower:  # a symmetric rank-k update per sign; dead entries are never read
-                sgn = self.s[: self.k]
-                with blas_threads(self.threads):
-                    for sign in (-1.0, 1.0):
-                        if np.all(sgn == sign):
-                            lapack64.syrk_update(M, V, sign)
-                        elif np.any(sgn == sign):
-                            lapack64.syrk_update(M, V[:, sgn == sign], sign)
+            if self.lower:  # one symmetric rank-k update (every sign is -1); dead entries
+                with blas_threads(self.threads):  # are never read
+                    lapack64.syrk_update(M, V, -1.0)
             else:
                 Vs = V * self.s[: self.k]
                 with blas_threads(self.threads):
@@ -343,12 +341,11 @@ class UpdatableInverse:
             self.blas_seconds += time.perf_counter() - t0
 
     # -- updates -------------------------------------------------------------------------------
-    def remove(self, unknown: int, column: np.ndarray | None = None) -> bool:
+    def remove(self, unknown: int) -> bool:
         """Remove ``unknown`` from the set; False when its pivot is not positive (definite)
-        or numerically zero (indefinite, module docstring). ``column``: its column of the
-        current inverse, when the caller has it already (:meth:`column`)."""
+        or numerically zero (indefinite, module docstring)."""
         r = int(self.row[unknown])
-        c = self.column(r) if column is None else column
+        c = self.column(r)
         cr = float(c[r])
         if not (cr > 0 if self.definite else _nonsingular(np.array([cr]), c)):
             return False
