@@ -172,3 +172,38 @@ def test_the_lower_layout_shrinks_in_place_and_matches_the_dense_inverse(block):
         inv.add(np.array([int(np.setdiff1d(np.arange(n), inv.unknowns())[0])]))
     with pytest.raises(ValueError, match="positive definite"):
         _inverse(A, lower=True, definite=False)
+
+
+def test_a_diagonal_shift_matches_the_dense_inverse_and_reports_its_pivot():
+    """shift(u, delta) adds delta to A[u, u]: the held inverse, a tracked solution of an
+    unchanged right-hand side and the pivot 1 + delta (A^-1)_uu follow the dense ones, with
+    removals in between; an update that makes the matrix singular is refused and changes
+    nothing."""
+    A = _matrix(30, True, 7)
+    inv = _inverse(A, definite=False, block=4)
+    inv.factor(np.arange(30))
+    b = np.linspace(-1.0, 2.0, 30)
+    inv.tracked["x"] = Tracked(b.copy(), inv.apply(b), lambda ids: np.zeros(ids.size))
+    B = A.copy()
+    for u, delta in [(3, -2.0), (11, -5.0), (3, 2.0), ("remove", 5), (20, -0.3), (7, -9.0),
+                     (11, 1.5)]:
+        live = inv.unknowns()
+        if u == "remove":
+            assert inv.remove(delta)
+            continue
+        want_pivot = 1.0 + delta * np.linalg.inv(B[np.ix_(live, live)])[live == u][0][live == u]
+        col = inv.shift(u, delta)
+        B[u, u] += delta
+        assert inv.pivot == pytest.approx(float(want_pivot[0]), rel=1e-10)
+        Binv = np.linalg.inv(B[np.ix_(live, live)])
+        rows = inv.row[live]
+        assert np.abs(col[rows] - Binv[:, live == u][:, 0]).max() <= 1e-9 * np.abs(Binv).max()
+        _check(inv, B)
+        x = Binv @ b[live]
+        assert np.abs(inv.tracked["x"].x[rows] - x).max() <= 1e-9 * np.abs(x).max()
+    live = inv.unknowns()
+    rows = inv.row[live]
+    before = inv.apply(np.eye(inv.m)[:, rows]).copy()
+    c00 = np.linalg.inv(B[np.ix_(live, live)])[0, 0]
+    assert inv.shift(int(live[0]), -1.0 / c00) is None  # singular
+    assert np.array_equal(inv.apply(np.eye(inv.m)[:, rows]), before)

@@ -110,7 +110,7 @@ def test_a_law_without_decoupled_methods_says_so(kinetic):
                                          r"pull method; use the coupled model"):
         pull(normal, slip_law="kinetic-0.6")
     with pytest.raises(InputError, match=r"slip_law = 'nope': unknown slip law; choose one "
-                                         r"of break, coulomb"):
+                                         r"of break, coulomb, slip-weakening"):
         pull(normal, slip_law="nope")
 
 
@@ -121,7 +121,7 @@ def test_the_configuration_offers_the_registered_laws():
     from roughslip.run.config import PullConfig
 
     meta = {f.name: f.metadata for f in dataclasses.fields(PullConfig)}["slip_law"]
-    assert meta["choices"] == LAWS.names() == ("break", "coulomb")
+    assert meta["choices"] == LAWS.names() == ("break", "coulomb", "slip-weakening")
     assert LAWS.summary("coulomb") in meta["doc"]
 
 

@@ -341,7 +341,7 @@ def _check_couple(problem: Problem, depth: float | None, force: float | None, la
                   pull_control: str, gained: str, slip_law: str, squeeze_method: str = "pk"
                   ) -> np.ndarray:
     """Validate the arguments of :func:`couple`; returns the starting contact set."""
-    check_friction(lam, slip_law)
+    check_friction(lam, slip_law, coupled=True)
     if (depth is None) == (force is None):
         raise InputError("give exactly one of depth and force")
     if pull_control not in PULL_CONTROLS:
@@ -432,7 +432,7 @@ def indent(
     IndentResult
     """
     t0 = time.perf_counter()
-    check_friction(lam, slip_law)
+    check_friction(lam, slip_law, coupled=True)
     depth = problem.check_depth(depth)
     if depth < 0:
         raise InputError(f"depth = {depth:g}: must be >= 0")

@@ -154,12 +154,16 @@ class EventState(Protocol):
     S: np.ndarray  # stick sites (bool grid)
     Dscale: float  # the displacement scale of the tolerances (set from the first event)
     pulling: bool  # set when the drive starts
+    #: the last event changed the forces at constant drive (a bond that failed unstably)
+    discontinuous: bool
 
     def interval(self, D: float) -> tuple[float, float, str, int]: ...
 
     def violation(self, D: float) -> tuple[str, int] | None: ...
 
     def reversal(self) -> int | None: ...
+
+    def holds(self) -> bool: ...  # whether any bond still holds (the pull goes on)
 
     def apply(self, kind: str, j: int, D: float = 0.0) -> None: ...
 
@@ -176,10 +180,19 @@ class EventState(Protocol):
     def depth_at(self, D: float) -> float: ...
 
 
-def follow_events(st: EventState, limit: int, record_states: bool, end: float = math.inf
-                  ) -> EventPath:
-    """Follow the events from D = 0 (module docstring): for a pull until no bond is left, for
-    a driven depth (:func:`~roughslip.contact.coupled.indent`) until ``end``."""
+def follow_events(st: EventState, limit: int, record_states: bool, end: float = math.inf,
+                  *, landings: bool = False, avalanche_peaks: bool = True) -> EventPath:
+    """Follow the events from D = 0 (module docstring): for a pull until no bond holds
+    (:meth:`EventState.holds`), for a driven depth (:func:`~roughslip.contact.coupled.indent`)
+    until ``end``.
+
+    ``landings``: record the state an avalanche ends in, at the drive that set it off (event
+    ``"jump"``), and the state after an event that changed the forces at constant drive
+    (:attr:`EventState.discontinuous`). ``avalanche_peaks``: whether the states of an
+    avalanche, recorded at their own limits below the drive, count for the peak (they cannot
+    exceed it under the break law, docs/theory/pull.rst; a law without that bound takes the
+    peak over the stable path and the landings only).
+    """
     path = EventPath([], [] if record_states else None, st.snapshot(0.0))
 
     def record(D: float, kind: str, site: int) -> None:
@@ -190,13 +203,19 @@ def follow_events(st: EventState, limit: int, record_states: bool, end: float = 
             fz, fx, g = st.at(D)
             path.states.append((D, fz.copy(), fx.copy(), g.copy(), st.C.copy(), st.S.copy()))
 
+    def peak(at: float) -> None:
+        F_x, _ = st.totals(at)
+        if F_x > path.peak.fx_total:
+            path.peak = st.snapshot(at)
+
     record(0.0, "start", -1)
     st.pulling = True
     D = 0.0
     first = True
+    falling = False  # inside an avalanche (recorded states below the drive, or transients)
     # until no bond holds; under the Coulomb law also until no slipping bond turns back
     # (a bond slipping against the pull sticks again, even when every other one slips)
-    while (D < end if math.isfinite(end) else st.S.any() or st.reversal() is not None):
+    while (D < end if math.isfinite(end) else st.holds() or st.reversal() is not None):
         if len(path.events) + path.transient > limit:
             path.message = f"stopped after {limit} events"
             break
@@ -213,6 +232,10 @@ def follow_events(st: EventState, limit: int, record_states: bool, end: float = 
             lo = min(lo, D, hi)
         feasible = lo <= hi + tol_d
         if feasible and lo <= D + tol_d and hi >= D - tol_d:
+            if falling and landings:  # an avalanche has ended: the state it lands in
+                record(D, "jump", -1)
+                peak(D)
+            falling = False
             # admissible at D, but a slipping bond would turn back: it sticks again, unless
             # an event is due at D itself (a bound reached at once), which goes first (it
             # changes the rates: a new contact that sticks and at once slips would otherwise
@@ -234,6 +257,7 @@ def follow_events(st: EventState, limit: int, record_states: bool, end: float = 
             at = D
         elif feasible and hi < D:
             at = hi  # an avalanche state, recorded at its own limit (below D)
+            falling = True
         else:
             v = st.violation(D)  # transient: admissible at no D up to the current one
             if v is None:
@@ -242,11 +266,15 @@ def follow_events(st: EventState, limit: int, record_states: bool, end: float = 
             st.apply(*v, D)
             st.solve()
             path.transient += 1
+            falling = True
             continue
         record(at, kind, j)
-        F_x, _ = st.totals(at)
-        if F_x > path.peak.fx_total:
-            path.peak = st.snapshot(at)
+        if avalanche_peaks or not falling:
+            peak(at)
         st.apply(kind, j, at)
+        falling = falling or st.discontinuous
         st.solve()
+    if falling and landings and not path.message:  # the last avalanche ends in full sliding
+        record(D, "jump", -1)
+        peak(D)
     return path

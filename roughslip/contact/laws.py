@@ -21,8 +21,10 @@ help of ``pull.slip_law``. docs/extending.md says how to add one.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import ClassVar
 
 import numpy as np
 
@@ -30,6 +32,8 @@ from roughslip.contact.breaking import break_batch, break_cg, break_inverse, bre
 from roughslip.contact.events import RATE_TIE, TIE
 from roughslip.contact.methods import Registry
 from roughslip.contact.sliding import slide
+from roughslip.contact.weakening import weaken
+from roughslip.errors import InputError
 
 #: a constraint row: (event kind, where it applies, value at D = 0, rate in D, force scale)
 Row = tuple[str, np.ndarray, np.ndarray, np.ndarray, float]
@@ -57,7 +61,13 @@ class SlipLaw:
         curve.
     pull_runs
         Its decoupled pull methods: ``{method name: run(bonds, options, t0)}``.
+    couples
+        The coupled model (:func:`~roughslip.contact.coupled.couple`) runs it exactly.
     """
+
+    #: the law's own parameters: keywords of :func:`~roughslip.contact.pull.pull` and keys
+    #: of ``[pull]``
+    params: ClassVar[tuple[str, ...]] = ()
 
     name: str
     failed: str = "released"
@@ -65,6 +75,18 @@ class SlipLaw:
     reverses: bool = False
     slides: bool = False
     pull_runs: dict[str, Callable] = field(default_factory=dict)
+    couples: bool = True
+
+    def bind(self, lam: float, **params: float | None) -> SlipLaw:
+        """The law with its own parameters (``None``: not given), checked against the static
+        coefficient ``lam``; :class:`~roughslip.errors.InputError` names a parameter the law
+        does not have, or one it needs and lacks."""
+        for key, value in params.items():
+            if value is not None and key not in self.params:
+                raise InputError(f"{key} = {value!r}: slip_law = {self.name!r} has no such "
+                                 "parameter" + (f" (it has {', '.join(self.params)})"
+                                                if self.params else ""))
+        return self
 
     def failed_sign(self, kind: str) -> float:
         """The slip direction a bond keeps after the failure event ``kind`` (``"slip+"`` or
@@ -129,6 +151,37 @@ class CoulombLaw(SlipLaw):
         return 1.0 if kind == "slip+" else -1.0
 
 
+@dataclass(frozen=True)
+class SlipWeakeningLaw(SlipLaw):
+    r"""Linear slip-weakening friction (:mod:`roughslip.contact.weakening`): a failed bond
+    slips, and its strength falls from :math:`\lambda_s f_z` (``lam``) to
+    :math:`\lambda_d f_z` (``lam_dynamic``) over the slip :math:`d_c` (``slip_distance``).
+    The break law is its limit :math:`\lambda_d = 0,\ d_c \to 0`; the Coulomb law is
+    :math:`\lambda_d = \lambda_s`. Decoupled only: under coupling its constraint is bilinear
+    (:math:`\lambda(\delta) f_z` with both varying), and no exact path is implemented."""
+
+    params: ClassVar[tuple[str, ...]] = ("lam_dynamic", "slip_distance")
+    lam_dynamic: float = math.nan
+    slip_distance: float = math.nan
+
+    def bind(self, lam: float, **params: float | None) -> SlipLaw:
+        super().bind(lam, **params)
+        ld, dc = params.get("lam_dynamic"), params.get("slip_distance")
+        if ld is None or dc is None:
+            missing = "lam_dynamic" if ld is None else "slip_distance"
+            raise InputError(f"{missing}: slip_law = {self.name!r} needs lam_dynamic and "
+                             "slip_distance")
+        if not (isinstance(ld, int | float) and math.isfinite(ld) and 0 <= ld <= lam):
+            raise InputError(f"lam_dynamic = {ld!r}: must satisfy 0 <= lam_dynamic <= lam "
+                             f"(= {lam!r})")
+        if not (isinstance(dc, int | float) and math.isfinite(dc) and dc > 0):
+            raise InputError(f"slip_distance = {dc!r}: must be a finite number > 0")
+        return replace(self, lam_dynamic=float(ld), slip_distance=float(dc))
+
+    def failed_sign(self, kind: str) -> float:
+        return 1.0 if kind == "slip+" else -1.0
+
+
 #: the slip laws, by name (the configuration's ``pull.slip_law``)
 LAWS: Registry[SlipLaw] = Registry("slip law")
 
@@ -139,3 +192,7 @@ LAWS.register("break", "a failed bond carries no force (the report's law)")(Brea
 LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(
     "coulomb", failed="slipping", curve="slip events", reverses=True, slides=True,
     pull_runs={"inverse": slide}))
+LAWS.register("slip-weakening", "a failed bond slips, its strength falling from lam f_z to "
+              "lam_dynamic f_z over the slip slip_distance")(SlipWeakeningLaw(
+    "slip-weakening", failed="slipping", curve="slip events", reverses=True, couples=False,
+    pull_runs={"inverse": weaken}))

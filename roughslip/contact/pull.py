@@ -115,13 +115,17 @@ def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
     return np.interp(dx, xs, ys, right=result.friction_force)
 
 
-def check_friction(lam: float, slip_law: str) -> None:
+def check_friction(lam: float, slip_law: str, coupled: bool = False) -> None:
     """Raise :class:`InputError` unless ``lam`` is a finite number > 0 and ``slip_law`` a name
     in :data:`~roughslip.contact.laws.LAWS` (the pull, the coupled model and the indentation
-    share the rule)."""
+    share the rule), which the coupled model runs when ``coupled``."""
     if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
         raise InputError(f"lam = {lam!r}: must be a finite number > 0")
-    LAWS.get(slip_law, "slip_law")
+    law = LAWS.get(slip_law, "slip_law")
+    if coupled and not law.couples:
+        raise InputError(f"slip_law = {slip_law!r}: the coupled model has no exact path for "
+                         "it (its strength and f_z both vary, a bilinear constraint); use "
+                         "the decoupled pull")
 
 
 def methods_for(slip_law: str) -> list[str]:
@@ -170,6 +174,8 @@ def pull(
     max_iter: int = 10_000,
     threads: int | None = None,
     estimate_error: bool = False,
+    lam_dynamic: float | None = None,
+    slip_distance: float | None = None,
 ) -> SlipResult:
     r"""Pull a squeezed contact sideways until it slides (docs/theory/pull.rst#break-law).
 
@@ -181,9 +187,11 @@ def pull(
     lam : float
         Local friction coefficient :math:`\lambda > 0`: a bond breaks (or slips) when
         :math:`|f_x| > \lambda f_z`.
-    slip_law : {"break", "coulomb"}
+    slip_law : {"break", "coulomb", "slip-weakening"}
         ``"break"``: a broken bond carries no force (the report). ``"coulomb"``: a slipping
-        site carries :math:`\lambda f_z`.
+        site carries :math:`\lambda f_z`. ``"slip-weakening"``: a slipping site's strength
+        falls from :math:`\lambda f_z` to ``lam_dynamic`` :math:`f_z` over the slip
+        ``slip_distance`` (:mod:`roughslip.contact.weakening`).
     method : str
         A name from :data:`METHODS`: ``"auto"``, ``"literal"``, ``"inverse"``, ``"cg"`` or
         ``"batch"`` (module docstring). ``"auto"`` picks an exact method by bond count and
@@ -207,6 +215,10 @@ def pull(
         operator applications; deterministic) with the bound estimate ``error_bound``
         :math:`= \hat\kappa\rho`. Both are estimates (docs/methods.rst#estimates-against-truth
         compares them with the true error).
+    lam_dynamic, slip_distance : float, optional
+        The residual coefficient :math:`\lambda_d \in [0, \lambda]` and the slip
+        :math:`d_c > 0` over which the strength falls to it; ``slip_law="slip-weakening"``
+        only, and needed there.
 
     Returns
     -------
@@ -214,7 +226,7 @@ def pull(
     """
     t0 = time.perf_counter()
     check_friction(lam, slip_law)
-    law = LAWS.get(slip_law)
+    law = LAWS.get(slip_law).bind(lam, lam_dynamic=lam_dynamic, slip_distance=slip_distance)
     METHODS.get(method)
     if not 0 < tol < 1:
         raise InputError(f"tol = {tol!r}: must satisfy 0 < tol < 1")

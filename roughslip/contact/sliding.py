@@ -120,6 +120,13 @@ class TangentialState:
         j = argext(over, bad, "max")
         return ("slip+" if fx[j] > 0 else "slip-"), self._site(j)
 
+    #: no event changes the forces at constant drive
+    discontinuous = False
+
+    def holds(self) -> bool:
+        """Whether any bond still sticks (the pull goes on while one does)."""
+        return bool(self.S.any())
+
     def reversal(self) -> int | None:
         """A slipping bond whose slip the pull would turn around (the slip law's
         :meth:`~roughslip.contact.laws.SlipLaw.turned_back`): one FFT product per stick set,

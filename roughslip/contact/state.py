@@ -340,6 +340,13 @@ class ContactState:
         self.offset.ravel()[j] = ux.ravel()[j] - self.dx_at(D)
         self.S.ravel()[j] = True
 
+    #: no event changes the forces at constant drive
+    discontinuous = False
+
+    def holds(self) -> bool:
+        """Whether any bond still sticks (the pull goes on while one does)."""
+        return bool(self.S.any())
+
     def reversal(self) -> int | None:
         """A slipping bond whose slip would run against its force (the slip law's
         :meth:`~roughslip.contact.laws.SlipLaw.turned_back`), or None. The rate is constant

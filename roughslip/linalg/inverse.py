@@ -16,6 +16,9 @@ a stored matrix :math:`M` and up to ``block`` pending rank-one terms of sign
   :math:`D = A_{new,new}` borders the inverse through the Schur complement
   :math:`S_c = D - B^T M B`: the old block gains :math:`(MB)\,S_c^{-1}(MB)^T`, the new rows are
   written into spare capacity, and tracked solutions are bordered in :math:`O(mk)`.
+* **Shifting** a diagonal entry, :math:`A_{rr} \leftarrow A_{rr} + \delta`, subtracts
+  :math:`\delta\,c\,c^T/(1 + \delta c_r)` (Sherman & Morrison again); a tracked solution
+  becomes :math:`x - c\,\delta x_r/(1 + \delta c_r)`.
 * **Compacting** drops the rows of removed unknowns, in place when they fit.
 * **Factorising** afresh: Cholesky and LAPACK's inverse from it (``definite``), else a
   symmetric-indefinite inverse.
@@ -175,6 +178,9 @@ class UpdatableInverse:
         self.V = np.empty((0, block), order="F")  # pending terms
         self.s = np.empty(block)  # their signs
         self.k = 0  # pending terms in use
+        #: the pivot of the last :meth:`remove` (:math:`c_r`) or :meth:`shift`
+        #: (:math:`1 + \delta c_r`): its sign says how the inertia changed
+        self.pivot = math.nan
         self.ids = np.empty(0, dtype=np.int64)  # unknown of each row
         self.live = np.empty(0, dtype=bool)  # rows still in the set
         #: tracked solutions by name (:class:`Tracked`, on the rows)
@@ -349,6 +355,7 @@ class UpdatableInverse:
         cr = float(c[r])
         if not (cr > 0 if self.definite else _nonsingular(np.array([cr]), c)):
             return False
+        self.pivot = cr
         for t in self.tracked.values():
             t.x -= c * (t.x[r] / cr)
             t.x[r] = 0.0
@@ -357,6 +364,37 @@ class UpdatableInverse:
         self.row[self.ids[r]] = -1
         self._push((c * (1.0 / math.sqrt(abs(cr))))[:, None], -1.0 if cr > 0 else 1.0)
         return True
+
+    def shift(self, unknown: int, delta: float, column: np.ndarray | None = None
+              ) -> np.ndarray | None:
+        r"""Add ``delta`` to the diagonal entry of ``unknown`` (module docstring); returns the
+        new column of the inverse on the rows, or None (nothing changed) when the update is
+        numerically singular: :math:`|1 + \delta c_r|` at or below ``m x eps`` times
+        :math:`\max(1, |\delta c_r|)`. Tracked solutions keep their right-hand sides.
+
+        The number of negative eigenvalues grows by one when ``delta < 0`` and the pivot
+        :math:`1 + \delta c_r` (kept in :attr:`pivot`) is negative, and falls by one when
+        ``delta > 0`` and it is negative; otherwise it stays.
+
+        The assembler must give the shifted entry from now on (for :meth:`add` and
+        :meth:`factor`). ``column``: the current column of ``unknown``, when the caller has
+        it.
+        """
+        if self.lower:
+            raise ValueError("a lower-triangle inverse holds a set that only shrinks")
+        r = int(self.row[unknown])
+        c = self.column(r) if column is None else column
+        dc = delta * float(c[r])
+        den = 1.0 + dc
+        if not (math.isfinite(den) and abs(den) > self.m * np.finfo(float).eps * max(1.0,
+                                                                                  abs(dc))):
+            return None
+        self.pivot = den
+        g = delta / den
+        for t in self.tracked.values():
+            t.x -= c * (g * t.x[r])
+        self._push((c * math.sqrt(abs(g)))[:, None], -1.0 if g > 0 else 1.0)
+        return c / den
 
     def compact(self, extra: int = 0) -> bool:
         """Drop removed rows; in place when ``extra`` more rows fit, else into a larger buffer

@@ -31,7 +31,7 @@ from roughslip.contact.laws import LAWS
 from roughslip.contact.pull import METHODS as PULL_METHODS
 from roughslip.contact.pull import methods_for
 from roughslip.contact.squeeze import METHODS as SQUEEZE_METHODS
-from roughslip.errors import ConfigError
+from roughslip.errors import ConfigError, InputError
 from roughslip.run import schema
 from roughslip.surfaces.topography import LENGTH_UNITS
 
@@ -241,6 +241,10 @@ class SqueezeConfig:
     warm_start: bool = _f(True, "start each depth from the previous depth's forces")
 
 
+#: the slip laws' own parameters, each a key of ``[pull]``
+LAW_PARAMS = tuple(sorted({k for name in LAWS for k in LAWS.get(name).params}))
+
+
 @dataclass(frozen=True)
 class PullConfig:
     """``[pull]``: horizontal pull and slip (docs/theory/pull.rst#break-law)."""
@@ -248,6 +252,11 @@ class PullConfig:
     enabled: bool = _f(False, "run the pull stage")
     lam: float = _f(0.2, "local friction coefficient lambda", _positive)
     slip_law: str = _f("break", LAWS.describe(), choices=LAWS.names())
+    lam_dynamic: float | None = _f(None, "slip_law = 'slip-weakening': the residual "
+                                   "coefficient lambda_d, 0 <= lam_dynamic <= lam", _nonnegative)
+    slip_distance: float | None = _f(None, "slip_law = 'slip-weakening': the slip d_c "
+                                     "(length) over which the strength falls from lam f_z "
+                                     "to lam_dynamic f_z", _positive)
     method: str = _f("auto", PULL_METHODS.describe(), choices=PULL_METHODS.names())
     tol: float = _f(1e-10, "relative tolerance of the tangential solves", _tol_rule)
     batch_size: int = _f(16, "sites broken per solve by method = 'batch'", _at_least(1))
@@ -907,6 +916,20 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
                        "applies to depths only; use squeeze.force_unit with forces")
     if cfg.coupling.enabled and not cfg.pull.enabled:
         raise ctx.fail("coupling.enabled", True, "needs pull.enabled = true")
+    law = LAWS.get(cfg.pull.slip_law)
+    if cfg.pull.enabled:  # the slip law's own parameters ([pull] keys named as the law's)
+        given = {k: getattr(cfg.pull, k) for k in LAW_PARAMS}
+        try:
+            law.bind(cfg.pull.lam, **given)
+        except InputError as exc:
+            head, _, rule = str(exc).partition(": ")
+            key = head.split(" ")[0]
+            raise ctx.fail(f"pull.{key}", given[key], rule) if given[key] is not None \
+                else ctx.fail(f"pull.{key}", rule=rule) from None
+    if cfg.coupling.enabled and not law.couples:
+        raise ctx.fail("pull.slip_law", cfg.pull.slip_law,
+                       "has no exact coupled model (its strength and f_z both vary, a "
+                       "bilinear constraint); needs coupling.enabled = false")
     if cfg.pull.enabled and not cfg.coupling.enabled:
         if not LAWS.get(cfg.pull.slip_law).pull_runs:
             raise ctx.fail("pull.slip_law", cfg.pull.slip_law,

@@ -1,0 +1,471 @@
+r"""The decoupled pull under linear slip-weakening friction: exact events, and bursts through
+the folds of the equilibrium path (docs/theory/pull.rst#slip-weakening).
+
+A bond that fails slips, and its strength falls with the slip :math:`\delta` it has
+accumulated since it first failed (Ida 1972; Palmer & Rice 1973; Andrews 1976):
+
+.. math:: \lambda(\delta) = \lambda_s - (\lambda_s - \lambda_d)\,\min(\delta/d_c, 1).
+
+With the slip :math:`s_i = D - u_i` of the rigid surface over the half-space, each bond is in
+one of three phases, with one linear equation each:
+
+* **stick**: :math:`s_i = s^0_i` (0 until it first slips), while
+  :math:`|f_i| \le \lambda(\delta_i) f_{z,i}`;
+* **weakening**: :math:`f_i + k_i s_i = c_i`, :math:`k_i = (\lambda_s - \lambda_d) f_{z,i}/d_c`,
+  while :math:`\sigma_i f_i > \lambda_d f_{z,i}` (its slip below :math:`d_c`);
+* **residual**: :math:`f_i = \sigma_i\lambda_d f_{z,i}`.
+
+The forces of the stick and weakening bonds :math:`A` solve
+
+.. math:: M f_A = D\,1 - b - G_{AR} f_R, \qquad M = G_{AA} - \mathrm{diag}(1/k_W),
+
+(:math:`b_i = s^0_i` on stick bonds, :math:`c_i/k_i` on weakening ones), so
+:math:`f_A = D\varphi - \psi` is affine in :math:`D` between events. :math:`M` is symmetric but
+indefinite; its inverse is updated, not recomputed, by
+:class:`~roughslip.linalg.inverse.UpdatableInverse`: a bond that starts or stops weakening
+shifts a diagonal entry, a bond that reaches its residual strength leaves the set.
+
+Stability. The state is stable under a held drive when the stiffness of the weakening bonds,
+:math:`(G_{AA}^{-1})_{WW} - \mathrm{diag}(k_W)`, is positive definite; by Haynsworth's inertia
+theorem that is when :math:`M` has exactly :math:`|W|` negative eigenvalues. Every update
+changes that count by the sign of its pivot, so it is tracked exactly. A stick bond can start
+weakening without losing stability only while :math:`(M^{-1})_{ii} > k_i`.
+
+The path. Events change one bond's phase; along each piece the quantity that has just become
+free (the new weakening bond's slip, the new residual bond's slip, a re-stuck bond's margin
+to its strength) must grow, which fixes the direction in which :math:`D` moves on the new
+piece. On a stable path :math:`D` increases. When an event makes the path fold back
+(:math:`D` would have to decrease), the pull holds its drive :math:`D^*` and **jumps**: the
+equilibrium path is followed through the fold, by the slip of the bonds that drive it, in
+whichever direction :math:`D` then moves, until it crosses :math:`D^*` again on a stable piece
+going upwards. That crossing is the state after the burst. Its force is recorded at
+:math:`D^*` (event ``"jump"``); the states inside the burst are recorded at their own
+:math:`D` and never count for the friction force, which is the largest force of the stable
+path (events outside bursts and the states after them).
+
+Reversal: a slipping bond (weakening or residual, with a residual strength above 0) whose slip
+would decrease along the path sticks again where it is, keeping the strength it has reached.
+
+Limits. :math:`\lambda_d = \lambda_s` is the Coulomb law (a failed bond goes straight to its
+residual strength). :math:`\lambda_d = 0` with :math:`d_c` below the pixel's weakening scale
+is the break law: a failing bond snaps back to zero force along the unstable branch, and the
+stable pieces of the path in between start at the break law's limits, so its failure events
+are the break law's sequence (:math:`D_{x,\rm lim}, F_{x,\rm lim}`), avalanches included.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from roughslip.contact.bonds import Bonds, PullOptions, SlipResult
+from roughslip.contact.events import RATE_TIE, TIE, Snapshot, argext, event_table, follow_events
+from roughslip.errors import MemoryLimitError, NumericalError
+from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
+from roughslip.linalg.memory import available_bytes
+
+STICK, WEAK, RESIDUAL = 0, 1, 2
+
+
+def _no_values(ids: np.ndarray) -> np.ndarray:
+    """Right-hand sides of added unknowns: the state recomputes its solutions after an add."""
+    return np.zeros(ids.size)
+
+
+class WeakeningState:
+    """The bonds of a squeeze under slip-weakening, affine in the pull (module docstring)."""
+
+    def __init__(self, b: Bonds, opt: PullOptions) -> None:
+        law = opt.law
+        self.b, self.opt = b, opt
+        self.lam_s, self.lam_d = float(b.lam), float(law.lam_dynamic)
+        self.dc = float(law.slip_distance)
+        n = b.n
+        self.fz = b.fz
+        self.k = (self.lam_s - self.lam_d) * self.fz / self.dc  # weakening stiffness
+        self.phase = np.zeros(n, dtype=np.int8)
+        self.sigma = np.zeros(n)
+        self.lam_cur = np.full(n, self.lam_s)  # strength reached, lambda(delta)
+        self.delta = np.zeros(n)  # slip accumulated up to the phase's start
+        self.s0 = np.zeros(n)  # slip where the phase started
+        self.c = np.zeros(n)  # weakening: f + k s = c
+        self.bvec = np.zeros(n)  # b of M f = D 1 - b - G f_R, per bond
+        self.dshift = np.zeros(n)  # diagonal of M minus that of G (-1/k on weakening bonds)
+        self.fR = np.zeros(n)  # forces of residual bonds
+        self.neg = 0  # negative eigenvalues of M
+        self.snaps = 0  # bonds that failed unstably and slipped to their residual strength
+        self.discontinuous = False  # the last event was such a failure
+        self.Dscale, self.pulling = 1.0, False
+        self.C = b.mask(np.arange(n))
+        self.position = np.full(b.shape[0] * b.shape[1], -1, dtype=np.int64)
+        self.position[b.sites] = np.arange(n)
+        self.worst, self.refinements, self.ok = 0.0, 0, True
+        self._rate: np.ndarray | None = None
+
+        def room(m: int) -> bool:
+            if inverse_bytes(m) > available_bytes():
+                raise MemoryLimitError(
+                    f"slip-weakening: the inverse on {m} bonds needs "
+                    f"~{inverse_bytes(m) / 2**30:.1f} GiB but "
+                    f"{available_bytes() / 2**30:.1f} GiB are available")
+            return True
+
+        self.inv = UpdatableInverse(self._entries, n, room=room, threads=opt.threads,
+                                    block=opt.block, definite=False)
+        try:
+            self.inv.factor(np.arange(n))
+        except NumericalError as exc:
+            raise NumericalError(f"G_xx on the bonds: {exc}") from None
+        self._retrack()
+
+    # -- the matrix and its solutions ------------------------------------------------------
+    def _entries(self, i: np.ndarray, j: np.ndarray, order: str) -> np.ndarray:
+        """:math:`M` between the bonds ``i`` and ``j`` (G_xx, shifted on weakening bonds)."""
+        A = self.b.entries(i, j, order)
+        if np.array_equal(i, j):
+            d = self.dshift[i]
+            if d.any():
+                A[np.diag_indices(i.size)] += d
+        return A
+
+    def _load(self) -> np.ndarray:
+        return self.b.field(self.fR)
+
+    def _rhs_psi(self, pos: np.ndarray) -> np.ndarray:
+        """:math:`b + G_{AR} f_R` on the bonds ``pos`` (one FFT product when bonds are
+        residual)."""
+        out = self.bvec[pos].copy()
+        if self.fR.any():
+            u = self.b.apply(self._load(), np.empty(self.b.shape)).ravel()
+            out += u[self.b.sites[pos]]
+        return out
+
+    def _retrack(self) -> None:
+        """phi and psi afresh on the current rows (after a factorisation or an addition)."""
+        inv = self.inv
+        pos = inv.ids
+        live = inv.live
+        one = live.astype(float)
+        rhs = np.zeros(inv.m)
+        rhs[live] = self._rhs_psi(pos[live])
+        for name, r in (("phi", one), ("psi", rhs)):
+            x = inv.apply(r)
+            x[~live] = 0.0
+            inv.tracked[name] = Tracked(r.copy(), x, _no_values)
+        self._certify()
+
+    def _rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """phi, psi, the bond of each row, and the live rows."""
+        t = self.inv.tracked
+        return t["phi"].x, t["psi"].x, self.inv.ids, self.inv.live
+
+    def _certify(self) -> None:
+        """Check phi and psi against the FFT operator (iterative refinement, module
+        :mod:`roughslip.linalg.inverse`)."""
+        inv, b = self.inv, self.b
+        live = inv.live
+        pos = inv.ids[live]
+        sites = b.sites[pos]
+        shift = self.dshift[pos]
+        for name, rhs in (("phi", np.ones(pos.size)), ("psi", self._rhs_psi(pos))):
+            def residual(x: np.ndarray, rhs: np.ndarray = rhs) -> tuple[np.ndarray, float]:
+                v = np.zeros(b.shape)
+                v.ravel()[sites] = x[live]
+                u = b.apply(v, np.empty(b.shape)).ravel()[sites] + shift * x[live]
+                r = np.zeros(inv.m)
+                r[live] = rhs - u
+                # psi's right-hand side is a displacement of the order of the drive's
+                scale = max(float(np.linalg.norm(rhs)), self.Dscale * math.sqrt(rhs.size),
+                            1e-300)
+                return r, float(np.linalg.norm(r[live])) / scale
+
+            t = inv.tracked[name]
+            t.x, res, nref = inv.refine(t.x, residual, self.opt.tol, 3)
+            self.worst = max(self.worst, res)
+            self.refinements += nref
+            self.ok &= res <= self.opt.tol
+
+    def _fold(self) -> None:
+        inv = self.inv
+        if inv.k < inv.block:
+            return
+        inv.flush()
+        if inv.live.sum() < 0.75 * inv.m:
+            inv.compact()
+        self._certify()
+
+    # -- the affine state (an EventState of the event loop) ---------------------------------
+    @property
+    def S(self) -> np.ndarray:
+        """The stick sites (grid)."""
+        return self.b.mask(np.flatnonzero(self.phase == STICK))
+
+    def holds(self) -> bool:
+        """Whether any bond sticks or weakens (the pull goes on while one does)."""
+        return bool(np.any(self.phase != RESIDUAL))
+
+    def forces(self, D: float) -> np.ndarray:
+        """:math:`f_x` per bond at ``D``."""
+        phi, psi, ids, live = self._rows()
+        f = self.fR.copy()
+        f[ids[live]] = D * phi[live] - psi[live]
+        return f
+
+    def at(self, D: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not math.isfinite(D):
+            raise NumericalError(f"the pull reached a non-finite displacement D_x = {D!r}")
+        return self.b.field(self.fz), self.b.field(self.forces(D)), np.zeros(self.b.shape)
+
+    def totals(self, D: float) -> tuple[float, float]:
+        phi, psi, _, live = self._rows()
+        F = D * float(phi[live].sum()) - float(psi[live].sum()) + float(self.fR.sum())
+        return F, float(self.b.normal.fz.sum())
+
+    def snapshot(self, D: float) -> Snapshot:
+        return Snapshot.of(self, D)
+
+    def dx_at(self, D: float) -> float:
+        return D
+
+    def depth_at(self, D: float) -> float:
+        return float(self.b.normal.depth)
+
+    def stable(self) -> bool:
+        """Whether M has one negative eigenvalue per weakening bond (module docstring)."""
+        return self.neg == int(np.count_nonzero(self.phase == WEAK))
+
+    def _cons(self, D: float) -> tuple[list, np.ndarray, float]:
+        """The constraint rows ``a + b D >= 0`` on the rows of the inverse."""
+        phi, psi, ids, live = self._rows()
+        ph = self.phase[ids]
+        fz = self.fz[ids]
+        fs = max(float(np.abs(self.fz).max()), np.finfo(float).tiny)
+        S, W = live & (ph == STICK), live & (ph == WEAK)
+        sg = self.sigma[ids]
+        lam = self.lam_cur[ids]
+        cons = [("slip+", S, lam * fz + psi, -phi, fs), ("slip-", S, lam * fz - psi, phi, fs),
+                ("residual", W, -sg * psi - self.lam_d * fz, sg * phi, fs)]
+        return cons, ids, fs
+
+    def interval(self, D: float) -> tuple[float, float, str, int]:
+        """The admissible interval of the drive and the event ending it
+        (:func:`~roughslip.contact.events.event_table`)."""
+        if not self.stable():  # a weakening bond runs away: admissible nowhere
+            return math.inf, -math.inf, "snap", -1
+        cons, ids, _ = self._cons(D)
+        lo, hi, kind, row = event_table(cons, D, max(self.Dscale, abs(D)), self.Dscale)
+        return lo, hi, kind, (int(self.b.sites[ids[row]]) if row >= 0 else -1)
+
+    def violation(self, D: float) -> tuple[str, int] | None:
+        """The most violated constraint at ``D`` (in units of the bond's f_z; ties to the
+        lowest row), or None. In an unstable state: the weakening bond that slips to its
+        residual strength (:meth:`_runaway`)."""
+        if not self.stable():
+            return "snap", int(self.b.sites[self._runaway(D)])
+        cons, ids, _ = self._cons(D)
+        best, which = TIE, None
+        for name, m, a, b, _ in cons:
+            if not m.any():
+                continue
+            excess = np.where(m, -(a + b * D) / self.fz[ids], -np.inf)
+            j = argext(excess, m, "max")
+            if excess[j] > best * (1 + TIE):
+                best, which = float(excess[j]), (name, int(self.b.sites[ids[j]]))
+        return which
+
+    def _runaway(self, D: float) -> int:
+        r"""The weakening bond that slips to its residual strength when the state has lost its
+        stability (a stick bond released beside weakening ones softens them): among those
+        whose removal restores one lost positive direction (:math:`(M^{-1})_{jj} > 0`), else
+        among all, the one nearest its residual strength, :math:`(\sigma f_j - \lambda_d
+        f_{z,j})/f_{z,j}` smallest (ties to the lowest bond)."""
+        phi, psi, ids, live = self._rows()
+        W = live & (self.phase[ids] == WEAK)
+        if not W.any():
+            raise NumericalError("slip-weakening: an unstable state without weakening bonds "
+                                 "(internal error)")
+        rows = np.flatnonzero(W)
+        diag = np.array([self.inv.column(int(r))[r] for r in rows])
+        pick = rows[diag > 0] if np.any(diag > 0) else rows
+        margin = np.full(phi.shape, np.inf)
+        q = ids[pick]
+        margin[pick] = (self.sigma[q] * (D * phi[pick] - psi[pick]) - self.lam_d * self.fz[q]
+                        ) / self.fz[q]
+        return int(ids[argext(margin, None, "min")])
+
+    def _slip_rates(self) -> np.ndarray:
+        r""":math:`\partial s/\partial D` of every bond on the current piece (0 on stick
+        bonds; one FFT product when bonds are residual)."""
+        if self._rate is None:
+            phi, _, ids, live = self._rows()
+            rate = np.zeros(self.b.n)
+            W = live & (self.phase[ids] == WEAK)
+            rate[ids[W]] = -phi[W] / self.k[ids[W]]
+            R = self.phase == RESIDUAL
+            if R.any() and self.lam_d > 0:
+                v = np.zeros(self.b.shape)
+                v.ravel()[self.b.sites[ids[live]]] = phi[live]
+                u = self.b.apply(v, np.empty(self.b.shape)).ravel()[self.b.sites]
+                rate[R] = 1.0 - u[R]
+            self._rate = rate
+        return self._rate
+
+    def reversal(self) -> int | None:
+        """A slipping bond whose slip the pull would turn back (the most, above
+        ``RATE_TIE``; ties to the lowest bond): it sticks again where it is, keeping the
+        strength it has reached. Residual bonds of zero strength carry nothing and never
+        stick again. Returns its site."""
+        can = (self.phase == WEAK) | ((self.phase == RESIDUAL) & (self.lam_d > 0))
+        if not can.any():
+            return None
+        back = np.where(can, -self.sigma * self._slip_rates(), -np.inf)
+        top = float(back.max())
+        if not top > RATE_TIE:
+            return None
+        return int(self.b.sites[np.flatnonzero(back >= top - TIE * max(1.0, top))[0]])
+
+    def solve(self) -> None:
+        """Nothing to do: every event updates the solutions in place."""
+
+    # -- events ----------------------------------------------------------------------------
+    def _set_b(self, p: int, value: float, col: np.ndarray) -> None:
+        """Change :math:`b_p` of psi's right-hand side (``col``: column p of the inverse)."""
+        inv = self.inv
+        t = inv.tracked["psi"]
+        t.x += (value - self.bvec[p]) * col
+        t.b[int(inv.row[p])] += value - self.bvec[p]
+        self.bvec[p] = value
+
+    def _leave(self, p: int, force: float) -> None:
+        """Bond ``p`` leaves the set with the fixed force ``force`` (residual)."""
+        inv = self.inv
+        r = int(inv.row[p])
+        inv.tracked["psi"].x[r] += force  # psi <- psi - c (psi_r + F) / c_r
+        if not inv.remove(p):
+            raise NumericalError("slip-weakening: a singular update of the inverse")
+        if inv.pivot < 0:
+            self.neg -= 1
+        self.fR[p] = force
+        self.dshift[p] = 0.0
+        self.bvec[p] = 0.0
+        self.phase[p] = RESIDUAL
+        self.lam_cur[p] = self.lam_d
+
+    def _shift(self, p: int, delta: float, col: np.ndarray | None = None) -> np.ndarray:
+        new = self.inv.shift(p, delta, column=col)
+        if new is None:
+            raise NumericalError("slip-weakening: a singular update of the inverse")
+        if self.inv.pivot < 0:
+            self.neg += 1 if delta < 0 else -1
+        self.dshift[p] += delta
+        return new
+
+    def apply(self, kind: str, j: int, D: float = 0.0) -> None:
+        """Apply the event ``kind`` of the bond at site ``j`` at ``D``: a stick bond that
+        fails starts to weaken if the state stays stable, else it slips to its residual
+        strength at once (module docstring); a weakening bond reaches its residual
+        strength; a slipping bond sticks again."""
+        self._rate = None
+        p = int(self.position[j])
+        inv = self.inv
+        snaps = self.snaps
+        if kind in ("slip+", "slip-"):
+            s = 1.0 if kind == "slip+" else -1.0
+            self.sigma[p] = s
+            col = inv.column(int(inv.row[p])) if self.k[p] > 0 else None
+            if col is not None and self.lam_cur[p] > self.lam_d and \
+                    col[inv.row[p]] > self.k[p] * (1 + TIE):
+                # stable: stick -> weakening, from the slip and strength it has
+                self.c[p] = s * self.fz[p] * self.lam_cur[p] + self.k[p] * self.s0[p]
+                col = self._shift(p, -1.0 / self.k[p], col)
+                self.phase[p] = WEAK
+                self._set_b(p, self.c[p] / self.k[p], col)
+            else:  # unstable (or at its residual strength already): it slips to residual
+                self.snaps += self.lam_cur[p] > self.lam_d
+                self.delta[p] = max(self.delta[p], self.dc)
+                self._leave(p, s * self.lam_d * self.fz[p])
+        elif kind == "residual":
+            s = self.sigma[p]
+            self.delta[p] += s * (self._slip(p, D) - self.s0[p])
+            self._leave(p, s * self.lam_d * self.fz[p])
+        elif kind == "snap":  # a weakening bond runs away to its residual strength
+            self.snaps += 1
+            self.delta[p] = max(self.delta[p], self.dc)
+            self._leave(p, self.sigma[p] * self.lam_d * self.fz[p])
+        elif kind == "stick":
+            s = self.sigma[p]
+            slip = self._slip(p, D)
+            if self.phase[p] == WEAK:
+                f = float(self.forces(D)[p])
+                self.delta[p] += s * (slip - self.s0[p])
+                self.lam_cur[p] = s * f / self.fz[p]
+                col = self._shift(p, 1.0 / self.k[p])
+                self.phase[p] = STICK
+                self._set_b(p, slip, col)
+            else:
+                self._restick_residual(p, slip)
+            self.s0[p] = slip
+            self.sigma[p] = 0.0
+        else:
+            raise NumericalError(f"slip-weakening: no event {kind!r} (internal error)")
+        self.discontinuous = self.snaps > snaps
+        self._fold()
+
+    def _slip(self, p: int, D: float) -> float:
+        """The slip :math:`s = D - u` of bond ``p`` at ``D``."""
+        if self.phase[p] == WEAK:
+            return float((self.c[p] - self.forces(D)[p]) / self.k[p])
+        if self.phase[p] == STICK:
+            return float(self.s0[p])
+        f = self.b.field(self.forces(D))
+        u = self.b.apply(f, np.empty(self.b.shape)).ravel()[self.b.sites[p]]
+        return float(D - u)
+
+    def _restick_residual(self, p: int, slip: float) -> None:
+        """A residual bond sticks again: it joins the set (the inverse is bordered) and the
+        solutions are recomputed on the new right-hand side."""
+        inv = self.inv
+        live = inv.ids[inv.live]
+        g = np.zeros(inv.m)
+        g[inv.live] = self.b.entries(live, np.array([p]), "C")[:, 0]
+        Hg = inv.apply(g)
+        schur = float(self.b.entries(np.array([p]), np.array([p]), "C")[0, 0] - g @ Hg)
+        self.fR[p] = 0.0
+        self.phase[p] = STICK
+        self.bvec[p] = slip
+        done = inv.add(np.array([p]))
+        if not done:
+            raise NumericalError("slip-weakening: a singular update of the inverse"
+                                 if done is False else "slip-weakening: out of memory")
+        if schur < 0:
+            self.neg += 1
+        self._retrack()
+
+
+def weaken(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    r"""The decoupled pull under slip-weakening friction to full sliding, on the event loop
+    (:func:`~roughslip.contact.events.follow_events`): the exact piecewise-linear path, its
+    bursts at constant drive, and the state each lands in (module docstring).
+    ``friction_force`` is the largest force of the stable path and the landings."""
+    st = WeakeningState(b, opt)
+    path = follow_events(st, 20 * b.n + 100, False, landings=True, avalanche_peaks=False)
+    ev = path.events[1:]
+    peak = path.peak
+    at = [i for i, e in enumerate(ev) if e.dx == peak.dx and e.fx == peak.fx_total]
+    n_jumps = sum(e.kind == "jump" for e in ev)
+    stick = peak.stick if peak.stick is not None else np.zeros(b.shape, bool)
+    return SlipResult(
+        friction_force=max(peak.fx_total, 0.0), peak_index=at[0] if at else 0,
+        dx_lim=np.array([e.dx for e in ev]), fx_lim=np.array([e.fx for e in ev]),
+        broken_site=np.array([e.site for e in ev], dtype=np.int64),
+        stick_at_peak=stick, fx_at_peak=(peak.fx if peak.fx is not None
+                                         else np.zeros(b.shape)),
+        converged=bool(st.ok) and not path.message, seconds=time.perf_counter() - t0,
+        method="inverse", slip_law=opt.slip_law, lam=b.lam, n_bonds=b.n, steps=len(ev),
+        residual=st.worst, solves=st.refinements, normal_force=b.normal.normal_force,
+        message=path.message or (f"exact event path to full sliding, {n_jumps} burst(s), "
+                                 f"{st.snaps} bond(s) failed unstably"),
+        kinds=tuple(e.kind for e in ev),
+    )

@@ -1,0 +1,175 @@
+"""The slip-weakening law (roughslip.contact.weakening): its limits, every state of its path
+against a dense equilibrium of the law, its bursts, and its inputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roughslip import couple, pull
+from roughslip.contact import weakening
+from roughslip.contact.problem import Problem
+from roughslip.contact.squeeze import NormalSolver
+from roughslip.elastic.operators import Grid, Material
+from roughslip.errors import InputError
+from roughslip.surfaces import sphere
+
+LAM = 0.2
+
+
+def _hertz(ratio: int, nu: float = 0.3):
+    """A sphere (R = 1) pressed to d = 0.01 (contact radius a = 0.1) with pixels h = a/ratio
+    on an open grid of 4a."""
+    a = 0.1
+    n = 4 * ratio
+    problem = Problem(sphere((n, n), radius=1.0, a=a / ratio), Grid((n, n), a / ratio),
+                      Material(1.0, nu), threads=1)
+    return NormalSolver(problem, tol=1e-12).solve(depth=0.01)
+
+
+@pytest.fixture(scope="module")
+def hertz8():
+    return _hertz(8)
+
+
+def _weak(normal, lam_dynamic: float, slip_distance: float, **kw):
+    return pull(normal, lam=LAM, slip_law="slip-weakening", lam_dynamic=lam_dynamic,
+                slip_distance=slip_distance, **kw)
+
+
+def test_no_weakening_is_the_coulomb_pull(hertz8):
+    """lam_dynamic = lam: a failed bond slides at lam f_z, the Coulomb pull, event for
+    event (to 1e-10 of the largest force)."""
+    c = pull(hertz8, lam=LAM, slip_law="coulomb")
+    w = _weak(hertz8, LAM, 5e-4)
+    assert w.converged and w.kinds == c.kinds
+    np.testing.assert_array_equal(w.broken_site, c.broken_site)
+    scale = np.abs(c.fx_lim).max()
+    assert np.abs(w.fx_lim - c.fx_lim).max() <= 1e-10 * scale
+    assert np.abs(w.dx_lim - c.dx_lim).max() <= 1e-10 * np.abs(c.dx_lim).max()
+    assert w.friction_force == pytest.approx(c.friction_force, rel=1e-10)
+
+
+@pytest.mark.parametrize("dc", [1e-6, 1e-9])
+def test_a_vanishing_slip_distance_to_zero_is_the_break_law(hertz8, dc):
+    """lam_dynamic = 0 and d_c far below the pixel's weakening scale: every failure is
+    unstable and drops the bond to zero force, so the failures are the break law's sequence
+    (D_x,lim, F_x,lim per break, avalanches at their own limits) to rounding, and the
+    friction force is the break law's."""
+    b = pull(hertz8, lam=LAM, early_stop=False, method="inverse")
+    w = _weak(hertz8, 0.0, dc)
+    fail = np.array([k in ("slip+", "slip-") for k in w.kinds])
+    assert set(w.kinds) <= {"slip+", "slip-", "jump"}
+    np.testing.assert_array_equal(w.broken_site[fail], b.broken_site)
+    assert np.abs(w.dx_lim[fail] - b.dx_lim).max() <= 1e-12 * b.dx_lim.max()
+    assert np.abs(w.fx_lim[fail] - b.fx_lim).max() <= 1e-12 * b.fx_lim.max()
+    assert w.friction_force == pytest.approx(b.friction_force, rel=1e-12)
+
+
+def test_a_slip_distance_to_infinity_gives_lam_f_n(hertz8):
+    """d_c -> infinity: the bonds keep their static strength through the slide, F_f -> lam
+    F_n (the full-slip displacement is ~2e-3 here, so the deficit is of that over d_c)."""
+    for dc, tol in ((1.0, 5e-3), (1e3, 5e-6)):
+        w = _weak(hertz8, 0.1, dc)
+        assert w.converged
+        ratio = w.friction_force / (LAM * hertz8.normal_force)
+        assert 1 - tol < ratio <= 1 + 1e-12
+
+
+def _check_state(st: weakening.WeakeningState, D: float, G: np.ndarray) -> None:
+    """Every bond obeys its phase of the law at D, by a dense G_xx (its bounds too when the
+    state is admissible at D, not inside a burst); the stability the state tracks is that of
+    the dense Hessian of the weakening bonds."""
+    f = st.forces(D)
+    s = D - G @ f  # slip of the rigid surface over the half-space at each bond
+    fz, sig, ph = st.fz, st.sigma, st.phase
+    fs = fz.max()
+    scale = max(st.Dscale, D)
+    stick, weak, res = ph == weakening.STICK, ph == weakening.WEAK, ph == weakening.RESIDUAL
+    assert np.all(np.abs(s[stick] - st.s0[stick]) <= 1e-7 * scale)
+    delta = st.delta[weak] + sig[weak] * (s[weak] - st.s0[weak])
+    if st.violation(D) is None:
+        assert np.all(np.abs(f[stick]) <= st.lam_cur[stick] * fz[stick] + 1e-8 * fs)
+        assert np.all(delta <= st.dc * (1 + 1e-6))
+    lam = LAM - (LAM - st.lam_d) * np.minimum(st.delta[weak] / st.dc, 1)
+    strength = (lam * fz[weak] - st.k[weak] * sig[weak] * (s[weak] - st.s0[weak]))
+    assert np.all(np.abs(sig[weak] * f[weak] - strength) <= 1e-8 * fs)
+    assert np.all(np.abs(sig[res] * f[res] - st.lam_d * fz[res]) <= 1e-12 * fs)
+    A = np.flatnonzero(~res)
+    W = np.flatnonzero(weak)
+    if W.size:
+        K = np.linalg.inv(G[np.ix_(A, A)])
+        wi = np.searchsorted(A, W)
+        hess = K[np.ix_(wi, wi)] - np.diag(st.k[W])
+        assert st.stable() == (np.linalg.eigvalsh(hess).min() > 0)
+
+
+@pytest.mark.parametrize("lam_dynamic, dc", [(0.1, 5e-4), (0.0, 3e-4), (0.05, 2e-4)])
+def test_every_state_of_the_path_obeys_the_law_against_a_dense_solve(monkeypatch,
+                                                                   lam_dynamic, dc):
+    """After every event, at its drive: stick bonds hold their slip within their strength,
+    weakening bonds carry lambda(delta) f_z with delta in [0, d_c], residual ones
+    lam_dynamic f_z, and every state is stable (dense Hessian): all against dense G_xx."""
+    normal = _hertz(6)
+    seen = []
+    apply = weakening.WeakeningState.apply
+
+    def checked(self, kind, j, D=0.0):
+        apply(self, kind, j, D)
+        if not hasattr(self, "_G"):
+            self._G = self.b.dense()
+        _check_state(self, D, self._G)
+        seen.append(kind)
+
+    monkeypatch.setattr(weakening.WeakeningState, "apply", checked)
+    w = _weak(normal, lam_dynamic, dc)
+    assert w.converged
+    assert {"slip+", "residual"} <= set(seen)
+
+
+def test_a_burst_holds_the_drive_and_its_states_never_set_the_friction(hertz8):
+    """With lam_dynamic = 0 and a short d_c the failures run away: each burst is recorded
+    at its own limits below the drive and lands at the drive (a "jump" event at the largest
+    D_x so far), and the friction force is the largest force of the stable path and the
+    landings, never of a state inside a burst."""
+    w = _weak(hertz8, 0.0, 1e-4)
+    dx, fx, kinds = w.dx_lim, w.fx_lim, w.kinds
+    top = np.maximum.accumulate(dx)
+    jumps = [i for i, k in enumerate(kinds) if k == "jump"]
+    assert len(jumps) >= 3
+    for i in jumps:
+        assert dx[i] == top[i]
+    inside = dx < top  # recorded below the drive: inside a burst
+    assert inside.any()
+    assert w.friction_force == fx[~inside].max()
+    assert w.kinds[w.peak_index] != "jump" or w.fx_lim[w.peak_index] == w.friction_force
+
+
+def test_the_friction_force_converges_with_the_pixel_size():
+    """The Hertz scene at a/h = 8 and 16 (lam_s = 0.2, lam_d = 0.1, d_c = 5e-4): under 2 %
+    apart, where the break law's falls by about 30 %."""
+    lo, hi = _hertz(8), _hertz(16)
+    w = [_weak(n, 0.1, 5e-4).friction_force / (LAM * n.normal_force) for n in (lo, hi)]
+    b = [pull(n, lam=LAM).friction_force / (LAM * n.normal_force) for n in (lo, hi)]
+    assert abs(w[1] / w[0] - 1) < 0.02
+    assert b[1] / b[0] < 0.75
+
+
+def test_the_same_pull_gives_the_same_bits(hertz8):
+    a = _weak(hertz8, 0.05, 2e-4)
+    b = _weak(hertz8, 0.05, 2e-4)
+    for name in ("dx_lim", "fx_lim", "broken_site", "fx_at_peak"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes()
+
+
+def test_bad_parameters_get_one_line_errors(hertz8):
+    with pytest.raises(InputError, match="slip_distance: slip_law = 'slip-weakening' needs"):
+        pull(hertz8, slip_law="slip-weakening", lam_dynamic=0.1)
+    with pytest.raises(InputError, match=r"lam_dynamic = 0.3: must satisfy 0 <= lam_dynamic"):
+        _weak(hertz8, 0.3, 1e-3)
+    with pytest.raises(InputError, match=r"slip_distance = 0\.0: must be a finite number > 0"):
+        _weak(hertz8, 0.1, 0.0)
+    with pytest.raises(InputError, match=r"lam_dynamic = 0\.1: slip_law = 'break' has no such"):
+        pull(hertz8, lam=LAM, lam_dynamic=0.1)
+    with pytest.raises(InputError, match="the coupled model has no exact path"):
+        couple(hertz8.problem, depth=0.01, lam=LAM, slip_law="slip-weakening")
