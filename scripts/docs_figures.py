@@ -20,6 +20,10 @@ writes into ``OUT_DIR``:
   force against Hertz's, and the friction coefficient of the break law, decoupled and
   coupled, against the pixel size.
 
+* ``weakening_resolution.png``, ``weakening_resolution.txt``: the same Hertz problem at
+  nu = 0.3 under the break law and under slip-weakening (lambda_s = 0.2, lambda_d = 0.1 and
+  0, d_c = 5e-4) at a/h = 4 ... 32, and the three pull curves at a/h = 16.
+
 Every command runs in a scratch folder laid out like a checkout (``configs/``, ``runs/``),
 so the output shows the paths the quickstart uses.
 """
@@ -186,6 +190,68 @@ def hertz_resolution(out: Path, ratios=(4, 8, 16, 32), coupled_max: int = 16,
     save(plt, fig, out / "hertz_resolution.png")
 
 
+def weakening_resolution(out: Path, ratios=(4, 8, 16, 32), nu: float = 0.3,
+                         lam: float = 0.2, slip_distance: float = 5e-4) -> None:
+    """The Hertz problem of :func:`hertz_resolution` under slip-weakening: the friction
+    coefficient converges once d_c is resolved, where the break law's falls."""
+    from roughslip import pull
+    from roughslip.analysis.bursts import landing_curve, pull_curve
+    from roughslip.analysis.plotting import pyplot, save
+    from roughslip.contact.problem import Problem
+    from roughslip.contact.squeeze import NormalSolver
+    from roughslip.elastic.operators import Grid, Material
+    from roughslip.surfaces import sphere
+
+    R, d = 1.0, 0.01
+    a = np.sqrt(R * d)
+    laws = [("break law", None), ("slip-weakening, $\\lambda_d$ = 0.1", 0.1),
+            ("slip-weakening, $\\lambda_d$ = 0", 0.0)]
+    mu = np.zeros((len(ratios), len(laws)))
+    curves = {}
+    lines = [f"# Hertz R = {R}, d = {d}, a = {a:.3g}, E = 1, nu = {nu}, lambda_s = {lam}, "
+             f"d_c = {slip_distance}; open grid of side 4a; F_f / (lambda_s F_n)",
+             f"{'a/h':>4} {'bonds':>6} {'break':>8} {'sw 0.1':>8} {'sw 0':>8}"]
+    for i, ratio in enumerate(ratios):
+        h, n = a / ratio, 4 * ratio
+        problem = Problem(sphere((n, n), radius=R, a=h), Grid((n, n), h), Material(1.0, nu))
+        normal = NormalSolver(problem, tol=1e-12).solve(depth=d)
+        for j, (_, ld) in enumerate(laws):
+            r = (pull(normal, lam=lam, early_stop=False) if ld is None else
+                 pull(normal, lam=lam, slip_law="slip-weakening", lam_dynamic=ld,
+                      slip_distance=slip_distance))
+            mu[i, j] = r.friction_force / (lam * normal.normal_force)
+            if ratio == 16:
+                c = (pull_curve(r.dx_lim, r.fx_lim, exhausted=True) if ld is None else
+                     landing_curve(r.dx_lim, r.fx_lim, r.broken_site))
+                curves[j] = (c.dx / slip_distance, c.fx / (lam * normal.normal_force))
+        lines.append(f"{ratio:4d} {int(normal.contact.sum()):6d} " +
+                     " ".join(f"{m:8.4f}" for m in mu[i]))
+    (out / "weakening_resolution.txt").write_text("\n".join(lines) + "\n")
+
+    plt = pyplot()
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.0))
+    x = np.array(ratios, dtype=float)
+    for j, (name, _) in enumerate(laws):
+        left.semilogx(x, mu[:, j], "os^"[j] + "-", color=f"C{j}", label=name)
+        if 16 in ratios:
+            right.plot(*curves[j], "-", color=f"C{j}", lw=0.9, label=name)
+    left.set_xlabel("contact radius over pixel size, $a/h$")
+    left.set_ylabel("friction coefficient $F_f / (\\lambda_s F_n)$")
+    left.set_ylim(0, 1.0)
+    left.set_xticks(x, [f"{r:g}" for r in ratios])
+    left.minorticks_off()
+    left.set_title("friction against the pixel size", fontsize=9)
+    right.set_xlabel("pull displacement over the slip distance, $D_x / d_c$")
+    right.set_ylabel("$F_x / (\\lambda_s F_n)$")
+    right.set_title("pull curves under a monotone drive, $a/h$ = 16", fontsize=9)
+    for ax in (left, right):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"one Hertz contact (a = {a:.3g}, $\\nu$ = {nu}, $\\lambda_s$ = {lam}, "
+                 f"$d_c$ = {slip_distance:g})", fontsize=10)
+    save(plt, fig, out / "weakening_resolution.png")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -195,6 +261,7 @@ def main(argv: list[str] | None = None) -> None:
     quickstart(args.out)
     hurst_loop(args.out)
     hertz_resolution(args.out)
+    weakening_resolution(args.out)
 
 
 if __name__ == "__main__":

@@ -129,6 +129,16 @@ def test_bursts_command_on_a_run(tmp_path):
     r = CliRunner().invoke(cli, ["bursts", str(out), "--min-tail", "20",
                                  "--plot", str(tmp_path / "b.png")])
     assert r.exit_code == 0 and "alpha" in r.output and (tmp_path / "b.png").stat().st_size
+    # slip-weakening: its bursts land at the drive, and the same command reads them
+    sw = dict(data, pull={"enabled": True, "slip_law": "slip-weakening", "lam_dynamic": 0.0,
+                          "slip_distance": 0.01})
+    cfg.write_text(dumps_toml(sw))
+    run(load_config(cfg), tmp_path / "sw.h5")
+    r = CliRunner().invoke(cli, ["bursts", str(tmp_path / "sw.h5"), "--min-tail", "20",
+                                 "--json"])
+    assert r.exit_code == 0, r.output
+    res = json.loads(r.output)
+    assert res["pulls"] == 8 and res["fits"][0]["bursts"] > 20
     # a run without pull curves: one clear line
     data["output"] = {"fields": ["fz"]}
     cfg.write_text(dumps_toml(data))

@@ -126,7 +126,8 @@ def test_the_generated_guide_output_is_what_the_script_writes():
     spec.loader.exec_module(mod)
     written = ({f"quickstart_{n}.txt" for n, _ in mod.QUICKSTART} | set(mod.FIGURES)
                | {"hurst_loop.txt", "hurst_fit.png", "hertz_resolution.png",
-                  "hertz_resolution.txt"})
+                  "hertz_resolution.txt", "weakening_resolution.png",
+                  "weakening_resolution.txt"})
     used = set()
     for page in [*DOCS.rglob("*.rst"), *DOCS.glob("*.md")]:
         if "_build" in page.parts:
@@ -134,7 +135,8 @@ def test_the_generated_guide_output_is_what_the_script_writes():
         used |= set(re.findall(r"_generated/figures/([\w.]+)", page.read_text()))
     assert used and used <= written, used - written
     assert {"demo_pull.png", "demo_maps.png", "fit_friction.png", "fit_area.png",
-            "bursts.png", "hertz_resolution.png", "hurst_fit.png"} <= used
+            "bursts.png", "hertz_resolution.png", "hurst_fit.png",
+            "weakening_resolution.png"} <= used
 
 
 @pytest.mark.slow

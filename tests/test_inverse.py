@@ -199,6 +199,8 @@ def test_a_diagonal_shift_matches_the_dense_inverse_and_reports_its_pivot():
         rows = inv.row[live]
         assert np.abs(col[rows] - Binv[:, live == u][:, 0]).max() <= 1e-9 * np.abs(Binv).max()
         _check(inv, B)
+        np.testing.assert_allclose(inv.diagonal()[rows], np.diag(Binv), rtol=1e-9,
+                                   atol=1e-12 * np.abs(Binv).max())
         x = Binv @ b[live]
         assert np.abs(inv.tracked["x"].x[rows] - x).max() <= 1e-9 * np.abs(x).max()
     live = inv.unknowns()

@@ -173,3 +173,20 @@ def test_bad_parameters_get_one_line_errors(hertz8):
         pull(hertz8, lam=LAM, lam_dynamic=0.1)
     with pytest.raises(InputError, match="the coupled model has no exact path"):
         couple(hertz8.problem, depth=0.01, lam=LAM, slip_law="slip-weakening")
+
+
+def test_the_landing_curve_is_the_break_laws_sawtooth_in_the_limit(hertz8):
+    """landing_curve (the curve of a pull that records where its bursts land) in the break
+    limit: the bursts of the break law's sequence, each at the same drive, with the same
+    number of breaks and the same force drop; the same peak."""
+    from roughslip.analysis.bursts import landing_curve, pull_curve
+
+    b = pull(hertz8, lam=LAM, early_stop=False, method="inverse")
+    w = _weak(hertz8, 0.0, 1e-9)
+    cb = pull_curve(b.dx_lim, b.fx_lim, exhausted=True)
+    cw = landing_curve(w.dx_lim, w.fx_lim, w.broken_site)
+    assert cw.peak == pytest.approx(cb.peak, rel=1e-12) == w.friction_force
+    np.testing.assert_allclose(cw.burst_dx, cb.burst_dx, rtol=1e-12)
+    np.testing.assert_array_equal(cw.burst_size, cb.burst_size)
+    np.testing.assert_allclose(cw.burst_drop, cb.burst_drop, rtol=1e-9,
+                               atol=1e-12 * cb.peak)

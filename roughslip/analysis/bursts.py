@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from roughslip.contact.laws import LAWS
 from roughslip.errors import InputError
 
 PHASES = ("all", "before", "after")
@@ -131,6 +132,44 @@ def pull_curve(dx_lim: np.ndarray, fx_lim: np.ndarray, *, exhausted: bool = Fals
     peak = float(ys_a.max())
     return PullCurve(xs_a, ys_a, peak, int(np.flatnonzero(f == peak)[0]), starts,
                      (ends - starts).astype(np.int64), drop, d[starts], complete)
+
+
+def landing_curve(dx_lim: np.ndarray, fx_lim: np.ndarray, site: np.ndarray) -> PullCurve:
+    r"""The curve under monotone :math:`D_x` of a pull that records where its bursts land
+    (slip-weakening, docs/theory/pull.rst#slip-weakening).
+
+    Its events are the stable path's, the states inside each burst (recorded at their own
+    limits, below the drive) and the state each burst lands in (site ``-1``, at the drive).
+    The curve joins the events not below the drive: between them every force is affine in
+    :math:`D_x`, and a burst is a drop at constant :math:`D_x`. A burst runs from the event on
+    the stable path that set it off to its landing; its size is the number of events in
+    between, that one included, and its drop the force it releases.
+    """
+    d = np.asarray(dx_lim, dtype=float)
+    f = np.asarray(fx_lim, dtype=float)
+    site = np.asarray(site)
+    if not (d.shape == f.shape == site.shape and d.ndim == 1):
+        raise InputError("pull curve: dx_lim, fx_lim and broken_site must be 1-d arrays of "
+                         "equal length")
+    top = np.maximum.accumulate(np.r_[0.0, d])[:-1]  # the drive before each event
+    on = d >= top  # the stable path and the landings
+    starts, sizes, drops, where = [], [], [], []
+    for j in np.flatnonzero(site < 0):
+        before = np.flatnonzero(on[:j] & (d[:j] == d[j]) & (site[:j] >= 0))
+        if before.size == 0:
+            continue
+        r = int(before[-1])
+        starts.append(r)
+        sizes.append(j - r)
+        drops.append(f[r] - f[j])
+        where.append(d[j])
+    xs, ys = np.r_[0.0, d[on]], np.r_[0.0, f[on]]
+    peak = float(ys.max())
+    hit = np.flatnonzero(on & (f == peak))
+    n = len(starts)
+    return PullCurve(xs, ys, peak, int(hit[0]) if hit.size else -1,
+                     np.array(starts, dtype=np.int64), np.array(sizes, dtype=np.int64),
+                     np.array(drops), np.array(where), np.ones(n, dtype=bool))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -305,10 +344,12 @@ def collect_bursts(paths: list[str | Path]) -> BurstSample:
         pull = cfg.get("pull", {})
         if not pull.get("enabled", False):
             raise InputError(f"{path}: has no pull (pull.enabled = false)")
-        if pull.get("slip_law", "break") != "break" or cfg.get("coupling", {}).get("enabled"):
-            raise InputError(f"{path}: bursts need the decoupled break law (this run has "
-                             f"slip_law = {pull.get('slip_law', 'break')!r} or "
-                             "coupling.enabled)")
+        law = pull.get("slip_law", "break")
+        lands = law in LAWS and LAWS.get(law).lands
+        if (law != "break" and not lands) or cfg.get("coupling", {}).get("enabled"):
+            raise InputError(f"{path}: bursts need the decoupled break law or a law whose "
+                             f"pull records where its bursts land (this run has slip_law = "
+                             f"{law!r} or coupling.enabled)")
         if "pull_curve" not in cfg.get("output", {}).get("fields", []):
             raise InputError(f"{path}: no pull curves stored; run with 'pull_curve' in "
                              "output.fields")
@@ -320,7 +361,9 @@ def collect_bursts(paths: list[str | Path]) -> BurstSample:
             for s in run.sample_index[run.complete]:
                 for k in range(len(run.axis)):
                     g = f[f"samples/s{int(s):06d}/d{k:03d}"]
-                    c = pull_curve(g["dx_lim"][()], g["fx_lim"][()], exhausted=exhausted)
+                    c = (landing_curve(g["dx_lim"][()], g["fx_lim"][()],
+                                       g["broken_site"][()]) if lands else
+                         pull_curve(g["dx_lim"][()], g["fx_lim"][()], exhausted=exhausted))
                     out.pulls += 1
                     for b in np.flatnonzero(c.complete):
                         phase = "before" if c.burst_start[b] < c.peak_break else "after"

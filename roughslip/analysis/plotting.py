@@ -279,11 +279,12 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
     if has_pull:
         try:
             dx, fx = run.field(s, k, "dx_lim"), run.field(s, k, "fx_lim")
+            site = run.field(s, k, "broken_site")
         except InputError:
             dx = fx = None
         if dx is not None and dx.size:
             cfg = run.config_dict()
-            written.append(_pull_figure(plt, stem, cfg, dx, fx, where, unit))
+            written.append(_pull_figure(plt, stem, cfg, dx, fx, where, unit, site))
     if solves:
         written.append(plot_solves(run, stem))
     return written
@@ -323,10 +324,10 @@ def _maps_figure(plt, stem: Path, run, panels: list, where: str) -> Path:
 
 
 def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
-                 where: str, unit: str | None = None) -> Path:
-    """The pull curve under monotone D_x (a sawtooth for the break law, with its bursts),
-    over the break sequence's points."""
-    from roughslip.analysis.bursts import pull_curve
+                 where: str, unit: str | None = None, site: np.ndarray | None = None) -> Path:
+    """The pull curve under monotone D_x (a sawtooth for the break law, with its bursts; the
+    stable path and the landings of its bursts for slip-weakening), over the events."""
+    from roughslip.analysis.bursts import landing_curve, pull_curve
 
     pull = cfg.get("pull", {})
     coupled = bool(cfg.get("coupling", {}).get("enabled"))
@@ -344,6 +345,14 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
             ax.plot(c.burst_dx[big], fx[c.burst_start[big]], "v", color="C1", ms=3,
                     label=f"bursts of 2+ breaks ({int(big.sum())})")
         title = "pull curve (break law)"
+    elif law in LAWS and LAWS.get(law).lands and site is not None:
+        c = landing_curve(dx, fx, site)
+        i = c.peak_break  # the peak of the stable path (a state inside a burst never is)
+        ax.plot(c.dx, c.fx, "-", color="C0", lw=0.8, label="pull curve, monotone $D_x$")
+        if c.burst_dx.size:
+            ax.plot(c.burst_dx, fx[c.burst_start], "v", color="C1", ms=3,
+                    label=f"bursts ({c.burst_dx.size})")
+        title = f"pull curve ({law})"
     else:
         # Coulomb law (affine between slip events, no drops) and the coupled model's events
         order = np.argsort(dx, kind="stable")

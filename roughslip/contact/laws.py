@@ -63,6 +63,9 @@ class SlipLaw:
         Its decoupled pull methods: ``{method name: run(bonds, options, t0)}``.
     couples
         The coupled model (:func:`~roughslip.contact.coupled.couple`) runs it exactly.
+    lands
+        Its decoupled pull records the state each burst lands in, at the drive (an event
+        with site -1): :func:`roughslip.analysis.bursts.landing_curve` reads its curve.
     """
 
     #: the law's own parameters: keywords of :func:`~roughslip.contact.pull.pull` and keys
@@ -76,6 +79,7 @@ class SlipLaw:
     slides: bool = False
     pull_runs: dict[str, Callable] = field(default_factory=dict)
     couples: bool = True
+    lands: bool = False
 
     def bind(self, lam: float, **params: float | None) -> SlipLaw:
         """The law with its own parameters (``None``: not given), checked against the static
@@ -195,4 +199,5 @@ LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull
 LAWS.register("slip-weakening", "a failed bond slips, its strength falling from lam f_z to "
               "lam_dynamic f_z over the slip slip_distance")(SlipWeakeningLaw(
     "slip-weakening", failed="slipping", curve="slip events", reverses=True, couples=False,
+    lands=True,
     pull_runs={"inverse": weaken}))

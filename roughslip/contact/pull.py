@@ -214,7 +214,9 @@ def pull(
         of :math:`G_{xx}` on the bonds (``condition``, :func:`bond_spectrum`, a few hundred
         operator applications; deterministic) with the bound estimate ``error_bound``
         :math:`= \hat\kappa\rho`. Both are estimates (docs/methods.rst#estimates-against-truth
-        compares them with the true error).
+        compares them with the true error). The ``"batch"`` method and the slip-weakening law
+        have no ``error_estimate`` (NaN): the refinement estimate assumes the break law's peak
+        state.
     lam_dynamic, slip_distance : float, optional
         The residual coefficient :math:`\lambda_d \in [0, \lambda]` and the slip
         :math:`d_c > 0` over which the strength falls to it; ``slip_law="slip-weakening"``
@@ -263,7 +265,7 @@ def pull(
         kappa = hi / lo
         res = replace(res, condition=kappa, error_bound=kappa * res.residual,
                       seconds=time.perf_counter() - t0)
-        if res.method != "batch":  # batch has no estimate (NaN)
+        if res.method != "batch" and not law.lands:  # batch and slip-weakening: none (NaN)
             # a sliding law's friction force takes no tangential solve
             solve = 0.0 if law.slides else refinement_estimate(normal, res)
             part = abs(normal_share(normal, res))

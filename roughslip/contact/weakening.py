@@ -1,5 +1,5 @@
-r"""The decoupled pull under linear slip-weakening friction: exact events, and bursts through
-the folds of the equilibrium path (docs/theory/pull.rst#slip-weakening).
+r"""The decoupled pull under linear slip-weakening friction: exact events, and bursts at
+constant drive (docs/theory/pull.rst#slip-weakening).
 
 A bond that fails slips, and its strength falls with the slip :math:`\delta` it has
 accumulated since it first failed (Ida 1972; Palmer & Rice 1973; Andrews 1976):
@@ -31,26 +31,25 @@ theorem that is when :math:`M` has exactly :math:`|W|` negative eigenvalues. Eve
 changes that count by the sign of its pivot, so it is tracked exactly. A stick bond can start
 weakening without losing stability only while :math:`(M^{-1})_{ii} > k_i`.
 
-The path. Events change one bond's phase; along each piece the quantity that has just become
-free (the new weakening bond's slip, the new residual bond's slip, a re-stuck bond's margin
-to its strength) must grow, which fixes the direction in which :math:`D` moves on the new
-piece. On a stable path :math:`D` increases. When an event makes the path fold back
-(:math:`D` would have to decrease), the pull holds its drive :math:`D^*` and **jumps**: the
-equilibrium path is followed through the fold, by the slip of the bonds that drive it, in
-whichever direction :math:`D` then moves, until it crosses :math:`D^*` again on a stable piece
-going upwards. That crossing is the state after the burst. Its force is recorded at
-:math:`D^*` (event ``"jump"``); the states inside the burst are recorded at their own
-:math:`D` and never count for the friction force, which is the largest force of the stable
-path (events outside bursts and the states after them).
+Bursts (the rule). A stick bond whose weakening would make the state unstable slips through
+its weakening at constant drive and lands at its residual strength (its strength falls faster
+than the elastic force it carries, down to :math:`\lambda_d f_z`). A weakening bond that loses
+stability when a neighbour is released does the same: the one nearest its residual strength
+among those whose release restores stability (:math:`(M^{-1})_{jj} > 0`). The drive is held
+while the new state violates a bound, and each further failure happens there; the event loop
+(:func:`~roughslip.contact.events.follow_events`) records each intermediate state at its own
+limit below the drive, and the state the burst lands in at the drive (event ``"jump"``). The
+friction force is the largest force of the stable path and the landings, never of a state
+inside a burst. Every state the loop accepts is stable.
 
-Reversal: a slipping bond (weakening or residual, with a residual strength above 0) whose slip
-would decrease along the path sticks again where it is, keeping the strength it has reached.
+Reversal: a slipping bond (weakening, or residual with a residual strength above 0) whose slip
+the pull would turn back sticks again where it is, keeping the strength it has reached.
 
 Limits. :math:`\lambda_d = \lambda_s` is the Coulomb law (a failed bond goes straight to its
 residual strength). :math:`\lambda_d = 0` with :math:`d_c` below the pixel's weakening scale
-is the break law: a failing bond snaps back to zero force along the unstable branch, and the
-stable pieces of the path in between start at the break law's limits, so its failure events
-are the break law's sequence (:math:`D_{x,\rm lim}, F_{x,\rm lim}`), avalanches included.
+is the break law: every failure is unstable and drops the bond's force to zero at once, so the
+failures are the break law's sequence (:math:`D_{x,\rm lim}, F_{x,\rm lim}`), avalanches
+included.
 """
 
 from __future__ import annotations
@@ -115,7 +114,7 @@ class WeakeningState:
         self.inv = UpdatableInverse(self._entries, n, room=room, threads=opt.threads,
                                     block=opt.block, definite=False)
         try:
-            self.inv.factor(np.arange(n))
+            self.inv.factor(np.arange(n), positive=True)  # G_xx on the bonds: all stick
         except NumericalError as exc:
             raise NumericalError(f"G_xx on the bonds: {exc}") from None
         self._retrack()
@@ -287,7 +286,7 @@ class WeakeningState:
             raise NumericalError("slip-weakening: an unstable state without weakening bonds "
                                  "(internal error)")
         rows = np.flatnonzero(W)
-        diag = np.array([self.inv.column(int(r))[r] for r in rows])
+        diag = self.inv.diagonal()[rows]
         pick = rows[diag > 0] if np.any(diag > 0) else rows
         margin = np.full(phi.shape, np.inf)
         q = ids[pick]

@@ -218,14 +218,16 @@ class UpdatableInverse:
         self.k = 0
 
     # -- factorising ---------------------------------------------------------------------------
-    def factor(self, ids: np.ndarray) -> bool:
+    def factor(self, ids: np.ndarray, positive: bool | None = None) -> bool:
         """The inverse on the unknowns ``ids`` afresh; False when ``room`` refused it.
 
-        Positive definite: Cholesky and LAPACK's inverse from it (potrf + potri, in place: a
-        third of the work of solving for the identity). Indefinite: an LU inverse. Raises
-        :class:`NumericalError` when the matrix is not positive definite (``definite``) or is
-        singular.
+        Positive definite (``positive``, by default ``definite``: an indefinite object may
+        start from a definite set): Cholesky and LAPACK's inverse from it (potrf + potri, in
+        place: a third of the work of solving for the identity). Indefinite: an LU inverse.
+        Raises :class:`NumericalError` when the matrix is not positive definite
+        (``positive``) or is singular.
         """
+        positive = self.definite if positive is None else positive
         ids = np.asarray(ids, dtype=np.int64)
         if not self.room(ids.size):
             return False
@@ -234,16 +236,16 @@ class UpdatableInverse:
         t0 = time.perf_counter()
         try:
             with blas_threads(self.threads):
-                if self.definite:
+                if positive:
                     lapack64.cholesky_inverse(A)
                 else:
                     A = np.asfortranarray(np.linalg.inv(A))
         except (NumericalError, np.linalg.LinAlgError) as exc:
-            what = "not positive definite" if self.definite else "singular"
+            what = "not positive definite" if positive else "singular"
             raise NumericalError(f"the matrix on {ids.size} unknowns is {what}") from exc
         finally:
             self.blas_seconds += time.perf_counter() - t0
-        if self.definite and not self.lower:
+        if positive and not self.lower:
             n, b = A.shape[0], 512
             for j in range(0, n, b):  # mirror the lower triangle, a panel at a time
                 A[j:j + b, j + b:] = A[j + b:, j:j + b].T
@@ -297,6 +299,15 @@ class UpdatableInverse:
                 c += V @ (sgn * V[r])
         self.blas_seconds += time.perf_counter() - t0
         return c
+
+    def diagonal(self) -> np.ndarray:
+        """The diagonal of the current inverse on the rows (removed rows hold stale
+        values)."""
+        d = np.diagonal(self.buf[: self.m, : self.m]).copy()
+        if self.k:
+            V = self.V[: self.m, : self.k]
+            d += (V * V) @ self.s[: self.k]
+        return d
 
     def refine(self, x: np.ndarray, residual: Callable[[np.ndarray], tuple[np.ndarray, float]],
                tol: float, refinements: int) -> tuple[np.ndarray, float, int]:
