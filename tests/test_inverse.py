@@ -209,3 +209,19 @@ def test_a_diagonal_shift_matches_the_dense_inverse_and_reports_its_pivot():
     c00 = np.linalg.inv(B[np.ix_(live, live)])[0, 0]
     assert inv.shift(int(live[0]), -1.0 / c00) is None  # singular
     assert np.array_equal(inv.apply(np.eye(inv.m)[:, rows]), before)
+
+
+def test_adding_one_unknown_reports_its_schur_complement_as_the_pivot():
+    """add([u]) of an indefinite matrix: the pivot is A_uu - A_uS A_SS^-1 A_Su, whose sign
+    says whether a negative eigenvalue came with it."""
+    A = _matrix(24, False, 11)
+    inv = _inverse(A, definite=False, block=4)
+    inv.factor(np.arange(20))
+    for u in (20, 21, 22, 23):
+        S = inv.unknowns()
+        want = A[u, u] - A[u, S] @ np.linalg.solve(A[np.ix_(S, S)], A[S, u])
+        neg = int((np.linalg.eigvalsh(A[np.ix_(S, S)]) < 0).sum())
+        assert inv.add(np.array([u]))
+        assert inv.pivot == pytest.approx(want, rel=1e-9)
+        T = inv.unknowns()
+        assert int((np.linalg.eigvalsh(A[np.ix_(T, T)]) < 0).sum()) == neg + (want < 0)

@@ -68,12 +68,17 @@ def test_a_vanishing_slip_distance_to_zero_is_the_break_law(hertz8, dc):
 
 def test_a_slip_distance_to_infinity_gives_lam_f_n(hertz8):
     """d_c -> infinity: the bonds keep their static strength through the slide, F_f -> lam
-    F_n (the full-slip displacement is ~2e-3 here, so the deficit is of that over d_c)."""
-    for dc, tol in ((1.0, 5e-3), (1e3, 5e-6)):
+    F_n. Each bond has slipped at most the drive, so the deficit is at most
+    (lam_s - lam_d) / lam_s times D / d_c at full sliding, D about the Cattaneo-Mindlin
+    full-slip displacement (taken twice, for the pixels)."""
+    from roughslip.contact.analytic import cattaneo_mindlin
+
+    full = cattaneo_mindlin(hertz8.normal_force, 0.1, LAM, nu=0.3).delta_s
+    for dc in (1.0, 1e3):
         w = _weak(hertz8, 0.1, dc)
         assert w.converged
         ratio = w.friction_force / (LAM * hertz8.normal_force)
-        assert 1 - tol < ratio <= 1 + 1e-12
+        assert 1 - (LAM - 0.1) / LAM * 2 * full / dc < ratio <= 1 + 1e-12
 
 
 def _check_state(st: weakening.WeakeningState, D: float, G: np.ndarray) -> None:
@@ -141,8 +146,7 @@ def test_a_burst_holds_the_drive_and_its_states_never_set_the_friction(hertz8):
         assert dx[i] == top[i]
     inside = dx < top  # recorded below the drive: inside a burst
     assert inside.any()
-    assert w.friction_force == fx[~inside].max()
-    assert w.kinds[w.peak_index] != "jump" or w.fx_lim[w.peak_index] == w.friction_force
+    assert w.friction_force == fx[~inside].max() == fx[w.peak_index]
 
 
 def test_the_friction_force_converges_with_the_pixel_size():

@@ -35,6 +35,16 @@ from roughslip.contact.sliding import slide
 from roughslip.contact.weakening import weaken
 from roughslip.errors import InputError
 
+
+class LawParameterError(InputError):
+    """A slip law's own parameter is missing or breaks its rule; ``key`` names it, ``value``
+    is what was given (None: nothing) and ``rule`` says what it must be."""
+
+    def __init__(self, key: str, value: float | None, rule: str) -> None:
+        self.key, self.value, self.rule = key, value, rule
+        super().__init__(f"{key}: {rule}" if value is None else f"{key} = {value!r}: {rule}")
+
+
 #: a constraint row: (event kind, where it applies, value at D = 0, rate in D, force scale)
 Row = tuple[str, np.ndarray, np.ndarray, np.ndarray, float]
 
@@ -87,9 +97,9 @@ class SlipLaw:
         does not have, or one it needs and lacks."""
         for key, value in params.items():
             if value is not None and key not in self.params:
-                raise InputError(f"{key} = {value!r}: slip_law = {self.name!r} has no such "
-                                 "parameter" + (f" (it has {', '.join(self.params)})"
-                                                if self.params else ""))
+                raise LawParameterError(key, value, f"slip_law = {self.name!r} has no such "
+                                        "parameter" + (f" (it has {', '.join(self.params)})"
+                                                       if self.params else ""))
         return self
 
     def failed_sign(self, kind: str) -> float:
@@ -172,14 +182,14 @@ class SlipWeakeningLaw(SlipLaw):
         super().bind(lam, **params)
         ld, dc = params.get("lam_dynamic"), params.get("slip_distance")
         if ld is None or dc is None:
-            missing = "lam_dynamic" if ld is None else "slip_distance"
-            raise InputError(f"{missing}: slip_law = {self.name!r} needs lam_dynamic and "
-                             "slip_distance")
+            raise LawParameterError("lam_dynamic" if ld is None else "slip_distance", None,
+                                    f"slip_law = {self.name!r} needs lam_dynamic and "
+                                    "slip_distance")
         if not (isinstance(ld, int | float) and math.isfinite(ld) and 0 <= ld <= lam):
-            raise InputError(f"lam_dynamic = {ld!r}: must satisfy 0 <= lam_dynamic <= lam "
-                             f"(= {lam!r})")
+            raise LawParameterError("lam_dynamic", ld, "must satisfy 0 <= lam_dynamic <= lam "
+                                    f"(= {lam!r})")
         if not (isinstance(dc, int | float) and math.isfinite(dc) and dc > 0):
-            raise InputError(f"slip_distance = {dc!r}: must be a finite number > 0")
+            raise LawParameterError("slip_distance", dc, "must be a finite number > 0")
         return replace(self, lam_dynamic=float(ld), slip_distance=float(dc))
 
     def failed_sign(self, kind: str) -> float:

@@ -89,8 +89,7 @@ class WeakeningState:
         self.lam_cur = np.full(n, self.lam_s)  # strength reached, lambda(delta)
         self.delta = np.zeros(n)  # slip accumulated up to the phase's start
         self.s0 = np.zeros(n)  # slip where the phase started
-        self.c = np.zeros(n)  # weakening: f + k s = c
-        self.bvec = np.zeros(n)  # b of M f = D 1 - b - G f_R, per bond
+        self.bvec = np.zeros(n)  # b of M f = D 1 - b - G f_R, per bond (c/k when weakening)
         self.dshift = np.zeros(n)  # diagonal of M minus that of G (-1/k on weakening bonds)
         self.fR = np.zeros(n)  # forces of residual bonds
         self.neg = 0  # negative eigenvalues of M
@@ -337,12 +336,13 @@ class WeakeningState:
         t.b[int(inv.row[p])] += value - self.bvec[p]
         self.bvec[p] = value
 
-    def _leave(self, p: int, force: float) -> None:
-        """Bond ``p`` leaves the set with the fixed force ``force`` (residual)."""
+    def _leave(self, p: int, force: float, col: np.ndarray | None = None) -> None:
+        """Bond ``p`` leaves the set with the fixed force ``force`` (residual); ``col``: its
+        column of the inverse, when at hand."""
         inv = self.inv
         r = int(inv.row[p])
         inv.tracked["psi"].x[r] += force  # psi <- psi - c (psi_r + F) / c_r
-        if not inv.remove(p):
+        if not inv.remove(p, column=col):
             raise NumericalError("slip-weakening: a singular update of the inverse")
         if inv.pivot < 0:
             self.neg -= 1
@@ -376,15 +376,15 @@ class WeakeningState:
             col = inv.column(int(inv.row[p])) if self.k[p] > 0 else None
             if col is not None and self.lam_cur[p] > self.lam_d and \
                     col[inv.row[p]] > self.k[p] * (1 + TIE):
-                # stable: stick -> weakening, from the slip and strength it has
-                self.c[p] = s * self.fz[p] * self.lam_cur[p] + self.k[p] * self.s0[p]
+                # stable: stick -> weakening from the slip and strength it has, on the line
+                # f + k s = c with c = s lam f_z + k s0 (b = c / k)
                 col = self._shift(p, -1.0 / self.k[p], col)
                 self.phase[p] = WEAK
-                self._set_b(p, self.c[p] / self.k[p], col)
+                self._set_b(p, s * self.fz[p] * self.lam_cur[p] / self.k[p] + self.s0[p], col)
             else:  # unstable (or at its residual strength already): it slips to residual
                 self.snaps += self.lam_cur[p] > self.lam_d
                 self.delta[p] = max(self.delta[p], self.dc)
-                self._leave(p, s * self.lam_d * self.fz[p])
+                self._leave(p, s * self.lam_d * self.fz[p], col)
         elif kind == "residual":
             s = self.sigma[p]
             self.delta[p] += s * (self._slip(p, D) - self.s0[p])
@@ -414,8 +414,8 @@ class WeakeningState:
 
     def _slip(self, p: int, D: float) -> float:
         """The slip :math:`s = D - u` of bond ``p`` at ``D``."""
-        if self.phase[p] == WEAK:
-            return float((self.c[p] - self.forces(D)[p]) / self.k[p])
+        if self.phase[p] == WEAK:  # f + k s = c = k b
+            return float(self.bvec[p] - self.forces(D)[p] / self.k[p])
         if self.phase[p] == STICK:
             return float(self.s0[p])
         f = self.b.field(self.forces(D))
@@ -426,11 +426,6 @@ class WeakeningState:
         """A residual bond sticks again: it joins the set (the inverse is bordered) and the
         solutions are recomputed on the new right-hand side."""
         inv = self.inv
-        live = inv.ids[inv.live]
-        g = np.zeros(inv.m)
-        g[inv.live] = self.b.entries(live, np.array([p]), "C")[:, 0]
-        Hg = inv.apply(g)
-        schur = float(self.b.entries(np.array([p]), np.array([p]), "C")[0, 0] - g @ Hg)
         self.fR[p] = 0.0
         self.phase[p] = STICK
         self.bvec[p] = slip
@@ -438,7 +433,7 @@ class WeakeningState:
         if not done:
             raise NumericalError("slip-weakening: a singular update of the inverse"
                                  if done is False else "slip-weakening: out of memory")
-        if schur < 0:
+        if inv.pivot < 0:  # its Schur complement
             self.neg += 1
         self._retrack()
 
@@ -454,13 +449,11 @@ def weaken(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
     peak = path.peak
     at = [i for i, e in enumerate(ev) if e.dx == peak.dx and e.fx == peak.fx_total]
     n_jumps = sum(e.kind == "jump" for e in ev)
-    stick = peak.stick if peak.stick is not None else np.zeros(b.shape, bool)
     return SlipResult(
         friction_force=max(peak.fx_total, 0.0), peak_index=at[0] if at else 0,
         dx_lim=np.array([e.dx for e in ev]), fx_lim=np.array([e.fx for e in ev]),
         broken_site=np.array([e.site for e in ev], dtype=np.int64),
-        stick_at_peak=stick, fx_at_peak=(peak.fx if peak.fx is not None
-                                         else np.zeros(b.shape)),
+        stick_at_peak=peak.stick, fx_at_peak=peak.fx,
         converged=bool(st.ok) and not path.message, seconds=time.perf_counter() - t0,
         method="inverse", slip_law=opt.slip_law, lam=b.lam, n_bonds=b.n, steps=len(ev),
         residual=st.worst, solves=st.refinements, normal_force=b.normal.normal_force,

@@ -178,8 +178,9 @@ class UpdatableInverse:
         self.V = np.empty((0, block), order="F")  # pending terms
         self.s = np.empty(block)  # their signs
         self.k = 0  # pending terms in use
-        #: the pivot of the last :meth:`remove` (:math:`c_r`) or :meth:`shift`
-        #: (:math:`1 + \delta c_r`): its sign says how the inertia changed
+        #: the pivot of the last :meth:`remove` (:math:`c_r`), :meth:`shift`
+        #: (:math:`1 + \delta c_r`) or :meth:`add` of one unknown (its Schur complement): its
+        #: sign says how the inertia changed
         self.pivot = math.nan
         self.ids = np.empty(0, dtype=np.int64)  # unknown of each row
         self.live = np.empty(0, dtype=bool)  # rows still in the set
@@ -358,11 +359,12 @@ class UpdatableInverse:
             self.blas_seconds += time.perf_counter() - t0
 
     # -- updates -------------------------------------------------------------------------------
-    def remove(self, unknown: int) -> bool:
+    def remove(self, unknown: int, column: np.ndarray | None = None) -> bool:
         """Remove ``unknown`` from the set; False when its pivot is not positive (definite)
-        or numerically zero (indefinite, module docstring)."""
+        or numerically zero (indefinite, module docstring). ``column``: its current column,
+        when the caller has it."""
         r = int(self.row[unknown])
-        c = self.column(r)
+        c = self.column(r) if column is None else column
         cr = float(c[r])
         if not (cr > 0 if self.definite else _nonsingular(np.array([cr]), c)):
             return False
@@ -470,6 +472,8 @@ class UpdatableInverse:
                 return False
             Si = (Q / w) @ Q.T
             W, sign = MB @ (Q / np.sqrt(np.abs(w))), np.sign(w)
+        if k2 == 1:
+            self.pivot = float(Sc[0, 0])
         MBSi = MB @ Si
         buf = self.buf
         buf[m:m + k2, :m] = -MBSi.T

@@ -27,11 +27,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from roughslip.contact.laws import LAWS
+from roughslip.contact.laws import LAWS, LawParameterError
 from roughslip.contact.pull import METHODS as PULL_METHODS
 from roughslip.contact.pull import methods_for
 from roughslip.contact.squeeze import METHODS as SQUEEZE_METHODS
-from roughslip.errors import ConfigError, InputError
+from roughslip.errors import ConfigError
 from roughslip.run import schema
 from roughslip.surfaces.topography import LENGTH_UNITS
 
@@ -921,11 +921,10 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
         given = {k: getattr(cfg.pull, k) for k in LAW_PARAMS}
         try:
             law.bind(cfg.pull.lam, **given)
-        except InputError as exc:
-            head, _, rule = str(exc).partition(": ")
-            key = head.split(" ")[0]
-            raise ctx.fail(f"pull.{key}", given[key], rule) if given[key] is not None \
-                else ctx.fail(f"pull.{key}", rule=rule) from None
+        except LawParameterError as exc:
+            key = f"pull.{exc.key}"
+            raise (ctx.fail(key, rule=exc.rule) if exc.value is None
+                   else ctx.fail(key, exc.value, exc.rule)) from None
     if cfg.coupling.enabled and not law.couples:
         raise ctx.fail("pull.slip_law", cfg.pull.slip_law,
                        "has no exact coupled model (its strength and f_z both vary, a "
