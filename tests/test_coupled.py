@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from roughslip.contact.coupled import squeeze_pull_coupled
+from roughslip.contact.histories import HISTORIES
 from roughslip.contact.pull import pull
 from roughslip.contact.squeeze import squeeze
 from roughslip.errors import InputError
@@ -30,11 +31,15 @@ def rough(n=14, seed=3):
                        oversample=2)
 
 
+@pytest.mark.parametrize("history", HISTORIES.names())
 @pytest.mark.parametrize("heights", ["rough", "sphere"])
-def test_half_poisson_ratio_reproduces_the_decoupled_model(heights):
+def test_half_poisson_ratio_reproduces_the_decoupled_model(heights, history):
+    """At nu = 1/2 (G_zx = 0) every squeeze history ends in the frictionless contact with
+    every contact bonded and no tangential force, and the pull is the decoupled one."""
     h = rough(16) if heights == "rough" else sphere((14, 14), radius=12.0)
     depth = 1.2 if heights == "rough" else 0.8
-    c = squeeze_pull_coupled(h, depth=depth, lam=0.2, nu=0.5)
+    c = squeeze_pull_coupled(h, depth=depth, lam=0.2, nu=0.5, history=history)
+    assert c.history == history
     normal = squeeze(h, depth=depth, nu=0.5, tol=1e-13)
     d = pull(normal, lam=0.2, method="inverse", early_stop=False, block=8)
     assert c.released == 0 and np.array_equal(c.contact0, normal.contact)
@@ -50,16 +55,19 @@ def test_half_poisson_ratio_reproduces_the_decoupled_model(heights):
 
 
 @pytest.mark.parametrize("nu", [0.0, 0.3])
-def test_dense_reference_agrees_with_the_fft_solver(nu):
+@pytest.mark.parametrize("history", HISTORIES.names())
+def test_dense_reference_agrees_with_the_fft_solver(nu, history):
     h = rough(14, seed=5)
-    ref = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu, method="dense", reference=True)
-    fft = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu, method="cg", tol=1e-13)
-    inc = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu, method="dense")  # updated inverse
+    kw = dict(depth=2.5, lam=0.25, nu=nu, history=history)
+    ref = squeeze_pull_coupled(h, method="dense", reference=True, **kw)
+    fft = squeeze_pull_coupled(h, method="cg", tol=1e-13, **kw)
+    inc = squeeze_pull_coupled(h, method="dense", **kw)  # updated inverse
     assert [(e.kind, e.site) for e in inc.events] == [(e.kind, e.site) for e in ref.events]
     assert np.allclose(inc.fx, ref.fx, rtol=1e-9, atol=1e-12 * np.abs(ref.fx).max())
     assert fft.converged and ref.converged
     assert len(ref.events) == len(fft.events)
-    assert len(ref.events) + ref.released > 20  # releases at D_x = 0 are decisions too
+    assert len(ref.events) + ref.squeeze_states > 20  # the squeeze's states are decisions too
+    assert ref.squeeze_states == fft.squeeze_states == inc.squeeze_states
     assert [(e.kind, e.site) for e in ref.events] == [(e.kind, e.site) for e in fft.events]
     assert np.allclose(ref.dx, fft.dx, rtol=1e-8, atol=1e-12)
     assert np.allclose(ref.fx, fft.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
@@ -68,10 +76,12 @@ def test_dense_reference_agrees_with_the_fft_solver(nu):
     assert ref.released == fft.released
 
 
+@pytest.mark.parametrize("history", HISTORIES.names())
 @pytest.mark.parametrize("nu", [0.0, 0.25, 0.45])
-def test_every_recorded_state_is_admissible(nu):
+def test_every_recorded_state_is_admissible(nu, history):
     h = rough(14, seed=7) + sphere((14, 14), radius=25.0)
-    res = squeeze_pull_coupled(h, depth=1.4, lam=0.3, nu=nu, record_states=True)
+    res = squeeze_pull_coupled(h, depth=1.4, lam=0.3, nu=nu, record_states=True,
+                               history=history)
     assert res.states and len(res.states) == len(res.events)
     fscale = max(float(np.abs(s[1]).max()) for s in res.states)
     for _D, fz, fx, g, C, S in res.states:
@@ -214,7 +224,8 @@ def test_force_held_pull_agrees_between_solvers_and_holds_the_force(nu):
     inc = squeeze_pull_coupled(h, method="dense", **kw)
     fft = squeeze_pull_coupled(h, method="cg", tol=1e-13, **kw)
     assert ref.converged and inc.converged and fft.converged
-    assert len(ref.events) + ref.released > 20  # releases at D_x = 0 are decisions too
+    assert len(ref.events) + ref.squeeze_states > 20  # the squeeze's states are decisions too
+    assert ref.squeeze_states == fft.squeeze_states == inc.squeeze_states
     for other in (inc, fft):
         _assert_same_path(other, ref)
     assert np.allclose(ref.fz, F, rtol=1e-10)  # the force is held
@@ -238,11 +249,14 @@ def test_squeeze_to_a_force_then_hold_the_depth_equals_the_depth_controlled_mode
     assert held.depth == pytest.approx(by_force.depth, rel=1e-12)
 
 
-def test_force_held_pull_at_half_poisson_ratio_is_the_decoupled_pull_at_that_load():
+@pytest.mark.parametrize("history", HISTORIES.names())
+def test_force_held_pull_at_half_poisson_ratio_is_the_decoupled_pull_at_that_load(history):
     """At nu = 1/2 the pull does not change the normal forces, so holding the force and holding
-    the depth are the same pull, and equal to the decoupled model at the same load."""
+    the depth are the same pull, and equal to the decoupled model at the same load, after
+    every squeeze history."""
     h = sphere((14, 14), radius=12.0)
-    c = squeeze_pull_coupled(h, force=2.0, lam=0.2, nu=0.5, pull_control="force")
+    c = squeeze_pull_coupled(h, force=2.0, lam=0.2, nu=0.5, pull_control="force",
+                             history=history)
     normal = squeeze(h, force=2.0, nu=0.5, tol=1e-13)
     d = pull(normal, lam=0.2, method="inverse", early_stop=False, block=8)
     assert c.depth == pytest.approx(normal.depth, rel=1e-10)
@@ -472,13 +486,16 @@ def test_coulomb_law_under_load_control_and_with_bonded_gains():
     assert _coulomb_admissible(ref, 0.3) > 0
 
 
+@pytest.mark.parametrize("history", HISTORIES.names())
 @pytest.mark.parametrize("heights", ["rough", "sphere"])
-def test_coulomb_law_at_half_poisson_ratio_is_the_decoupled_coulomb_pull(heights):
+def test_coulomb_law_at_half_poisson_ratio_is_the_decoupled_coulomb_pull(heights, history):
     """At nu = 1/2 nothing couples: the slipping bonds carry lam f_z of the frictionless
-    squeeze, and the coupled Coulomb pull is the decoupled one, slip for slip."""
+    squeeze, and the coupled Coulomb pull is the decoupled one, slip for slip, after every
+    squeeze history."""
     h = rough(16) if heights == "rough" else sphere((14, 14), radius=12.0)
     depth = 1.2 if heights == "rough" else 0.8
-    c = squeeze_pull_coupled(h, depth=depth, lam=0.2, nu=0.5, slip_law="coulomb")
+    c = squeeze_pull_coupled(h, depth=depth, lam=0.2, nu=0.5, slip_law="coulomb",
+                             history=history)
     normal = squeeze(h, depth=depth, nu=0.5, tol=1e-13)
     d = pull(normal, lam=0.2, method="inverse", slip_law="coulomb")
     ev = c.events[1:]

@@ -72,9 +72,10 @@ from roughslip.contact.events import (  # noqa: F401  (TIE, RATE_TIE: public her
     Snapshot,
     follow_events,
 )
+from roughslip.contact.histories import HISTORIES, Setup, indent_to, overlap_start
 from roughslip.contact.problem import Problem, finite
 from roughslip.contact.pull import check_friction
-from roughslip.contact.state import ContactState, squeeze_bonded
+from roughslip.contact.state import ContactState
 from roughslip.errors import InputError, NumericalError
 from roughslip.linalg.threads import blas_threads
 
@@ -126,6 +127,11 @@ class CoupledResult:
     slip_law: str = "break"
     #: GMRES iterations of the solves with Coulomb slip forces (0 under the break law)
     slip_iterations: int = 0
+    #: how the contacts came to carry their bonds (:data:`~roughslip.contact.histories.HISTORIES`)
+    history: str = "bonded"
+    #: states solved before the pull: the squeeze's corrections and releases, or the
+    #: indentation's events
+    squeeze_states: int = 0
 
     @property
     def dx(self) -> np.ndarray:
@@ -201,16 +207,6 @@ def _check_finite(where: str, **fields: np.ndarray) -> None:
             raise NumericalError(f"{where}: non-finite {name}")
 
 
-def _initial_contact(problem: Problem, force: float, method: str = "pk") -> np.ndarray:
-    """A starting contact set for a squeeze to ``force``: the geometric overlap at the depth
-    the frictionless squeeze (by ``method``) needs for that force, widened by 10 %. The set is
-    then corrected by the same removals and additions as under displacement control."""
-    from roughslip.contact.squeeze import NormalSolver
-
-    r = NormalSolver(problem, method=method, tol=1e-8).solve(force=force)
-    return problem.overlap(1.1 * r.depth + 1e-12 * max(problem.grid.a, 1.0)) > 0
-
-
 def couple(
     problem: Problem,
     *,
@@ -227,6 +223,7 @@ def couple(
     reference: bool = False,
     record_states: bool = False,
     squeeze_method: str = "pk",
+    history: str = "bonded",
 ) -> CoupledResult:
     r"""Squeeze a problem with bonded contacts and pull it with the coupled model until every
     bond has broken (module docstring; [Report2003] §6.1 with errata T25 and T26).
@@ -275,18 +272,27 @@ def couple(
         Keep the full state at every event (for checks on small grids).
     squeeze_method : str
         The frictionless squeeze (a name of :data:`roughslip.contact.squeeze.METHODS`) that
-        finds the starting contact set under load control, at tolerance 1e-8; the coupled
-        squeeze then corrects that set exactly.
+        finds the starting contact set under load control (and the frictionless history's),
+        at tolerance 1e-8; the coupled squeeze then corrects that set exactly.
+    history : str
+        How the contacts come to carry their bonds before the pull, a name of
+        :data:`~roughslip.contact.histories.HISTORIES`: ``"bonded"`` (bonded at the final
+        depth, the overloaded bonds released one at a time), ``"simultaneous"`` (released all
+        at once, repeatedly), ``"indent"`` (the frictional indentation from first touch) or
+        ``"frictionless"`` (the frictionless squeeze, then bonded where it is);
+        docs/theory/coupled.rst#squeeze-histories.
 
     Returns
     -------
     CoupledResult
     """
     t0 = time.perf_counter()
-    geo = _check_couple(problem, depth, force, lam, pull_control, gained, slip_law,
-                        squeeze_method)
+    _check_couple(problem, depth, force, lam, pull_control, gained, slip_law, squeeze_method)
+    run_history = HISTORIES.get(history, "history")
     depth = None if depth is None else finite(depth, "depth")
     force = None if force is None else finite(force, "force")
+    setup = Setup(float(lam), depth, force, slip_law, tol, squeeze_method)
+    geo = overlap_start(problem, setup)
     if not geo.any():
         z = np.zeros(problem.shape)
         return CoupledResult(
@@ -297,14 +303,15 @@ def couple(
             squeeze_seconds=time.perf_counter() - t0,
             method=choose_solver(method), residual=0.0,  # nothing to solve
             message="no overlap: no contact", depth=0.0 if depth is None else depth,
-            pull_control=pull_control, slip_law=slip_law)
+            pull_control=pull_control, slip_law=slip_law, history=history)
     solver, method = make_solver(problem, method, reference, tol, max_iter)
     limit = _event_limit(max_events, geo)
+    setup.limit = limit
     with blas_threads(1):  # the dense solver raises it for its BLAS-3 work
-        st = ContactState(solver, problem.base, float(lam), geo, depth=depth, force=force,
-                    gained=gained, slip_law=slip_law, tol=tol)
         try:
-            released = squeeze_bonded(st)
+            sq = run_history(problem, solver, setup)
+            st = sq.state
+            st.gained = gained
             start = Snapshot.of(st, 0.0)
             squeezed_depth = st.depth_at(0.0)
             t_squeeze = time.perf_counter() - t0
@@ -325,7 +332,7 @@ def couple(
     return CoupledResult(
         friction_force=float(peak.fx_total), normal_force_at_peak=float(peak.fz_total),
         peak_dx=float(peak.dx), events=path.events, normal_force=float(start.fz.sum()),
-        contact_area=float(start.contact.sum()) / start.contact.size, released=released,
+        contact_area=float(start.contact.sum()) / start.contact.size, released=sq.released,
         fz0=start.fz, fx0=start.fx, contact0=start.contact, stick0=start.stick,
         fz_peak=peak.fz, fx_peak=peak.fx, stick_peak=peak.stick, contact_peak=peak.contact,
         converged=out.converged, seconds=time.perf_counter() - t0, solves=solver.solves,
@@ -333,14 +340,14 @@ def couple(
         method=out.method,
         residual=out.residual, slip_law=slip_law, slip_iterations=st.gmres_iterations,
         message=out.message, states=path.states, depth=float(squeezed_depth),
-        pull_control=pull_control,
+        pull_control=pull_control, history=history, squeeze_states=sq.states,
     )
 
 
 def _check_couple(problem: Problem, depth: float | None, force: float | None, lam: float,
                   pull_control: str, gained: str, slip_law: str, squeeze_method: str = "pk"
-                  ) -> np.ndarray:
-    """Validate the arguments of :func:`couple`; returns the starting contact set."""
+                  ) -> None:
+    """Validate the arguments of :func:`couple`."""
     check_friction(lam, slip_law, coupled=True)
     if (depth is None) == (force is None):
         raise InputError("give exactly one of depth and force")
@@ -349,13 +356,11 @@ def _check_couple(problem: Problem, depth: float | None, force: float | None, la
     if gained not in GAINED_RULES:
         raise InputError(f"gained = {gained!r}: must be 'unbonded' or 'bonded'")
     if depth is not None:
-        return problem.overlap(problem.check_depth(depth)) > 0
+        problem.check_depth(depth)
+        return
     force = finite(force, "force")
     if force < 0:
         raise InputError(f"force = {force:g}: must be >= 0")
-    if force == 0:
-        return np.zeros(problem.shape, bool)
-    return _initial_contact(problem, force, squeeze_method)
 
 
 @dataclass(frozen=True)
@@ -437,14 +442,11 @@ def indent(
     if depth < 0:
         raise InputError(f"depth = {depth:g}: must be >= 0")
     solver, method = make_solver(problem, method, reference, tol, max_iter)
-    top = problem.base >= 0.0  # the highest pixels touch at D_z = 0
-    limit = _event_limit(max_events, problem.overlap(depth) > 0)
+    setup = Setup(float(lam), depth, None, slip_law, tol, "pk",
+                  _event_limit(max_events, problem.overlap(depth) > 0))
     with blas_threads(1):
-        st = ContactState(solver, problem.base, float(lam), top, depth=depth, gained="bonded",
-                    slip_law=slip_law, tol=tol, drive="z")
         try:
-            st.solve()
-            path = follow_events(st, limit, record_states, end=depth)
+            st, path = indent_to(problem, solver, setup, record_states)
         except NumericalError as exc:
             raise NumericalError(f"coupled indentation: {exc}") from None
     D = path.events[-1].dz
@@ -483,6 +485,7 @@ def squeeze_pull_coupled(
     threads: int = 1,
     reference: bool = False,
     record_states: bool = False,
+    history: str = "bonded",
 ) -> CoupledResult:
     """:func:`couple` on a problem built from plain numbers (or given, ignoring ``a`` ...
     ``threads``)."""
@@ -491,4 +494,5 @@ def squeeze_pull_coupled(
         threads=threads)
     return couple(problem, depth=depth, force=force, lam=lam, pull_control=pull_control,
                   gained=gained, slip_law=slip_law, method=method, tol=tol, max_iter=max_iter,
-                  max_events=max_events, reference=reference, record_states=record_states)
+                  max_events=max_events, reference=reference, record_states=record_states,
+                  history=history)

@@ -11,6 +11,7 @@ values within a relative ``TIE`` of the extreme, the lowest flat index.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -180,11 +181,14 @@ class EventState(Protocol):
     def depth_at(self, D: float) -> float: ...
 
 
-def follow_events(st: EventState, limit: int, record_states: bool, end: float = math.inf,
-                  *, landings: bool = False, avalanche_peaks: bool = True) -> EventPath:
+def follow_events(st: EventState, limit: int, record_states: bool,
+                  end: float | Callable[[], float] = math.inf, *, landings: bool = False,
+                  avalanche_peaks: bool = True) -> EventPath:
     """Follow the events from D = 0 (module docstring): for a pull until no bond holds
     (:meth:`EventState.holds`), for a driven depth (:func:`~roughslip.contact.coupled.indent`)
-    until ``end``.
+    until ``end``. A callable ``end`` is asked again after every solve: the end of a drive
+    known only through the current state (the depth at which an indentation reaches a normal
+    force, :func:`~roughslip.contact.histories.indent_to`).
 
     ``landings``: record the state an avalanche ends in, at the drive that set it off (event
     ``"jump"``), and the state after an event that changed the forces at constant drive
@@ -213,9 +217,16 @@ def follow_events(st: EventState, limit: int, record_states: bool, end: float = 
     D = 0.0
     first = True
     falling = False  # inside an avalanche (recorded states below the drive, or transients)
+    driven = callable(end) or math.isfinite(end)
     # until no bond holds; under the Coulomb law also until no slipping bond turns back
     # (a bond slipping against the pull sticks again, even when every other one slips)
-    while (D < end if math.isfinite(end) else st.holds() or st.reversal() is not None):
+    while True:
+        # a callable end is read from the current state and taken only from an admissible
+        # one (an avalanche's states can have other forces at the same drive)
+        stop = end() if callable(end) else end
+        if not callable(end) and not (D < stop if driven else st.holds()
+                                      or st.reversal() is not None):
+            break
         if len(path.events) + path.transient > limit:
             path.message = f"stopped after {limit} events"
             break
@@ -246,8 +257,8 @@ def follow_events(st: EventState, limit: int, record_states: bool, end: float = 
                 st.apply("stick", j_back, D)
                 st.solve()
                 continue
-            if hi > end:  # the driven depth reaches its end before the next event
-                D = end
+            if hi > stop or (callable(end) and stop <= D):
+                D = max(D, stop)  # the driven depth reaches its end before the next event
                 record(D, "end", -1)
                 break
             if not math.isfinite(hi):

@@ -10,7 +10,6 @@ parts with a :class:`~roughslip.contact.blocksolvers.BlockSolver` and gives the 
 
 from __future__ import annotations
 
-import hashlib
 import math
 
 import numpy as np
@@ -392,35 +391,3 @@ class ContactState:
         fz, fx, _ = self.at(D)
         return float(fx.sum()), float(fz.sum())
 
-
-def squeeze_bonded(st: ContactState) -> int:
-    """The squeeze at D_x = 0 with every contact bonded; returns the bonds released.
-
-    First the report's removal of all negative forces at once (the set only shrinks, so this
-    ends), then every remaining violation one at a time, most violated first: a lost contact
-    leaves, a penetrating site enters contact unbonded (bonded it may need a tensile force),
-    an overloaded bond is released. The states at D_x = 0 need no rate in D_x
-    (:attr:`ContactState.slope` is off until the pull).
-    """
-    st.slope = False
-    while True:
-        st.solve(bulk=True)
-        fz, _, _ = st.at(0.0)
-        fscale = max(float(np.abs(fz).max()), np.finfo(float).tiny)
-        neg = st.C & (fz < -TIE * fscale)
-        if not neg.any():
-            break
-        st.C &= ~neg
-        st.S &= ~neg
-        st.sigma[neg] = 0.0
-    st.solve()  # the updated inverse from here on (the bulk passes may have used CG)
-    seen: set[bytes] = set()
-    while (v := st.violation(0.0)) is not None:
-        st.apply(*v)
-        key = hashlib.blake2b(st.C.tobytes() + st.S.tobytes(), digest_size=16).digest()
-        if key in seen:
-            raise NumericalError("coupled squeeze: the contact and stick sets cycle at "
-                                 "D_x = 0 (no admissible state reached)")
-        seen.add(key)
-        st.solve()
-    return int((st.C & ~st.S).sum())

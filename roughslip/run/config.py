@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from roughslip.contact.histories import HISTORIES
 from roughslip.contact.laws import LAWS, LawParameterError
 from roughslip.contact.pull import METHODS as PULL_METHODS
 from roughslip.contact.pull import methods_for
@@ -281,6 +282,8 @@ class CouplingConfig:
                      "unbonded (the report's model: the bonds are the squeeze's contacts) or "
                      "bonded (a new bond, formed where the surfaces meet)",
                      choices=("unbonded", "bonded"))
+    history: str = _f("bonded", "how the contacts come to carry their bonds before the pull: "
+                      + HISTORIES.describe(), choices=HISTORIES.names())
 
 
 @dataclass(frozen=True)
@@ -402,10 +405,10 @@ class RunConfig:
         """SHA-256 of everything that determines the numbers (execution settings excluded).
 
         ``generation``: the digest the same configuration had in an earlier version, so that
-        runs started then can be resumed. 1: before keys were retired (:data:`_RETIRED`, at
-        their default or given value) and before the keys of generation 2 were added; 0: also
-        before keys were renamed (:data:`_RENAMED`) and the keys of generation 1 added
-        (:data:`_ADDED`). The serialisation (:func:`_canonical`) is frozen:
+        runs started then can be resumed. Generation g lacks the keys added after it
+        (:data:`_ADDED`, when at their default); 1 and 0: also before keys were retired
+        (:data:`_RETIRED`, at their default or given value); 0: also before keys were renamed
+        (:data:`_RENAMED`). The serialisation (:func:`_canonical`) is frozen:
         a digest must not change when a TOML writer's formatting does.
         """
         d = self.to_dict()
@@ -431,7 +434,8 @@ class RunConfig:
 
     def matches(self, digest: str) -> bool:
         """Whether a stored digest is this configuration's (now or in an earlier version)."""
-        return digest in (self.digest(), self.digest(generation=1), self.digest(generation=0))
+        return digest == self.digest() or any(digest == self.digest(generation=g)
+                                              for g in _GENERATIONS)
 
     @property
     def shape(self) -> tuple[int, int] | None:
@@ -767,7 +771,10 @@ _ADDED = {("pull", "early_stop"): (True, 1),
              for k, v in (("unit", None), ("override_pixel_size", False), ("missing", "error"),
                           ("detrend", "none"), ("crop", None), ("downsample", 1),
                           ("tiles", None))},
-          ("coupling", "pull_control"): ("depth", 2), ("coupling", "gained"): ("unbonded", 2)}
+          ("coupling", "pull_control"): ("depth", 2), ("coupling", "gained"): ("unbonded", 2),
+          ("coupling", "history"): ("bonded", 3)}
+#: the digest generations a stored run may carry: 0 up to the newest key's (:meth:`matches`)
+_GENERATIONS = range(max(since for _, since in _ADDED.values()) - 1, -1, -1)
 
 
 #: keys that no longer do anything: (section, key) -> (default, the key before which it stood

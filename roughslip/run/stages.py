@@ -137,7 +137,8 @@ class _CoupledSample:
         by = {"force": target} if cfg.control == "force" else {"depth": target}
         try:
             r = couple(pb, **by, lam=cfg.pull.lam, pull_control=cfg.coupling.pull_control,
-                       gained=cfg.coupling.gained, slip_law=cfg.pull.slip_law,
+                       gained=cfg.coupling.gained, history=cfg.coupling.history,
+                       slip_law=cfg.pull.slip_law,
                        tol=min(cfg.pull.tol, COUPLED_TOL), squeeze_method=cfg.squeeze.method)
         except NumericalError as exc:
             raise NumericalError(f"{where}: {exc}") from None
