@@ -3,6 +3,7 @@
     python scripts/coupling_effect.py [--sizes 64] [--samples 10] [--nu 0.0 0.25 0.45]
                                       [--depths 8] [--no-hertz] [--out runs/coupling]
                                       [--slip-law break|coulomb] [--resume]
+                                      [--histories bonded simultaneous indent frictionless]
 
 The report's own open question ([Report2003] §6.1). For each nu (default 0, 0.25, 0.45) it
 runs the decoupled model (the report's) and the coupled model with exact event tracking on rough
@@ -10,9 +11,12 @@ surfaces (H = 0.8, ``--samples`` samples, ``--depths`` depths 0.3-2 rms, one gri
 ``--sizes``) and on the Hertz sphere (configs/hertz.toml), and prints the friction exponent alpha
 of F_friction ~ F_n^alpha for both, the mean ratio of the friction forces, and the fraction of
 bonds released already at D_x = 0 under coupling (slipping, under ``--slip-law coulomb``, which
-runs both models with the Coulomb law). Prints Markdown (docs/results.md holds the output of a
-run). ``--resume`` continues the run files an interrupted invocation with the same options left
-in ``--out`` (their completed samples are kept; the seconds column then counts this
+runs both models with the Coulomb law). ``--histories`` runs the coupled model once per squeeze
+history (``coupling.history``), one row each; the friction ratio is the mean over samples of
+each sample's mean ratio over depths, with the bootstrap standard deviation of that mean over
+resamples of the samples (1000 resamples, seed 0). Prints Markdown (docs/results.md holds the
+output of a run). ``--resume`` continues the run files an interrupted invocation with the same
+options left in ``--out`` (their completed samples are kept; the seconds column then counts this
 invocation's work only).
 """
 
@@ -64,14 +68,16 @@ def main() -> None:
     ap.add_argument("--slip-law", choices=["break", "coulomb"], default="break")
     ap.add_argument("--resume", action="store_true",
                     help="continue the run files of an interrupted invocation")
+    ap.add_argument("--histories", nargs="+", default=["bonded"],
+                    help="squeeze histories of the coupled model (coupling.history)")
     args = ap.parse_args()
     law = args.slip_law
     args.out.mkdir(parents=True, exist_ok=True)
     print(f"# cores: {os.cpu_count()}; rough: N = {args.sizes}, {args.samples} samples, "
           f"H = 0.8, {args.depths} depths 0.3-2 rms; Hertz: N = 64; lambda = 0.2; slip law {law}\n")
-    print("| scene | N | nu | alpha decoupled | alpha coupled | F_fric coupled / decoupled "
-          "| bonds released at D_x = 0 | seconds (dec / coup) |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| scene | N | nu | history | alpha decoupled | alpha coupled "
+          "| F_fric coupled / decoupled | bonds released at D_x = 0 | seconds (dec / coup) |")
+    print("|---|---|---|---|---|---|---|---|---|")
     scenes = [
         (f"rough{n}", "rough_h08.toml", [f"grid.n={n}", f"ensemble.samples={args.samples}",
                                          "squeeze.depths={start = 0.3, stop = 2.0, num = "
@@ -83,34 +89,49 @@ def main() -> None:
     for scene, name, base in scenes:
         for nu in args.nu:
             paths, secs = {}, {}
-            for coupled in (False, True):
+            for history in [None, *args.histories]:
+                coupled = history is not None
                 cfg = load_config(ROOT / "configs" / name, [*base, f"material.nu={nu}",
                                   f"coupling.enabled={'true' if coupled else 'false'}",
-                                  f"pull.slip_law='{law}'"])
+                                  f"pull.slip_law='{law}'"]
+                                  + ([f"coupling.history='{history}'"] if coupled else []))
                 tag = "" if law == "break" else f"_{law}"
-                p = args.out / f"{scene}_nu{nu}{tag}_{'coupled' if coupled else 'decoupled'}.h5"
+                kind = "decoupled" if not coupled else (
+                    "coupled" if history == "bonded" else f"coupled_{history}")
+                p = args.out / f"{scene}_nu{nu}{tag}_{kind}.h5"
                 t0 = time.perf_counter()
                 resume = args.resume and p.exists()
                 run(cfg, p, workers=args.workers, resume=resume, overwrite=not resume)
-                secs[coupled] = time.perf_counter() - t0
-                paths[coupled] = p
-            fd = fit_files([paths[False]])[0].fit
-            fc = fit_files([paths[True]])[0].fit
-            rd, rc = read_run(paths[False]), read_run(paths[True])
-            ratio = np.mean(rc.scalars["friction_force"][rc.complete] /
-                            rd.scalars["friction_force"][rd.complete])
+                secs[history] = time.perf_counter() - t0
+                paths[history] = p
+            fd = fit_files([paths[None]])[0].fit
+            rd = read_run(paths[None])
+            n = grid_sites(paths[None])
+            for history in args.histories:
+                fc = fit_files([paths[history]])[0].fit
+                rc = read_run(paths[history])
+                done = rc.complete & rd.complete
+                per_sample = np.mean(rc.scalars["friction_force"][done]
+                                     / rd.scalars["friction_force"][done], axis=1)
+                ratio, err = per_sample.mean(), bootstrap_std(per_sample)
+                print(f"| {scene.rstrip('0123456789')} | {round(n ** 0.5)} | {nu} | {history} "
+                      f"| {fmt(fd)} | {fmt(fc)} | {ratio:.3f} ± {err:.3f} | "
+                      f"{released_fraction(paths[history]):.2f} | {secs[None]:.0f} / "
+                      f"{secs[history]:.0f} |", flush=True)
 
-            def fmt(f):
-                e = f.alpha_stderr if math.isnan(f.alpha_bootstrap_std) else \
-                    f.alpha_bootstrap_std
-                return f"{f.alpha:.3f} ± {e:.3f}"
 
-            n = grid_sites(paths[False])
-            print(f"| {scene.rstrip('0123456789')} | {round(n ** 0.5)} | {nu} | {fmt(fd)} "
-                  f"| {fmt(fc)} | {ratio:.3f} | "
-                  f"{released_fraction(paths[True]):.2f} | {secs[False]:.0f} / "
-                  f"{secs[True]:.0f} |", flush=True)
+def fmt(f) -> str:
+    e = f.alpha_stderr if math.isnan(f.alpha_bootstrap_std) else f.alpha_bootstrap_std
+    return f"{f.alpha:.3f} ± {e:.3f}"
 
+
+def bootstrap_std(values: np.ndarray, resamples: int = 1000) -> float:
+    """Standard deviation of the mean of ``values`` over resamples with replacement."""
+    if values.size < 2:
+        return float("nan")
+    rng = np.random.default_rng(0)
+    idx = rng.integers(0, values.size, size=(resamples, values.size))
+    return float(values[idx].mean(axis=1).std(ddof=1))
 
 if __name__ == "__main__":
     main()

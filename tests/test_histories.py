@@ -139,3 +139,18 @@ def test_an_unknown_history_is_refused_in_one_line():
     with pytest.raises(InputError, match=r"history = 'gradual': unknown squeeze history; "
                        r"choose one of bonded, simultaneous, frictionless, indent"):
         couple(pb, depth=1.0, history="gradual")
+
+
+def test_the_coulomb_friction_at_full_sliding_does_not_depend_on_the_history():
+    """Under the Coulomb law, with contacts gained during the pull bonded, every contact ends
+    slipping forwards, carrying lam f_z: that state is the same whatever the start, and so is
+    the friction force when the peak is there. (With unbonded gains the contacts gained carry
+    nothing, and which are gained depends on the path.)"""
+    pb = Problem.from_arrays(rough(16, seed=5), nu=0.25)
+    out = {h: couple(pb, depth=1.6, lam=0.2, history=h, slip_law="coulomb", gained="bonded")
+           for h in HISTORIES.names()}
+    ref = out["bonded"]
+    assert ref.peak_dx == ref.events[-1].dx  # the peak is at full sliding
+    for r in out.values():
+        assert r.friction_force == pytest.approx(ref.friction_force, rel=1e-10)
+        assert r.friction_force == pytest.approx(0.2 * r.normal_force_at_peak, rel=1e-10)

@@ -70,8 +70,9 @@ COLUMNS: tuple[Column, ...] = (
            "(one refinement step on the contact set); within a factor 3.2 of the true error "
            "on the verify scenes; NaN when not estimated and for method 'batch', which has "
            "none"),
-    Column("released_bonds", "coupled", "coupled model: contact sites whose bond is released "
-           "at D_x = 0", "count"),
+    Column("released_bonds", "coupled", "coupled model: contact sites with no bond holding "
+           "when the pull starts, at D_x = 0 (released, broken or slipping under the squeeze "
+           "history, coupling.history)", "count"),
 )
 BY_NAME = {c.name: c for c in COLUMNS}
 
