@@ -217,14 +217,13 @@ def follow_events(st: EventState, limit: int, record_states: bool,
     D = 0.0
     first = True
     falling = False  # inside an avalanche (recorded states below the drive, or transients)
-    driven = callable(end) or math.isfinite(end)
     # until no bond holds; under the Coulomb law also until no slipping bond turns back
     # (a bond slipping against the pull sticks again, even when every other one slips)
     while True:
         # a callable end is read from the current state and taken only from an admissible
         # one (an avalanche's states can have other forces at the same drive)
         stop = end() if callable(end) else end
-        if not callable(end) and not (D < stop if driven else st.holds()
+        if not callable(end) and not (D < stop if math.isfinite(stop) else st.holds()
                                       or st.reversal() is not None):
             break
         if len(path.events) + path.transient > limit:

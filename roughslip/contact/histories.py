@@ -29,7 +29,7 @@ from __future__ import annotations
 import hashlib
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -51,7 +51,7 @@ class Setup:
     tol: float
     squeeze_method: str  # the frictionless squeeze that starts the sets under load control
     limit: int = 0  # the most states a history may pass through (set from the start set)
-    _normal: object = None
+    _normal: object = field(default=None, init=False, repr=False)
 
     def normal(self, problem: Problem):
         """The frictionless squeeze (:class:`~roughslip.contact.squeeze.NormalSolver`, by
@@ -177,40 +177,19 @@ def simultaneous(problem: Problem, solver, setup: Setup) -> Squeezed:
     st.slope = False
     n = drop_tensile(st)
     cycle = _Cycle("coupled squeeze (simultaneous)")
-    while (kind := _violations(st)) is not None:
+    while (v := st.violated(0.0)) is not None:
         if n >= setup.limit:
             raise NumericalError("coupled squeeze (simultaneous): no admissible state after "
                                  f"{setup.limit} states at D_x = 0")
-        name, sites = kind
-        for j, k in zip(sites, name, strict=True):
-            st.apply(k, int(j))
+        kind, bad, _, _, fx = v
+        for j in np.flatnonzero(bad):
+            st.apply(st.event_kind(kind, int(j), fx), int(j))
         cycle.check(st)
         st.solve(bulk=True)  # large rounds by CG: the inverse is built for the set they leave
         n += 1
     st.solve()  # the updated inverse, certified, for the pull
     n += 1 + settle(st, setup.limit)  # nothing to do unless a bulk solve was off by a tie
     return Squeezed(st, _released(st), n)
-
-
-def _violations(st: ContactState) -> tuple[list[str], np.ndarray] | None:
-    """All the violations at :math:`D_x = 0` of the first kind that has any, as (event kinds,
-    flat sites), in the order of :meth:`ContactState.violation`."""
-    fz, fx, g = st.at(0.0)
-    fscale = max(float(np.max(np.abs(fz))), np.finfo(float).tiny)
-    bad = st.C & (fz < -TIE * fscale)
-    if bad.any():
-        sites = np.flatnonzero(bad)
-        return ["lost"] * sites.size, sites
-    bad = ~st.C & (g < -TIE * max(st.scale_g, np.finfo(float).tiny))
-    if bad.any():
-        sites = np.flatnonzero(bad)
-        return ["gained"] * sites.size, sites
-    over = st.law.overload(st.lam, st.S, fz, fx)
-    bad = st.S & (over > 1 + TIE)
-    if bad.any():
-        sites = np.flatnonzero(bad)
-        return [("slip+" if fx.ravel()[j] > 0 else "slip-") for j in sites], sites
-    return None
 
 
 @HISTORIES.register("frictionless", "the frictionless squeeze, then every contact bonds "

@@ -296,22 +296,41 @@ class ContactState:
         g = self.g0 + D * self.g1
         return fz, fx, g
 
-    def violation(self, D: float):
-        """The first violation to resolve at D: (kind, flat index) or None."""
+    def violated(self, D: float) -> tuple[str, np.ndarray, np.ndarray, str, np.ndarray] | None:
+        """The first kind of violation at D that has any, in the order lost contact,
+        penetration, overloaded bond: (kind, mask of the violating sites, the values ranking
+        them, whether the worst is their ``"min"`` or ``"max"``, f_x), or None."""
         fz, fx, g = self.at(D)
         fscale = max(float(np.max(np.abs(fz))), np.finfo(float).tiny)
         bad = self.C & (fz < -TIE * fscale)
         if bad.any():
-            return "lost", argext(fz, bad, "min")
+            return "lost", bad, fz, "min", fx
         bad = ~self.C & (g < -TIE * max(self.scale_g, np.finfo(float).tiny))
         if bad.any():
-            return "gained", argext(g, bad, "min")
+            return "gained", bad, g, "min", fx
         over = self.law.overload(self.lam, self.S, fz, fx)
         bad = self.S & (over > 1 + TIE)
         if bad.any():
-            j = argext(over, bad, "max")
-            return ("slip+" if fx.ravel()[j] > 0 else "slip-"), j
+            return "slip", bad, over, "max", fx
         return None
+
+    @staticmethod
+    def event_kind(kind: str, j: int, fx: np.ndarray) -> str:
+        """The event of a violation of ``kind`` at site ``j``: an overloaded bond fails in the
+        direction of its force."""
+        if kind != "slip":
+            return kind
+        return "slip+" if fx.ravel()[j] > 0 else "slip-"
+
+    def violation(self, D: float):
+        """The first violation to resolve at D, the worst of the first kind
+        (:meth:`violated`): (event kind, flat index) or None."""
+        v = self.violated(D)
+        if v is None:
+            return None
+        kind, bad, values, how, fx = v
+        j = argext(values, bad, how)
+        return self.event_kind(kind, j, fx), j
 
     def apply(self, kind: str, j: int, D: float = 0.0) -> None:
         """Update the sets for an event at site ``j`` at pull displacement ``D``."""
