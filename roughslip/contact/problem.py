@@ -160,14 +160,14 @@ class Problem:
     def depth_limit(self) -> float:
         r"""The largest depth displacement control accepts: :math:`\max h - \bar h` on
         periodic grids (the force diverges as the mean gap closes), infinite on open ones."""
-        return self.hmax - self.hmean if self.grid.boundary == "periodic" else math.inf
+        return self.grid.boundary.depth_limit(self.hmax, self.hmean)
 
     def check_depth(self, depth: float) -> float:
         """``depth`` as a float, checked: finite, and below :meth:`depth_limit`."""
         depth = finite(depth, "depth")
         if depth >= self.depth_limit():
             raise InputError(
-                f"depth = {depth:g}: on a periodic grid displacement control needs "
+                f"depth = {depth:g}: on a {self.grid.boundary} grid displacement control needs "
                 f"depth < max(h) - mean(h) = {self.depth_limit():g} (the force diverges "
                 "as the mean gap closes); use load control (force=...) instead"
             )

@@ -184,8 +184,7 @@ class NormalSolver:
             raise InputError(f"tol = {tol!r}: must satisfy 0 < tol < 1")
         if int(max_iter) < 1:
             raise InputError(f"max_iter = {max_iter!r}: must be >= 1")
-        if problem.grid.boundary == "periodic" and problem.grid.size < 2:
-            raise InputError("a periodic 1x1 grid has no non-uniform mode: use an open grid")
+        problem.grid.boundary.check_squeeze(problem.grid.shape)
         self.problem = problem
         self.grid = problem.grid
         self.method = method

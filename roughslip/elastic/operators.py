@@ -1,17 +1,8 @@
 r"""Convolution operators :math:`u_a = \sum_b G_{ab} * f_b` on a pixel grid.
 
-Two boundaries (docs/theory/boundaries.rst#boundaries):
-
-``"open"``
-    A finite ``ny x nx`` patch on an infinite half-space. Linear convolution by zero padding to
-    fast FFT lengths ``>= 2N - 1`` per axis (DC-FFT, docs/theory/boundaries.rst#open-boundary);
-    exact to round-off.
-``"periodic"``
-    The grid repeats. Circular convolution with the symbol of
-    :func:`~roughslip.elastic.green.periodic_symbol`, either ``"pixel"`` (exact periodic
-    images of the pixel kernel) or ``"continuous"``.
-    The zero mode is zero: the mean displacement is not produced by the operator
-    (docs/theory/boundaries.rst#periodic-boundary).
+The boundary treatment (open: a finite patch on a half-space; periodic: a repeating grid) is a
+:class:`~roughslip.elastic.boundaries.Boundary` object (docs/theory/boundaries.rst#boundaries);
+grids and operators accept its name.
 
 An operator computes the spectra of the components it is asked for, once, at construction;
 nothing else. Applying it allocates nothing when an ``out`` array is given (pyfftw backend).
@@ -29,15 +20,20 @@ import numpy as np
 from scipy.sparse.linalg import LinearOperator
 
 from roughslip.elastic import green
-from roughslip.elastic.fft import RealFFT2, fast_len
+from roughslip.elastic.boundaries import (
+    BOUNDARIES,
+    PERIODIC_KERNELS,
+    Boundary,
+    check_periodic_kernel,
+)
+from roughslip.elastic.boundaries import boundary as as_boundary
+from roughslip.elastic.fft import RealFFT2
 from roughslip.elastic.green import CANONICAL as _CANONICAL
 from roughslip.elastic.tables import KernelTables
 from roughslip.errors import InputError
 
-BOUNDARIES = ("open", "periodic")
-
-PERIODIC_KERNELS = ("pixel", "continuous")
-
+__all__ = ["BOUNDARIES", "PERIODIC_KERNELS", "Boundary", "ElasticOperator", "Grid", "Material",
+           "padded_shape"]
 
 
 @dataclass(frozen=True)
@@ -80,17 +76,13 @@ class Grid:
 
     shape: tuple[int, int]
     a: float = 1.0
-    boundary: str = "open"
+    boundary: Boundary = BOUNDARIES["open"]  # or its name
     periodic_kernel: str = "pixel"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "shape", _check_grid(tuple(self.shape), self.a))
-        if self.boundary not in BOUNDARIES:
-            raise InputError(f"boundary = {self.boundary!r}: must be 'open' or 'periodic'")
-        if self.periodic_kernel not in PERIODIC_KERNELS:
-            raise InputError(
-                f"periodic_kernel = {self.periodic_kernel!r}: must be 'pixel' or 'continuous'"
-            )
+        object.__setattr__(self, "boundary", as_boundary(self.boundary))
+        check_periodic_kernel(self.periodic_kernel)
 
     @property
     def size(self) -> int:
@@ -110,13 +102,9 @@ class Grid:
                                fft=fft, threads=threads)
 
 
-def padded_shape(shape: tuple[int, int], boundary: str) -> tuple[int, int]:
-    """The FFT grid of an operator: fast lengths ``>= 2n - 1`` per axis for open grids (linear
-    convolution by zero padding), the grid itself for periodic ones."""
-    ny, nx = shape
-    if boundary == "open":
-        return fast_len(2 * ny - 1), fast_len(2 * nx - 1)
-    return ny, nx
+def padded_shape(shape: tuple[int, int], kind: str | Boundary) -> tuple[int, int]:
+    """The FFT grid of an operator on a grid of ``shape`` (:meth:`Boundary.padded_shape`)."""
+    return as_boundary(kind).padded_shape(shape)
 
 
 def _check_grid(shape: tuple[int, int], a: float) -> tuple[int, int]:
@@ -141,7 +129,7 @@ class ElasticOperator:
         Pixel side.
     material : Material
         Elastic constants.
-    boundary : {"open", "periodic"}
+    boundary : Boundary or {"open", "periodic"}
     periodic_kernel : {"pixel", "continuous"}
         Periodic symbol (ignored for open grids).
     components : iterable of str
@@ -163,7 +151,7 @@ class ElasticOperator:
         *,
         a: float = 1.0,
         material: Material | None = None,
-        boundary: str = "open",
+        boundary: str | Boundary = "open",
         periodic_kernel: str = "pixel",
         components: Iterable[str] = ("zz",),
         fft: str = "auto",
@@ -172,19 +160,12 @@ class ElasticOperator:
         self.shape = _check_grid(tuple(shape), a)
         self.a = float(a)
         self.material = material if material is not None else Material()
-        if boundary not in BOUNDARIES:
-            raise InputError(f"boundary = {boundary!r}: must be 'open' or 'periodic'")
-        if periodic_kernel not in PERIODIC_KERNELS:
-            raise InputError(
-                f"periodic_kernel = {periodic_kernel!r}: must be 'pixel' or 'continuous'"
-            )
-        self.boundary = boundary
-        self.periodic_kernel = periodic_kernel
-        ny = self.shape[0]
-        self.padded_shape = padded_shape(self.shape, boundary)
+        self.boundary = as_boundary(boundary)
+        self.periodic_kernel = check_periodic_kernel(periodic_kernel)
+        self.padded_shape = self.boundary.padded_shape(self.shape)
         # open grids: only the first ny rows carry data in and out (pruned row transforms)
         self.fft = RealFFT2(self.padded_shape, backend=fft, threads=threads,
-                            rows=ny if boundary == "open" else None)
+                            rows=self.boundary.data_rows(self.shape))
         self._kernel_fft = RealFFT2(self.padded_shape, backend=fft, threads=threads)
         self._in = self.fft.real_buffer()
         self._out = self.fft.real_buffer()
@@ -214,28 +195,25 @@ class ElasticOperator:
         return tuple(self._khat)
 
     def _build_spectrum(self, c: str) -> np.ndarray:
-        ny, nx = self.shape
-        my, mx = self.padded_shape
-        E, nu = self.material.E, self.material.nu
-        odd = green.PARITY[c] in ((-1, 1), (1, -1))
-        scale = 1.0 / (my * mx)  # the backward transform is unnormalised
-        if self.boundary == "open":
-            K = green.open_kernel_padded(c, nx, ny, mx, my, a=self.a, E=E, nu=nu)
+        def forward(K: np.ndarray) -> np.ndarray:
             buf = self._kernel_fft.real_buffer(zero=False)
             buf[...] = K
             spec = self._kernel_fft.spectrum_buffer()
             self._kernel_fft.forward(buf, spec)
-            # Even (odd) padded kernels have purely real (imaginary) spectra
-            # (docs/theory/boundaries.rst#open-boundary);
-            # drop the round-off in the other part. Stored complex: numpy multiplies
-            # complex by complex ~2.7x faster than complex by real (no casting loop).
-            if c == "xy" or not odd:
-                return (spec.real * scale).astype(complex)
-            return (1j * spec.imag) * scale
-        sym = green.periodic_symbol(
-            c, (ny, nx), a=self.a, E=E, nu=nu, kind=self.periodic_kernel
-        )
-        return (sym * scale).astype(complex)
+            return spec
+
+        return self.boundary.spectrum(c, self.shape, self.padded_shape, self.a,
+                                      self.material.E, self.material.nu, self.periodic_kernel,
+                                      forward)
+
+    def real_kernel(self, component: str) -> np.ndarray:
+        """A component's kernel in real space on the FFT grid: the inverse FFT of its stored
+        spectrum (a new array)."""
+        spec = self._kernel_fft.spectrum_buffer()
+        np.copyto(spec, self.spectrum(component))
+        K = self._kernel_fft.real_buffer(zero=False)
+        self._kernel_fft.backward(spec, K)
+        return K
 
     def spectrum(self, component: str) -> np.ndarray:
         """The (scaled) half-spectrum used for a component; raises if it was not built."""

@@ -6,22 +6,41 @@ kernels) on first use, and cached."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
-from roughslip.elastic import green
+from roughslip.elastic.boundaries import Boundary
 from roughslip.errors import InputError
 
-if TYPE_CHECKING:  # the operator owns its tables
-    from roughslip.elastic.operators import ElasticOperator
+
+class _Elastic(Protocol):
+    E: float
+    nu: float
+
+
+class KernelSource(Protocol):
+    """What the tables read from an operator
+    (:class:`~roughslip.elastic.operators.ElasticOperator` is one)."""
+
+    shape: tuple[int, int]
+    padded_shape: tuple[int, int]
+    a: float
+    boundary: Boundary
+
+    @property
+    def material(self) -> _Elastic: ...
+
+    def spectrum(self, component: str) -> np.ndarray: ...
+
+    def real_kernel(self, component: str) -> np.ndarray: ...
 
 
 class KernelTables:
     """The real-space side of an :class:`~roughslip.elastic.operators.ElasticOperator`
     (``op.tables``)."""
 
-    def __init__(self, op: ElasticOperator) -> None:
+    def __init__(self, op: KernelSource) -> None:
         self.op = op
         self._real: dict[str, np.ndarray] = {}
         self._pairs: dict[str, tuple[np.ndarray, int, int]] = {}
@@ -36,18 +55,8 @@ class KernelTables:
         cache = self._real
         if component in cache:
             return cache[component]
-        ny, nx = self.op.shape
-        my, mx = self.op.padded_shape
-        spec = self.op._kernel_fft.spectrum_buffer()
-        np.copyto(spec, self.op.spectrum(component))
-        K = self.op._kernel_fft.real_buffer(zero=False)
-        self.op._kernel_fft.backward(spec, K)
-        if self.op.boundary == "open":
-            rows = np.r_[my - ny + 1 : my, 0:ny]
-            cols = np.r_[mx - nx + 1 : mx, 0:nx]
-            T = np.ascontiguousarray(K[np.ix_(rows, cols)])
-        else:
-            T = np.tile(K, (2, 2))
+        op = self.op
+        T = op.boundary.window_table(op.real_kernel(component), op.shape, op.padded_shape)
         cache[component] = T
         return T
 
@@ -61,16 +70,9 @@ class KernelTables:
         cache = self._pairs
         if component in cache:
             return cache[component]
-        ny, nx = self.op.shape
-        if self.op.boundary == "open":
-            canon, sign = green.CANONICAL[component]
-            mat = self.op.material
-            T = sign * green.kernel_table(canon, nx, ny, a=self.op.a, E=mat.E, nu=mat.nu)
-            w, oy, ox = 2 * nx - 1, ny - 1, nx - 1
-        else:
-            T = self.real_space(component)
-            w, oy, ox = 2 * nx, ny, nx
-        out = (np.ascontiguousarray(T).ravel(), w, oy * w + ox)
+        op = self.op
+        out = op.boundary.pair_table(component, op.shape, op.a, op.material.E, op.material.nu,
+                                     self.real_space)
         cache[component] = out
         return out
 
@@ -84,10 +86,7 @@ class KernelTables:
         T = self.real_space(component)
         ny, nx = self.op.shape
         sy, sx = np.divmod(np.asarray(sites), nx)
-        if self.op.boundary == "open":
-            oy, ox = ny - 1 - sy, nx - 1 - sx
-        else:
-            oy, ox = ny - sy, nx - sx
+        oy, ox = self.op.boundary.window_origin(sy, sx, self.op.shape)
         for y0, x0, v in zip(oy, ox, values, strict=True):
             out += v * T[y0 : y0 + ny, x0 : x0 + nx]
         return out
@@ -116,19 +115,6 @@ class KernelTables:
         if n > 4096:
             raise InputError(f"dense matrix of a {self.op.shape} grid is too large "
                              f"(n = {n} > 4096)")
-        iy, ix = np.divmod(np.arange(n), nx)
-        l = ix[:, None] - ix[None, :]
-        m = iy[:, None] - iy[None, :]
-        if self.op.boundary == "open":
-            E, nu = self.op.material.E, self.op.material.nu
-            return green.pixel_kernel(component, l, m, a=self.op.a, E=E, nu=nu)
-        k = self.op.spectrum(component) * (ny * nx)
-        # Explicit inverse real DFT of the half spectrum (Hermitian completion along x).
-        full = np.zeros((ny, nx), dtype=complex)
-        full[:, : nx // 2 + 1] = k
-        for kx in range(nx // 2 + 1, nx):
-            full[:, kx] = np.conj(k[(-np.arange(ny)) % ny, nx - kx])
-        ey = np.exp(2j * np.pi * np.outer(np.arange(ny), np.arange(ny)) / ny)
-        ex = np.exp(2j * np.pi * np.outer(np.arange(nx), np.arange(nx)) / nx)
-        kern = (ey @ full @ ex.T).real / (ny * nx)  # kern[m, l]
-        return kern[m % ny, l % nx]
+        op = self.op
+        return op.boundary.dense(component, op.shape, op.a, op.material.E, op.material.nu,
+                                 lambda: op.spectrum(component))
