@@ -21,7 +21,7 @@ import argparse
 import os
 import time
 
-from bench_squeeze import depth_for_area  # the same scenes as the squeeze benchmark
+from benchlib import depth_for_area  # the same scenes as the squeeze benchmark
 
 from roughslip import couple, pull
 from roughslip.contact.histories import HISTORIES

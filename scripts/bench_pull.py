@@ -24,7 +24,7 @@ import argparse
 import os
 import time
 
-from bench_squeeze import depth_for_area
+from benchlib import depth_for_area
 
 from roughslip.contact.problem import Problem
 from roughslip.contact.pull import bond_spectrum, pull

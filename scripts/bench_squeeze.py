@@ -19,49 +19,12 @@ import statistics
 import time
 
 import numpy as np
+from benchlib import depth_for_area, floor_seconds
 
 from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import NormalSolver
 from roughslip.elastic.operators import Grid, Material
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
-
-
-def floor_seconds(shape, repeat=9) -> float:
-    """Median time of one plain pyfftw convolution of ``shape`` (ESTIMATE plans)."""
-    import pyfftw
-
-    a = pyfftw.empty_aligned(shape, dtype="float64")
-    a[...] = np.random.default_rng(0).standard_normal(shape)
-    b = pyfftw.empty_aligned((shape[0], shape[1] // 2 + 1), dtype="complex128")
-    c = pyfftw.empty_aligned(shape, dtype="float64")
-    k = np.ones(b.shape, dtype=complex)
-    fwd = pyfftw.FFTW(a, b, axes=(0, 1), flags=("FFTW_ESTIMATE",))
-    bwd = pyfftw.FFTW(b, c, axes=(0, 1), direction="FFTW_BACKWARD",
-                      flags=("FFTW_ESTIMATE", "FFTW_DESTROY_INPUT"))
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fwd.execute()
-        np.multiply(b, k, out=b)
-        bwd.execute()
-        ts.append(time.perf_counter() - t0)
-    return statistics.median(ts)
-
-
-def depth_for_area(solver: NormalSolver, target: float, hi: float) -> float:
-    """Depth whose contact fraction is close to ``target`` (bisection at a loose tolerance)."""
-    lo = 0.0
-    tol, solver.tol = solver.tol, 1e-4
-    try:
-        for _ in range(14):
-            mid = 0.5 * (lo + hi)
-            if solver.solve(depth=mid).contact_area < target:
-                lo = mid
-            else:
-                hi = mid
-    finally:
-        solver.tol = tol
-    return 0.5 * (lo + hi)
 
 
 def scenes(n: int):
