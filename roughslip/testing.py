@@ -1,11 +1,7 @@
-"""Fault injection and process helpers for testing runs against kills.
+"""Helpers for testing runs: bitwise comparison of run files, processes, topography writers.
 
-A run is killed at a named point of the writer's life (:data:`KILL_POINTS`) by
-``python -m roughslip.testing [--signal NAME] POINT COUNT run CONFIG ...``: the process arms
-the point, then runs the ``roughslip`` command line given after it and sends itself SIGKILL
-(or the named signal, e.g. ``INT`` for a Ctrl-C) when the point is reached for the
-``COUNT``-th time. This gives every state a kill can leave, at fixed and
-reproducible moments, without hooks in the library itself.
+:func:`differences` compares two run files dataset by dataset, the wall-clock timings
+excepted.
 
 :func:`write_x3p` and :func:`write_sdf` write topography files from the formats' specifications
 (ISO 25178-72 and -71), so that readers can be tested against an independent writer.
@@ -19,76 +15,14 @@ from __future__ import annotations
 
 import hashlib
 import os
-import signal
-import sys
 import time
 import zipfile
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-#: where a run can be killed: name -> what state it leaves
-KILL_POINTS = {
-    "start": "before anything is written: no run file, no journal",
-    "creating": "the new run file written to OUT.h5.creating, not yet renamed",
-    "journal-entry": "a sample's journal entry written to a temporary file, not yet renamed",
-    "main-write": "a sample journalled and half-written into OUT.h5 (open for writing)",
-    "sample-done": "COUNT samples fully written, OUT.h5 open for writing",
-    "finish": "every sample done, the journal renamed .journal.done but not removed",
-    "rebuild": "during a resume: OUT.h5 being rebuilt from the journal",
-}
-
 #: datasets that measure the machine rather than the model: excluded from comparisons
 TIMINGS = ("seconds", "pull_seconds")
-
-
-def arm(point: str, count: int = 1, sig: int = signal.SIGKILL) -> None:
-    """Make this process send itself ``sig`` the ``count``-th time the run reaches
-    ``point``."""
-    from roughslip.run import store
-
-    if point not in KILL_POINTS:
-        raise ValueError(f"unknown kill point {point!r}; choose from {sorted(KILL_POINTS)}")
-    hits = {"n": 0}
-
-    def hit() -> None:
-        hits["n"] += 1
-        if hits["n"] == count:
-            os.kill(os.getpid(), sig)
-
-    def wrap(owner: object, name: str, before: Callable[..., bool] | None = None,
-             after: Callable[..., bool] | None = None) -> None:
-        real = getattr(owner, name)
-
-        def patched(*args, **kwargs):
-            if before is not None and before(*args, **kwargs):
-                hit()
-            out = real(*args, **kwargs)
-            if after is not None and after(*args, **kwargs):
-                hit()
-            return out
-
-        setattr(owner, name, patched)
-
-    if point == "start":
-        wrap(store.RunWriter, "create", before=lambda *a, **k: True)
-    elif point == "creating":
-        wrap(store, "_fsync", after=lambda p: str(p).endswith(".creating"))
-    elif point == "journal-entry":
-        wrap(store, "_fsync", after=lambda p: Path(p).name.startswith("s")
-             and str(p).endswith(".tmp"))
-    elif point == "main-write":
-        # the first dataset of the sample's group is in OUT.h5, the rest is not
-        wrap(store, "_write_array", after=lambda g, name, *a: name == "rigid_surface"
-             and not g.file.filename.endswith(".tmp"))
-    elif point == "sample-done":
-        wrap(store.RunWriter, "write_sample", after=lambda *a: True)
-    elif point == "finish":
-        wrap(store.shutil, "rmtree", before=lambda p, **k: str(p).endswith(".journal.done")
-             and Path(p).exists())
-    elif point == "rebuild":
-        wrap(store, "_read_journal_entry", after=lambda *a: True)
 
 
 def session_processes(sid: int) -> list[int]:
@@ -190,23 +124,3 @@ def write_sdf(path: str | Path, h: np.ndarray, dx: float, dy: float) -> None:
     body = "\n".join(" ".join(repr(float(v)) for v in row) for row in h)
     Path(path).write_text(head + body + "\n*\n")
 
-
-
-def main(argv: list[str]) -> None:
-    """``python -m roughslip.testing [--signal NAME] POINT COUNT ARGS...``: arm, then run
-    the command line ``roughslip ARGS...``."""
-    sig = signal.SIGKILL
-    if argv[:1] == ["--signal"] and len(argv) > 1:
-        sig = getattr(signal, "SIG" + argv[1].upper())
-        argv = argv[2:]
-    if len(argv) < 3:
-        sys.exit("usage: python -m roughslip.testing [--signal NAME] POINT COUNT "
-                 "roughslip-args...")
-    arm(argv[0], int(argv[1]), sig)
-    from roughslip.cli import cli
-
-    cli.main(argv[2:], prog_name="roughslip")
-
-
-if __name__ == "__main__":
-    main(sys.argv[1:])

@@ -3,6 +3,8 @@
 * Hypothesis runs derandomized (examples are a function of the test) and keeps no example
   database, so a run does not depend on earlier runs.
 * The process-wide memory cap is restored after every test.
+* No machine file (per-machine execution settings) is read: ``ROUGHSLIP_MACHINE`` is empty
+  for the suite and the runs it starts.
 * Test order is shuffled by pytest-randomly (``-p no:randomly`` turns it off; the seed is
   printed in the header, and ``--randomly-seed=N`` replays an order).
 """
@@ -10,6 +12,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -18,6 +21,8 @@ from hypothesis import settings
 from roughslip.linalg import memory
 
 DATA = Path(__file__).parent / "data"
+
+os.environ["ROUGHSLIP_MACHINE"] = ""
 
 settings.register_profile("roughslip", derandomize=True, database=None)
 settings.load_profile("roughslip")

@@ -16,6 +16,7 @@ from roughslip.analysis.fit import fit_files, fit_power_law
 from roughslip.cli import cli
 from roughslip.errors import InputError
 from roughslip.run.config import load_config
+from roughslip.run.scene import Scene
 from roughslip.run.store import RunWriter, SampleResult
 
 # ------------------------------------------------------------------------------ fitting
@@ -82,7 +83,8 @@ def _fake_run(path, hurst: float, alpha: float, n_samples=6, seed=0):
         "squeeze": {"depths": [0.1, 0.2, 0.4, 0.8, 1.6]}, "ensemble": {"samples": n_samples},
     })
     rng = np.random.default_rng(seed)
-    w = RunWriter.create(path, cfg, list(range(n_samples)), 5, {"version": "test"})
+    w = RunWriter.create(path, Scene.from_config(cfg).layout(), list(range(n_samples)), 5,
+                         {"version": "test"})
     d = np.array(cfg.targets)
     for s in range(n_samples):
         fn = 3.0 * d**1.4 * (1 + 0.05 * rng.standard_normal())

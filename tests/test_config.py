@@ -183,3 +183,39 @@ def test_fuzz_random_documents(data):
         load_config(data=data)
     except ConfigError:
         pass
+
+
+def test_machine_file_sets_execution_beneath_the_experiment(tmp_path, monkeypatch):
+    """The per-machine layer: defaults < machine file < experiment file < --set; it never
+    enters the digest, and its errors name the machine file."""
+    from roughslip.run.machine import MACHINE_ENV
+
+    machine = tmp_path / "machine.toml"
+    machine.write_text("[execution]\nworkers = 3\nthreads = 2\nfft = 'scipy'\n")
+    exp = {"grid": {"n": 8}, "surface": {"kind": "sphere", "radius": 10.0},
+           "squeeze": {"depths": [0.1]}, "execution": {"threads": 1}}
+    plain = load_config(data=exp)
+    monkeypatch.setenv(MACHINE_ENV, str(machine))
+    cfg = load_config(data=exp)
+    assert (cfg.execution.workers, cfg.execution.threads, cfg.execution.fft) == (3, 1, "scipy")
+    assert cfg.machine == str(machine) and cfg.digest() == plain.digest()
+    assert load_config(data=exp, overrides=["execution.workers=4"]).execution.workers == 4
+    assert load_config(data=exp, use_machine=False).execution.workers == 1
+    machine.write_text("[execution]\nworkers = 0\n")
+    with pytest.raises(ConfigError, match=r"machine\.toml: execution\.workers = 0: must be >= 1"):
+        load_config(data=exp)
+    machine.write_text("[execution]\nworker = 2\n")
+    with pytest.raises(ConfigError, match=r"machine\.toml: execution\.worker: unknown key"):
+        load_config(data=exp)
+    machine.write_text("[pull]\nlam = 0.3\n")
+    with pytest.raises(ConfigError, match=r"machine\.toml: pull: a machine file holds only"):
+        load_config(data=exp)
+    monkeypatch.setenv(MACHINE_ENV, str(tmp_path / "none.toml"))
+    with pytest.raises(ConfigError, match="no such machine file"):
+        load_config(data=exp)
+    # the default place, when the variable is not set
+    monkeypatch.delenv(MACHINE_ENV)
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path))
+    (tmp_path / "roughslip").mkdir()
+    (tmp_path / "roughslip" / "machine.toml").write_text("[execution]\nworkers = 5\n")
+    assert load_config(data=exp).execution.workers == 5

@@ -1,8 +1,9 @@
 """Runs against kills: every state a SIGKILL can leave resumes to the same numbers, bitwise,
 with one and two workers, and no process outlives a killed run.
 
-Kills happen at named points of the writer's life (:mod:`roughslip.testing`), so each state
-is reached at a fixed moment, whatever the machine's speed.
+Kills happen at named checkpoints of the writer (:mod:`roughslip.run.checkpoints`, armed by
+``tests/inject.py``), so each state is reached at a fixed moment, whatever the machine's
+speed.
 """
 
 from __future__ import annotations
@@ -18,10 +19,14 @@ import pytest
 from click.testing import CliRunner
 
 from roughslip.cli import cli
+from roughslip.run import checkpoints
+from roughslip.run.checkpoints import CHECKPOINTS
 from roughslip.run.config import dumps_toml, load_config
 from roughslip.run.executor import run
 from roughslip.run.store import journal_dir, read_run
-from roughslip.testing import KILL_POINTS, differences, session_processes, wait_gone
+from roughslip.testing import differences, session_processes, wait_gone
+
+INJECT = str(Path(__file__).with_name("inject.py"))
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
                                 reason="kills and process sessions are tested on Linux")
@@ -53,7 +58,7 @@ def _killed_run(point: str, count: int, cfg_path: Path, out: Path, workers: int,
     log = out.with_name("stderr.txt")  # a file, not a pipe: a survivor could hold a pipe
     with open(log, "wb") as err:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "roughslip.testing", point, str(count), "run",
+            [sys.executable, INJECT, point, str(count), "run",
              str(cfg_path), "-o", str(out), "--workers", str(workers), "--quiet", *extra],
             start_new_session=True, stdout=subprocess.DEVNULL, stderr=err)
         proc.wait(timeout=300)
@@ -79,8 +84,35 @@ STATES = [("start", 1), ("creating", 1), ("journal-entry", 2), ("main-write", 2)
           ("sample-done", 2), ("finish", 1)]
 
 
-def test_every_kill_point_is_covered():
-    assert {p for p, _ in STATES} | {"rebuild"} == set(KILL_POINTS)
+def test_every_checkpoint_is_covered():
+    assert {p for p, _ in STATES} | {"rebuild"} == set(CHECKPOINTS)
+
+
+def test_every_checkpoint_is_reached(tmp_path):
+    """The writer reaches every checkpoint the kill tests name, in a run and in a resume from
+    a journal: a checkpoint renamed, moved out of the writer's path or no longer called fails
+    here instead of disarming its kill test."""
+    seen: list[str] = []
+    stop = {"after": 2}
+
+    def listener(name: str) -> None:
+        seen.append(name)
+        if name == "sample-done" and seen.count(name) == stop["after"]:
+            raise KeyboardInterrupt  # a Ctrl-C: the journal is kept
+    previous = checkpoints.listen(listener)
+    try:
+        cfg = load_config(data=CFG)
+        out = tmp_path / "r.h5"
+        with pytest.raises(KeyboardInterrupt):
+            run(cfg, out)
+        stop["after"] = 0
+        run(cfg, out, resume=True)
+    finally:
+        checkpoints.listen(previous)
+    assert set(seen) == set(CHECKPOINTS) | {p for p, _ in STATES}
+    assert seen.count("rebuild") == 2  # the two journalled samples
+    with pytest.raises(KeyError, match="unknown checkpoint"):
+        checkpoints.reached("no-such-point")
 
 
 @pytest.mark.parametrize("workers", [1, 2])

@@ -164,3 +164,19 @@ def test_require_builds_only_missing_spectra():
     assert op.components == ("zz", "zx") and op.spectrum("zz") is k
     with pytest.raises(InputError, match="unknown component"):
         op.require(("qq",))
+
+
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+def test_the_operator_reports_its_memory(boundary):
+    """What an operator holds, with every table built, stays within the footprint it gives
+    before it is built, and is most of it (the bound is not loose)."""
+    comps = ("zz", "zx", "xx")
+    op = ElasticOperator((24, 20), material=Material(1.0, 0.3), boundary=boundary,
+                         components=comps)
+    bound = ElasticOperator.footprint((24, 20), boundary, comps)
+    before = op.nbytes
+    for c in comps:
+        op.tables.real_space(c)
+        op.tables.pair(c)
+    assert before < op.nbytes <= bound
+    assert op.nbytes > 0.5 * bound

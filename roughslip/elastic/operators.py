@@ -188,6 +188,31 @@ class ElasticOperator:
         #: number of convolutions applied (one forward + one backward FFT each)
         self.applications = 0
 
+    # -- memory -------------------------------------------------------------------------------
+    @staticmethod
+    def footprint(shape: tuple[int, int], boundary: str | Boundary = "open",
+                  components: Iterable[str] = ("zz",)) -> int:
+        """Bytes an operator on a grid of ``shape`` holds at most, before it is built.
+
+        Three real arrays on the FFT grid (input, output, the kernels' transform), four half
+        spectra (two work spectra, the kernels' transform, one temporary) and, per component,
+        its half spectrum and both real-space tables (:attr:`tables`: the window table and the
+        pair table, ``(2ny - 1)(2nx - 1)`` or ``4 ny nx`` doubles each, built on first use).
+        :attr:`nbytes` counts what an operator holds; it never exceeds this bound (tested).
+        """
+        ny, nx = shape
+        py, px = as_boundary(boundary).padded_shape((ny, nx))
+        half = 16 * py * (px // 2 + 1)
+        per_component = half + 2 * 8 * 4 * ny * nx
+        return int(3 * 8 * py * px + 4 * half + len(tuple(components)) * per_component)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the arrays this operator holds now: buffers, spectra and the kernel tables
+        built so far."""
+        arrays = [self._in, self._out, *self._spec, *self._khat.values()]
+        return sum(a.nbytes for a in arrays) + self.tables.nbytes
+
     # -- construction -------------------------------------------------------------------------
     @property
     def components(self) -> tuple[str, ...]:

@@ -45,6 +45,12 @@ class KernelTables:
         self._real: dict[str, np.ndarray] = {}
         self._pairs: dict[str, tuple[np.ndarray, int, int]] = {}
 
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the tables built so far."""
+        return (sum(t.nbytes for t in self._real.values())
+                + sum(t[0].nbytes for t in self._pairs.values()))
+
     def real_space(self, component: str) -> np.ndarray:
         """The kernel in real space, laid out so that every source has a contiguous window.
 

@@ -26,7 +26,7 @@ import numpy as np
 from roughslip._version import __version__
 from roughslip.contact.problem import Problem
 from roughslip.elastic.fft import library_versions, resolve_backend
-from roughslip.elastic.operators import padded_shape
+from roughslip.elastic.operators import ElasticOperator
 from roughslip.errors import (
     InputError,
     MemoryLimitError,
@@ -60,7 +60,7 @@ class _Context:
             self.scene = scene
             self.problem = Problem(np.zeros(scene.grid.shape), scene.grid, scene.material,
                                    fft=ex.fft, threads=ex.threads)
-            self.stage = stage_for(config, scene.coupled)
+            self.stage = stage_for(scene)
             self.key = key
         return self
 
@@ -92,7 +92,7 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     surf = scene.surfaces(sample)
     targets = scene.targets(surf.composite, surf.valid)
     runner = ctx.stage.start(ctx.problem.with_heights(surf.composite))
-    rows = schema.empty(config, len(targets))
+    rows = schema.empty(scene.columns, len(targets))
     fields: list[dict[str, np.ndarray]] = []
     notes = list(scene.notes)
     for k, t in enumerate(targets):
@@ -155,6 +155,7 @@ def provenance(config: RunConfig, command_line: str) -> dict[str, Any]:
         "libraries": libs,
         "fft_backend": resolve_backend(config.execution.fft),
         "threads": config.execution.threads,
+        "machine_file": config.machine or "",
         "seed": config.ensemble.seed,
         "units": {
             "length": config.length_unit or "the unit of grid.pixel_size (heights, depths, "
@@ -167,22 +168,18 @@ def provenance(config: RunConfig, command_line: str) -> dict[str, Any]:
 
 
 def estimate_memory(scene: Scene) -> int:
-    """Bytes one worker needs for operators, solver work arrays and one sample's fields.
+    """Bytes one worker needs: its operator (:meth:`ElasticOperator.footprint`), the solver's
+    work arrays and one sample's fields.
 
     The pull's own memory is checked when it starts (it depends on the bond count); each
     worker gets ``budget / workers`` so parallel pulls cannot overcommit together.
     """
     ny, nx = scene.grid.shape
     n = ny * nx
-    py, px = padded_shape(scene.grid.shape, scene.grid.boundary)
-    m = py * px
-    half = 16 * (py * (px // 2 + 1))  # one complex half-spectrum
-    # one operator per process: real buffers and transforms (its own and the kernels'), and
-    # per component a spectrum and a real-space kernel table
-    ops = 8 * m * 3 + half * 4 + len(scene.components) * (half + 8 * 4 * n)
+    ops = ElasticOperator.footprint(scene.grid.shape, scene.grid.boundary, scene.components)
     work = 8 * n * 16
     nfields = max(1, len(scene.config.output.fields))
-    stored = 8 * n * nfields * len(scene.config.targets) + 8 * n * 3
+    stored = 8 * n * nfields * scene.n_targets + 8 * n * 3
     return int(ops + work + stored)
 
 
@@ -257,11 +254,12 @@ def _run(config: RunConfig, scene: Scene, out: Path, workers: int, resume: bool,
     attrs["pixel_size"] = scene.grid.a
     if scene.topography:
         attrs["topography"] = scene.topography
-    nd = len(config.targets)
+    nd = scene.n_targets
+    layout = scene.layout()
     if resume:
-        writer = RunWriter.resume(out, config, indices, nd, attrs)
+        writer = RunWriter.resume(out, layout, indices, nd, attrs)
     else:
-        writer = RunWriter.create(out, config, indices, nd, attrs, overwrite=overwrite)
+        writer = RunWriter.create(out, layout, indices, nd, attrs, overwrite=overwrite)
     notes = list(scene.notes) + ([writer.recovery] if writer.recovery else [])
     done = set(writer.completed())
     pending = [s for s in indices if s not in done]

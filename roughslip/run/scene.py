@@ -27,8 +27,12 @@ import numpy as np
 from roughslip.contact.coupled import COUPLED_TOL
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import InputError
-from roughslip.run.config import RunConfig, SurfaceConfig
+from roughslip.run import schema
+from roughslip.run.digest import DEFAULTS_VERSION
+from roughslip.run.sections import RunConfig, SurfaceConfig
+from roughslip.run.store import Layout
 from roughslip.surfaces import synthetic as S
+from roughslip.surfaces.topography import Preparation
 
 
 @dataclass(frozen=True)
@@ -77,8 +81,7 @@ class Scene:
             sc: SurfaceConfig | None = getattr(cfg, role)
             if sc is None or sc.kind != "file":
                 continue
-            prep = prepare(read_raw(sc.path, sc.key), sc, cfg.length_unit, role,
-                           cfg.grid.pixel_size, a_given)
+            prep = prepare(read_raw(sc.path, sc.key), _preparation(sc, role, cfg, a_given))
             h = prep.tiles[0]
             if shape is not None and h.shape != shape:
                 what = "tiles have" if len(prep.tiles) > 1 else "heights have"
@@ -141,6 +144,36 @@ class Scene:
     def coupled(self) -> bool:
         """Whether the coupled model runs (enabled, and nu < 0.5 where G_zx is nonzero)."""
         return self.config.coupling.enabled and self.material.coupled
+
+    @property
+    def stages(self) -> tuple[str, ...]:
+        """The stages whose columns the run stores (:func:`roughslip.run.schema.stages`): the
+        coupled model's column whenever it is asked for, also at nu = 1/2."""
+        return schema.stages(self.pull, self.config.coupling.enabled)
+
+    @property
+    def columns(self) -> tuple[schema.Column, ...]:
+        """The scalar columns of the run."""
+        return schema.columns(self.stages)
+
+    @property
+    def n_targets(self) -> int:
+        """Depths or loads per sample."""
+        return len(self.config.targets)
+
+    def layout(self) -> Layout:
+        """What the run file's writer needs (:class:`roughslip.run.store.Layout`)."""
+        cfg = self.config
+        out = cfg.output
+        comp: dict = ({} if out.compression == "none" else {"compression": "lzf"}
+                      if out.compression == "lzf" else
+                      {"compression": "gzip", "compression_opts": out.compression_level})
+        return Layout(config_text=cfg.to_toml(), digest=cfg.digest(),
+                      defaults_version=DEFAULTS_VERSION, matches=cfg.matches,
+                      control=cfg.control, axis=np.asarray(cfg.targets, dtype=float),
+                      axis_unit=(cfg.squeeze.depth_unit if cfg.control == "depth"
+                                 else cfg.squeeze.force_unit),
+                      columns=self.columns, compression=comp)
 
     @property
     def components(self) -> tuple[str, ...]:
@@ -210,6 +243,17 @@ class Scene:
         elif sq.depth_unit == "range":
             vals = vals * float(composite.max() - composite.min())
         return vals
+
+
+def _preparation(sc: SurfaceConfig, role: str, cfg: RunConfig, pixel_given: bool
+                 ) -> Preparation:
+    """The preparation of a file surface, its parameters named by their configuration keys."""
+    keys = ("unit", "scale", "override_pixel_size", "missing", "detrend", "crop", "downsample",
+            "tiles")
+    names = {k: f"{role}.{k}" for k in keys}
+    names.update(run_unit="units.length", pixel_size="grid.pixel_size")
+    return Preparation(**{k: getattr(sc, k) for k in keys}, run_unit=cfg.length_unit,
+                       pixel_size=cfg.grid.pixel_size, pixel_given=pixel_given, names=names)
 
 
 def _analytic(sc: SurfaceConfig, grid: Grid, where: str) -> np.ndarray:

@@ -15,13 +15,10 @@ Format versions
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from roughslip.run.config import RunConfig
 
 FORMAT = "roughslip-run"
 FORMAT_VERSION = 2
@@ -118,25 +115,22 @@ BOOL_FIELDS = tuple(f.name for f in FIELDS if f.boolean)
 FIELD_GROUPS = {"pull_curve": ("dx_lim", "fx_lim", "fz_lim", "dz_lim", "broken_site")}
 
 
-def stages(config: RunConfig) -> tuple[str, ...]:
-    """The stages whose columns a run of ``config`` stores."""
-    out = ["squeeze"]
-    if config.pull.enabled:
-        out.append("pull")
-    if config.coupling.enabled:
-        out.append("coupled")
-    return tuple(out)
+def stages(pull: bool, coupled: bool) -> tuple[str, ...]:
+    """The stages whose columns a run stores: the squeeze always, the pull when it runs, the
+    coupled model's own column when the coupled model is asked for (at nu = 1/2 it is the
+    decoupled model, which releases no bond before the pull: the column then holds 0)."""
+    return ("squeeze", *(("pull",) if pull else ()), *(("coupled",) if coupled else ()))
 
 
-def columns(config: RunConfig) -> tuple[Column, ...]:
-    """The scalar columns of a run of ``config``."""
-    have = stages(config)
+def columns(have: Iterable[str]) -> tuple[Column, ...]:
+    """The scalar columns of a run with the stages ``have``."""
+    have = tuple(have)
     return tuple(c for c in COLUMNS if c.stage in have)
 
 
-def empty(config: RunConfig, n_targets: int) -> dict[str, np.ndarray]:
+def empty(cols: Iterable[Column], n_targets: int) -> dict[str, np.ndarray]:
     """NaN-filled rows of one sample, one array of ``n_targets`` per column."""
-    return {c.name: np.full(n_targets, np.nan) for c in columns(config)}
+    return {c.name: np.full(n_targets, np.nan) for c in cols}
 
 
 def put(rows: dict[str, np.ndarray], k: int, values: dict[str, float]) -> None:

@@ -25,7 +25,7 @@ from roughslip.contact.problem import Problem
 from roughslip.contact.pull import SlipResult, pull
 from roughslip.contact.squeeze import NormalResult, NormalSolver
 from roughslip.errors import ConvergenceError, NumericalError
-from roughslip.run.config import RunConfig
+from roughslip.run.scene import Scene
 
 
 @dataclass
@@ -43,9 +43,11 @@ class DecoupledStage:
 
     name = "decoupled"
 
-    def __init__(self, config: RunConfig) -> None:
-        self.config = config
-        self.want = set(config.output.fields)
+    def __init__(self, scene: Scene) -> None:
+        self.config = scene.config
+        self.want = set(scene.config.output.fields)
+        # the coupled model was asked for at nu = 1/2, where it is this one
+        self.coupled_column = "coupled" in scene.stages
 
     def start(self, problem: Problem) -> _DecoupledSample:
         """The stage's state for one sample (warm starts run from depth to depth)."""
@@ -80,7 +82,7 @@ class _DecoupledSample:
         )
         if not r.converged:
             rec.notes.append(f"squeeze not converged ({r.message})")
-        if cfg.coupling.enabled:  # nu = 1/2: G_zx = 0 and the coupled model is this one
+        if self.stage.coupled_column:  # no bond is released before the pull
             rec.scalars["released_bonds"] = 0
         if cfg.pull.enabled:
             self._pull(r, rec, where)
@@ -118,9 +120,9 @@ class CoupledStage:
 
     name = "coupled"
 
-    def __init__(self, config: RunConfig) -> None:
-        self.config = config
-        self.want = set(config.output.fields)
+    def __init__(self, scene: Scene) -> None:
+        self.config = scene.config
+        self.want = set(scene.config.output.fields)
 
     def start(self, problem: Problem) -> _CoupledSample:
         return _CoupledSample(self, problem)
@@ -183,6 +185,6 @@ class _CoupledSample:
         return rec
 
 
-def stage_for(config: RunConfig, coupled: bool) -> DecoupledStage | CoupledStage:
-    """The stage of a scene: coupled when the coupled model runs (``coupled``)."""
-    return CoupledStage(config) if coupled else DecoupledStage(config)
+def stage_for(scene: Scene) -> DecoupledStage | CoupledStage:
+    """The stage of a scene: coupled when the coupled model runs (:attr:`Scene.coupled`)."""
+    return CoupledStage(scene) if scene.coupled else DecoupledStage(scene)

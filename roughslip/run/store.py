@@ -3,24 +3,18 @@
 Layout of ``OUT.h5`` (``n_s`` samples, ``n_d`` depths or loads)::
 
     /                        attrs: format, format_version (2), version, command_line, config
-                                    (resolved TOML), config_digest, control, libraries (JSON),
+                                    (resolved TOML), config_digest, defaults_version (of the
+                                    digest, :mod:`roughslip.run.digest`), control, libraries (JSON),
                                     fft_backend, threads, seed, units (JSON), notes (JSON)
     /sample_index  (n_s)     global sample numbers (ensemble.first_sample + i)
     /complete      (n_s)     1 once a sample is fully written (the last thing written)
     /depth         (n_d)     displacement control: the configured depths, in squeeze.depth_unit
     /force_target  (n_d)     load control: the configured loads, in squeeze.force_unit
-    /depth_length  (n_s, n_d) D_z in length units (given, or found under load control)
-    /normal_force, /contact_area (fraction of the grid), /friction_force (with the pull)
-                   (n_s, n_d)
-    /iterations, /residual, /converged, /seconds                    squeeze solver record
-    /pull_seconds, /pull_converged, /pull_steps, /pull_error_estimate, /friction_normal_force
-                   (n_s, n_d)                                       pull record (with the pull)
-    /released_bonds (n_s, n_d) coupled model: bonds released already at D_x = 0
+    /<column>      (n_s, n_d) one per scalar of the output schema that the run's stages give
     /samples/s000007/        one group per sample (global number), attr complete
         rigid_surface, elastic_surface (two-surface scenes)
-        d000/ ... d{n_d-1}/  per depth: the fields listed in output.fields
-            fz, uz, gap, contact, fx, ux, stick            (ny, nx), chunked and compressed
-            dx_lim, fx_lim, broken_site                    the pull curve ("pull_curve")
+        d000/ ... d{n_d-1}/  per depth: the fields listed in output.fields, grids (ny, nx)
+                             chunked and compressed, pull-curve arrays one entry per event
 
 The scalars and fields are those of the output schema (:mod:`roughslip.run.schema`), which
 describes each (also in its ``description`` attribute). Every scalar is ``float64``; a value
@@ -57,6 +51,7 @@ import errno
 import json
 import os
 import shutil
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -66,11 +61,43 @@ import numpy as np
 
 from roughslip.errors import InputError, io_failure
 from roughslip.run import schema
-from roughslip.run.config import RunConfig
+from roughslip.run.checkpoints import reached
+from roughslip.run.reading import (
+    BOOL_FIELDS,
+    FORMAT,
+    FORMAT_VERSION,
+    RunData,
+    check_format,
+    group_name,
+    open_file,
+    read_run,
+)
 
-FORMAT = schema.FORMAT
-FORMAT_VERSION = schema.FORMAT_VERSION
-BOOL_FIELDS = schema.BOOL_FIELDS
+__all__ = ["Layout", "RunData", "RunWriter", "SampleResult", "journal_dir", "open_file",
+           "read_run"]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """What the writer needs to know about a run, resolved once from its plan
+    (:meth:`roughslip.run.scene.Scene.layout`): plain values, and the test of a stored digest.
+    """
+
+    config_text: str  # the resolved configuration as TOML, stored in the file
+    digest: str
+    defaults_version: int
+    #: ``matches(digest, defaults_version)``: whether a stored digest is this run's
+    matches: Callable[[str, int | None], bool]
+    control: str  # "depth" or "force"
+    axis: np.ndarray  # the configured targets
+    axis_unit: str
+    columns: tuple[schema.Column, ...]
+    compression: dict[str, Any]
+
+    @property
+    def stamp(self) -> dict[str, Any]:
+        """The digest and its defaults version, as stored with a run and each journal entry."""
+        return {"config_digest": self.digest, "defaults_version": self.defaults_version}
 
 
 @dataclass
@@ -93,10 +120,6 @@ def _sibling(path: Path, suffix: str) -> Path:
     return path.with_name(path.name + suffix)
 
 
-def _group_name(sample: int) -> str:
-    return f"s{sample:06d}"
-
-
 def _fsync(path: Path) -> None:
     """Flush a closed file's data to disk (so that a rename after it is durable)."""
     fd = os.open(path, os.O_RDONLY)
@@ -113,21 +136,28 @@ def _write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
-def _digest_mismatch(path: Path, stored: str, config: RunConfig) -> InputError:
+def _digest_mismatch(path: Path, stored: str, layout: Layout) -> InputError:
     return InputError(
         f"{path}: was made with a different configuration (stored digest "
-        f"{str(stored)[:12]}..., now {config.digest()[:12]}...); run "
+        f"{str(stored)[:12]}..., now {layout.digest[:12]}...); run "
         "`roughslip inspect` to see the stored one, or use --overwrite")
+
+
+def _stored_stamp(attrs: Any) -> tuple[str, int | None]:
+    """The digest and defaults version stored in ``attrs`` (None: written before versioned
+    defaults)."""
+    version = attrs.get("defaults_version")
+    return str(attrs.get("config_digest", "")), None if version is None else int(version)
 
 
 class RunWriter:
     """Creates or resumes ``OUT.h5`` and writes finished samples into it (see the module
     docstring for the journal and the states a resume recovers from)."""
 
-    def __init__(self, path: Path, f: h5py.File, config: RunConfig, indices: list[int]):
+    def __init__(self, path: Path, f: h5py.File, layout: Layout, indices: list[int]):
         self.path = path
         self.f = f
-        self.config = config
+        self.layout = layout
         self.indices = indices
         self.row = {s: i for i, s in enumerate(indices)}
         self.journal = journal_dir(path)
@@ -136,12 +166,13 @@ class RunWriter:
 
     # -- opening ---------------------------------------------------------------------------------
     @classmethod
-    def create(cls, path: str | Path, config: RunConfig, indices: list[int], n_targets: int,
+    def create(cls, path: str | Path, layout: Layout, indices: list[int], n_targets: int,
                attrs: dict[str, Any], overwrite: bool = False) -> RunWriter:
         """Start a new run file; refuses to replace an existing file unless ``overwrite``.
 
         Any journal left beside the file is replaced by the new run's.
         """
+        reached("start")
         path = Path(path)
         if path.exists() and not overwrite:
             raise InputError(
@@ -154,32 +185,35 @@ class RunWriter:
             for old in (jdir, _sibling(jdir, ".done")):
                 shutil.rmtree(old, ignore_errors=True)
             jdir.mkdir()
-            _write_json_atomic(jdir / "run.json", {"config_digest": config.digest(),
+            _write_json_atomic(jdir / "run.json", {**layout.stamp,
                                                    "format_version": FORMAT_VERSION})
-            cls._build(path, ".creating", config, indices, n_targets, attrs, [])
+            cls._build(path, ".creating", layout, indices, n_targets, attrs, [])
             f = h5py.File(path, "r+")
         except (OSError, RuntimeError) as exc:  # h5py reports a failed write as either
             raise io_failure(path, "cannot create the run file", exc) from exc
-        return cls(path, f, config, indices)
+        return cls(path, f, layout, indices)
 
     @classmethod
-    def _build(cls, path: Path, suffix: str, config: RunConfig, indices: list[int],
+    def _build(cls, path: Path, suffix: str, layout: Layout, indices: list[int],
                n_targets: int, attrs: dict[str, Any], samples: list[Path]) -> None:
         """Write a run file with the journalled ``samples`` into ``path + suffix``, then
         rename it to ``path`` (so that ``path`` is never half-written)."""
         tmp = _sibling(path, suffix)
         with h5py.File(tmp, "w", libver="earliest") as f:
-            _init_file(f, config, indices, n_targets, attrs)
-            writer = cls(path, f, config, indices)
+            _init_file(f, layout, indices, n_targets, attrs)
+            writer = cls(path, f, layout, indices)
             for p in samples:
-                res = _read_journal_entry(p, config)
+                res = _read_journal_entry(p, layout)
+                reached("rebuild")
                 if res is not None and res.sample in writer.row:
                     writer._write_main(res)
         _fsync(tmp)
+        if suffix == ".creating":
+            reached("creating")
         os.replace(tmp, path)
 
     @classmethod
-    def resume(cls, path: str | Path, config: RunConfig, indices: list[int], n_targets: int,
+    def resume(cls, path: str | Path, layout: Layout, indices: list[int], n_targets: int,
                attrs: dict[str, Any]) -> RunWriter:
         """Continue a run from whatever state it was left in (module docstring); refuses a run
         made with a different configuration, and a file that is not a roughslip run file."""
@@ -189,9 +223,9 @@ class RunWriter:
             leftover.unlink(missing_ok=True)
         shutil.rmtree(_sibling(jdir, ".done"), ignore_errors=True)  # a finished run's journal
         if jdir.is_dir():
-            return cls._rebuild(path, config, indices, n_targets, attrs)
+            return cls._rebuild(path, layout, indices, n_targets, attrs)
         if not path.exists():
-            writer = cls.create(path, config, indices, n_targets, attrs)
+            writer = cls.create(path, layout, indices, n_targets, attrs)
             writer.recovery = "no run file yet: started a new run"
             return writer
         try:
@@ -200,43 +234,43 @@ class RunWriter:
             if "already open for write" in str(exc):
                 # superblock status flags left set by a writer that was killed before its
                 # first sample was journalled (files of earlier versions): nothing to keep
-                writer = cls.create(path, config, indices, n_targets, attrs, overwrite=True)
+                writer = cls.create(path, layout, indices, n_targets, attrs, overwrite=True)
                 writer.recovery = (f"{path.name} was left open by a killed run with no "
                                    "sample journalled: started it anew")
                 return writer
             raise InputError(f"{path}: cannot be resumed: not a readable HDF5 file and no "
                              f"journal to rebuild it from ({exc})") from None
         try:
-            _check_format(f, path)
-            digest = f.attrs.get("config_digest", "")
-            if not config.matches(str(digest)):
-                raise _digest_mismatch(path, digest, config)
+            check_format(f, path)
+            digest, version = _stored_stamp(f.attrs)
+            if not layout.matches(digest, version):
+                raise _digest_mismatch(path, digest, layout)
         except InputError:
             f.close()
             raise
-        return cls(path, f, config, indices)
+        return cls(path, f, layout, indices)
 
     @classmethod
-    def _rebuild(cls, path: Path, config: RunConfig, indices: list[int], n_targets: int,
+    def _rebuild(cls, path: Path, layout: Layout, indices: list[int], n_targets: int,
                  attrs: dict[str, Any]) -> RunWriter:
         """Rebuild ``path`` from its journal (the record of an unfinished run)."""
         jdir = journal_dir(path)
         for tmp in jdir.glob("*.tmp"):
             tmp.unlink(missing_ok=True)
         stored = _journal_digest(jdir, path)
-        if stored is not None and not config.matches(stored):
-            raise _digest_mismatch(path, stored, config)
+        if stored is not None and not layout.matches(*stored):
+            raise _digest_mismatch(path, stored[0], layout)
         entries = sorted(jdir.glob("s*.h5"))
         try:
             if not (jdir / "run.json").exists():  # journal of an older version
-                _write_json_atomic(jdir / "run.json", {"config_digest": config.digest(),
+                _write_json_atomic(jdir / "run.json", {**layout.stamp,
                                                        "format_version": FORMAT_VERSION})
-            cls._build(path, ".rebuilding", config, indices, n_targets, attrs, entries)
+            cls._build(path, ".rebuilding", layout, indices, n_targets, attrs, entries)
             f = h5py.File(path, "r+")
         except (OSError, RuntimeError) as exc:
             raise io_failure(path, "cannot rebuild the run file from its journal", exc,
                              resume=True) from exc
-        writer = cls(path, f, config, indices)
+        writer = cls(path, f, layout, indices)
         writer.recovery = (f"rebuilt {path.name} from its journal "
                            f"({len(writer.completed())} sample(s) kept)")
         return writer
@@ -258,32 +292,35 @@ class RunWriter:
         try:
             _check_space(self.path, res)
             self.journal.mkdir(exist_ok=True)
-            final = self.journal / f"{_group_name(res.sample)}.h5"
+            final = self.journal / f"{group_name(res.sample)}.h5"
             tmp = final.with_suffix(".tmp")
             with h5py.File(tmp, "w", libver="earliest") as jf:
-                jf.attrs["config_digest"] = self.config.digest()
+                jf.attrs.update(self.layout.stamp)
                 jf.attrs["sample"] = res.sample
-                _write_sample_group(jf, res, self.config)
+                _write_sample_group(jf, res, self.layout.compression)
                 for k, v in res.scalars.items():
                     jf.create_dataset(f"scalars/{k}", data=v)
             _fsync(tmp)
+            reached("journal-entry")
             os.replace(tmp, final)
             self._write_main(res)
         except (OSError, RuntimeError) as exc:  # h5py reports a failed write as either
             raise io_failure(self.path, f"cannot write sample {res.sample}", exc,
                              resume=True) from exc
+        reached("sample-done")
 
     def _write_main(self, res: SampleResult) -> None:
         f = self.f
         i = self.row[res.sample]
-        name = f"samples/{_group_name(res.sample)}"
+        name = f"samples/{group_name(res.sample)}"
         if name in f:
             del f[name]
         for k, v in res.scalars.items():
             if k in f:
                 f[k][i, :] = _stored(f[k].dtype, v)
         g = f.create_group(name)
-        _write_sample_group(g, res, self.config)
+        _write_sample_group(g, res, self.layout.compression,
+                            first_written=lambda: reached("main-write"))
         g.attrs["complete"] = True
         f["complete"][i] = 1  # written last
         f.flush()
@@ -299,6 +336,7 @@ class RunWriter:
                 done = _sibling(self.journal, ".done")
                 shutil.rmtree(done, ignore_errors=True)
                 os.replace(self.journal, done)
+                reached("finish")
                 shutil.rmtree(done, ignore_errors=True)
         except (OSError, RuntimeError) as exc:
             raise io_failure(self.path, "cannot close the run file", exc,
@@ -341,32 +379,30 @@ def _check_space(path: Path, res: SampleResult) -> None:
                       f"{need / 2**20:.1f} MiB, {free / 2**20:.1f} MiB are free)")
 
 
-def _journal_digest(jdir: Path, path: Path) -> str | None:
-    """The configuration digest a journal belongs to: ``run.json``, else (older versions)
-    the run file's or the first readable entry's."""
+def _journal_digest(jdir: Path, path: Path) -> tuple[str, int | None] | None:
+    """The digest (and defaults version) a journal belongs to: ``run.json``, else (older
+    versions) the run file's or the first readable entry's."""
     try:
-        return str(json.loads((jdir / "run.json").read_text())["config_digest"])
+        stamp = json.loads((jdir / "run.json").read_text())
+        version = stamp.get("defaults_version")
+        return str(stamp["config_digest"]), None if version is None else int(version)
     except (OSError, ValueError, KeyError):
         pass
-    try:
-        with h5py.File(path, "r") as f:
-            return str(f.attrs["config_digest"])
-    except (OSError, KeyError):
-        pass
-    for p in sorted(jdir.glob("s*.h5")):
+    for p in [path, *sorted(jdir.glob("s*.h5"))]:
         try:
-            with h5py.File(p, "r") as jf:
-                return str(jf.attrs["config_digest"])
-        except (OSError, KeyError):
+            with h5py.File(p, "r") as f:
+                if "config_digest" in f.attrs:
+                    return _stored_stamp(f.attrs)
+        except OSError:
             continue
     return None
 
 
-def _read_journal_entry(p: Path, config: RunConfig) -> SampleResult | None:
+def _read_journal_entry(p: Path, layout: Layout) -> SampleResult | None:
     """A journalled sample, or None when the entry cannot be read (it is recomputed)."""
     try:
         with h5py.File(p, "r") as jf:
-            if not config.matches(str(jf.attrs.get("config_digest"))):
+            if not layout.matches(*_stored_stamp(jf.attrs)):
                 raise InputError(f"{p}: journal entry of a different configuration; move the "
                                  "journal away or use --overwrite")
             return _read_sample_file(jf)
@@ -374,30 +410,28 @@ def _read_journal_entry(p: Path, config: RunConfig) -> SampleResult | None:
         return None
 
 
-def _init_file(f: h5py.File, config: RunConfig, indices: list[int], n_targets: int,
+def _init_file(f: h5py.File, layout: Layout, indices: list[int], n_targets: int,
                attrs: dict[str, Any]) -> None:
     f.attrs["format"] = FORMAT
     f.attrs["format_version"] = FORMAT_VERSION
-    f.attrs["config"] = config.to_toml()
-    f.attrs["config_digest"] = config.digest()
-    f.attrs["control"] = config.control
+    f.attrs["config"] = layout.config_text
+    f.attrs.update(layout.stamp)
+    f.attrs["control"] = layout.control
     for k, v in attrs.items():
         f.attrs[k] = json.dumps(v) if isinstance(v, dict | list) else v
     ns = len(indices)
     f.create_dataset("sample_index", data=np.asarray(indices, dtype=np.int64))
     f.create_dataset("complete", data=np.zeros(ns, dtype=np.uint8))
-    axis = np.asarray(config.targets, dtype=float)
-    axis_name = "depth" if config.control == "depth" else "force_target"
-    d = f.create_dataset(axis_name, data=axis)
-    d.attrs["unit"] = config.squeeze.depth_unit if axis_name == "depth" else \
-        config.squeeze.force_unit
+    axis_name = "depth" if layout.control == "depth" else "force_target"
+    d = f.create_dataset(axis_name, data=np.asarray(layout.axis, dtype=float))
+    d.attrs["unit"] = layout.axis_unit
     d.attrs["description"] = schema.AXES[axis_name]
     d.make_scale(axis_name)
     rows = f["sample_index"]
     rows.make_scale("sample_index")
     for name, text in schema.ROOT.items():
         f[name].attrs["description"] = text
-    for col in schema.columns(config):
+    for col in layout.columns:
         ds = f.create_dataset(col.name, shape=(ns, n_targets), dtype="f8", fillvalue=np.nan)
         ds.attrs["description"] = col.description
         ds.attrs["kind"] = col.kind
@@ -417,23 +451,6 @@ def _stored(dtype: np.dtype, values: np.ndarray) -> np.ndarray:
     return v
 
 
-def _check_format(f: h5py.File, path: Path) -> None:
-    if f.attrs.get("format") != FORMAT:
-        raise InputError(f"{path}: not a roughslip run file (format attribute missing)")
-    if int(f.attrs.get("format_version", -1)) > FORMAT_VERSION:
-        raise InputError(f"{path}: written by a newer roughslip (format version "
-                         f"{f.attrs['format_version']})")
-
-
-def _compression(config: RunConfig) -> dict[str, Any]:
-    c = config.output.compression
-    if c == "none":
-        return {}
-    if c == "lzf":
-        return {"compression": "lzf"}
-    return {"compression": "gzip", "compression_opts": config.output.compression_level}
-
-
 def _write_array(g: h5py.Group, name: str, a: np.ndarray, comp: dict[str, Any]) -> None:
     a = np.asarray(a)
     if a.dtype == bool:
@@ -445,10 +462,12 @@ def _write_array(g: h5py.Group, name: str, a: np.ndarray, comp: dict[str, Any]) 
         g.create_dataset(name, data=a)
 
 
-def _write_sample_group(g: h5py.Group, res: SampleResult, config: RunConfig) -> None:
-    comp = _compression(config)
-    for name, a in res.surfaces.items():
+def _write_sample_group(g: h5py.Group, res: SampleResult, comp: dict[str, Any],
+                        first_written: Callable[[], None] | None = None) -> None:
+    for i, (name, a) in enumerate(res.surfaces.items()):
         _write_array(g, name, a, comp)
+        if i == 0 and first_written is not None:
+            first_written()
     for k, fields in enumerate(res.fields):
         d = g.create_group(f"d{k:03d}")
         for name, a in fields.items():
@@ -470,84 +489,3 @@ def _read_sample_file(jf: h5py.File) -> SampleResult:
         k += 1
     notes = json.loads(jf.attrs["notes"]) if "notes" in jf.attrs else []
     return SampleResult(sample, scalars, fields, surfaces, notes)
-
-
-# ------------------------------------------------------------------------------------------------
-# Reading
-# ------------------------------------------------------------------------------------------------
-
-
-@dataclass
-class RunData:
-    """A run file read into memory (scalars only; fields on demand with :meth:`field`)."""
-
-    path: Path
-    attrs: dict[str, Any]
-    config_toml: str
-    sample_index: np.ndarray
-    complete: np.ndarray
-    axis_name: str
-    axis: np.ndarray
-    scalars: dict[str, np.ndarray]
-    axis_unit: str = ""
-
-    @property
-    def n_complete(self) -> int:
-        return int(self.complete.sum())
-
-    def config_dict(self) -> dict[str, Any]:
-        """The stored configuration as a dict."""
-        import tomllib
-
-        return tomllib.loads(self.config_toml)
-
-    def field(self, sample: int, depth_index: int, name: str) -> np.ndarray:
-        """One stored field of one sample (global number) and depth."""
-        with open_file(self.path) as f:
-            key = f"samples/{_group_name(sample)}/d{depth_index:03d}/{name}"
-            if key not in f:
-                raise InputError(f"{self.path}: no field {name!r} for sample {sample}, depth "
-                                 f"index {depth_index} (stored: output.fields)")
-            a = f[key][()]
-            return a.astype(bool) if name in BOOL_FIELDS else a
-
-    def surface(self, sample: int, name: str = "rigid_surface") -> np.ndarray:
-        with open_file(self.path) as f:
-            return f[f"samples/{_group_name(sample)}/{name}"][()]
-
-
-def open_file(path: str | Path) -> h5py.File:
-    """Open a run file for reading with a clear error when it is not one."""
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: no such file")
-    try:
-        f = h5py.File(p, "r")
-    except OSError as exc:
-        raise InputError(f"{p}: not a readable HDF5 file ({exc})") from None
-    try:
-        _check_format(f, p)
-    except InputError:
-        f.close()
-        raise
-    return f
-
-
-def read_run(path: str | Path) -> RunData:
-    """Read the scalars and metadata of a run file."""
-    p = Path(path)
-    with open_file(p) as f:
-        try:
-            attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
-            axis_name = "depth" if "depth" in f else "force_target"
-            scalars = {c.name: f[c.name][()] for c in schema.COLUMNS if c.name in f}
-            unit = f[axis_name].attrs.get("unit", "")
-            return RunData(
-                path=p, attrs=attrs, config_toml=str(attrs.get("config", "")),
-                sample_index=f["sample_index"][()], complete=f["complete"][()].astype(bool),
-                axis_name=axis_name, axis=f[axis_name][()], scalars=scalars,
-                axis_unit=unit.decode() if isinstance(unit, bytes) else str(unit),
-            )
-        except (KeyError, OSError) as exc:
-            raise InputError(f"{p}: damaged run file ({exc})") from None
-

@@ -12,10 +12,10 @@ Reading
     indexes heights ``[ix, iy]``; they are transposed to roughslip's ``[iy, ix]``.
 
 Units
-    A file with a length unit is converted to the run's unit ``units.length`` (an error when
-    the run has none); a file without one needs ``surface.unit`` when the run has a unit. The
-    pixel size comes from the file when it has one: ``grid.pixel_size`` given as well must agree
-    (relative 1e-9) unless ``surface.override_pixel_size``.
+    A file with a length unit is converted to the run's unit (an error when
+    the run has none); a file without one needs its unit (``unit``) when the run has one. The
+    pixel size comes from the file when it has one: a pixel size given as well must agree
+    (relative 1e-9) unless ``override_pixel_size``.
 
 Preparation, in this order
     1. *Non-square pixels* are resampled onto square pixels at the finer of the two spacings,
@@ -39,18 +39,16 @@ Preparation, in this order
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from roughslip.errors import InputError
 from roughslip.surfaces.synthetic import HDF5_SUFFIXES, TEXT_SUFFIXES, load_topography
 from roughslip.surfaces.x3p import read_x3p
-
-if TYPE_CHECKING:  # the run configuration sits above this layer; only its type is used
-    from roughslip.run.config import SurfaceConfig
 
 BUILTIN_SUFFIXES = (".npy", ".npz", *TEXT_SUFFIXES, *HDF5_SUFFIXES)
 EXTRA_HINT = "pip install 'roughslip[topography]'"
@@ -204,14 +202,39 @@ class PreparedTopography:
         return self.tiles[0].shape
 
 
-def prepare(raw: RawTopography, sc: SurfaceConfig, run_unit: str | None, role: str,
-            grid_pixel: float = 1.0, pixel_given: bool = False) -> PreparedTopography:
-    """Units, resampling, crop, missing points, down-sampling, tiles and detrending (module
-    docstring), each with an InputError naming the file and the key when impossible.
+@dataclass(frozen=True)
+class Preparation:
+    """How to prepare a measured topography (module docstring), in plain values.
 
-    ``grid_pixel`` is ``grid.pixel_size``: the spacing of a file that gives none (or of any
-    file, with ``override_pixel_size``), before down-sampling; ``pixel_given`` says whether
-    the user set it (then it must agree with a file that gives one)."""
+    ``pixel_size`` is the spacing of a file that gives none (or of any file, with
+    ``override_pixel_size``), before down-sampling; ``pixel_given`` says whether the user set
+    it (then it must agree with a file that gives one); ``run_unit`` is the run's length unit.
+    ``names`` says how error messages name each parameter (for a run: its configuration
+    key, e.g. ``{"crop": "surface.crop"}``); a parameter not in it is named as here.
+    """
+
+    unit: str | None = None
+    scale: float = 1.0
+    override_pixel_size: bool = False
+    missing: str = "error"
+    detrend: str = "none"
+    crop: list[int] | None = None
+    downsample: int = 1
+    tiles: list[int] | None = None
+    run_unit: str | None = None
+    pixel_size: float = 1.0
+    pixel_given: bool = False
+    names: Mapping[str, str] = field(default_factory=dict)
+
+    def key(self, name: str) -> str:
+        """How messages name parameter ``name``."""
+        return self.names.get(name, name)
+
+
+def prepare(raw: RawTopography, how: Preparation) -> PreparedTopography:
+    """Units, resampling, crop, missing points, down-sampling, tiles and detrending (module
+    docstring), each with an InputError naming the file and the parameter when impossible."""
+    sc, run_unit, grid_pixel, pixel_given = how, how.run_unit, how.pixel_size, how.pixel_given
     name = raw.path
     notes: list[str] = []
     h = raw.heights
@@ -219,15 +242,16 @@ def prepare(raw: RawTopography, sc: SurfaceConfig, run_unit: str | None, role: s
     file_unit = raw.unit
     if file_unit is not None and sc.unit is not None:
         if metres_per(file_unit, name) != metres_per(sc.unit, name):
-            raise InputError(f"{name}: the file's unit is {file_unit!r}; {role}.unit = "
-                             f"{sc.unit!r} contradicts it (remove {role}.unit)")
+            raise InputError(f"{name}: the file's unit is {file_unit!r}; {how.key('unit')} = "
+                             f"{sc.unit!r} contradicts it (remove {how.key('unit')})")
     unit = file_unit or sc.unit
     if unit is not None and run_unit is None:
-        raise InputError(f"{name}: heights are in {unit!r}; set units.length (e.g. "
-                         f"units.length = \"um\") to say which unit the run uses")
+        ru = how.key("run_unit")
+        raise InputError(f"{name}: heights are in {unit!r}; set {ru} (e.g. "
+                         f"{ru} = \"um\") to say which unit the run uses")
     if unit is None and run_unit is not None:
-        raise InputError(f"{name}: the file carries no unit; set {role}.unit (the unit of its "
-                         f"heights and pixel size)")
+        raise InputError(f"{name}: the file carries no unit; set {how.key('unit')} (the unit "
+                         f"of its heights and pixel size)")
     factor = 1.0 if unit is None else metres_per(unit, name) / metres_per(run_unit, name)
     h = h * (factor * sc.scale)
     pixel = None if raw.pixel_size is None else (raw.pixel_size[0] * factor,
@@ -245,22 +269,24 @@ def prepare(raw: RawTopography, sc: SurfaceConfig, run_unit: str | None, role: s
     # the grid's pixel size against the file's
     if sc.override_pixel_size:
         if not pixel_given:
-            raise InputError(f"{role}.override_pixel_size needs grid.pixel_size")
+            raise InputError(f"{how.key('override_pixel_size')} needs "
+                             f"{how.key('pixel_size')}")
         a = grid_pixel
         prov["pixel_size_overridden"] = True
     elif pixel is None:
         a = grid_pixel
     elif pixel_given and not math.isclose(pixel[0], grid_pixel, rel_tol=1e-9):
+        px = how.key("pixel_size")
         raise InputError(f"{name}: the file's pixel size is {pixel[0]:.10g} "
-                         f"{run_unit or ''}; grid.pixel_size = {grid_pixel!r} contradicts it "
-                         f"(remove grid.pixel_size, or set {role}.override_pixel_size = true)")
+                         f"{run_unit or ''}; {px} = {grid_pixel!r} contradicts it "
+                         f"(remove {px}, or set {how.key('override_pixel_size')} = true)")
     else:
         a = pixel[0]
     # 2. crop
     if sc.crop is not None:
         y0, y1, x0, x1 = sc.crop
         if y1 > h.shape[0] or x1 > h.shape[1]:
-            raise InputError(f"{role}.crop = {sc.crop}: outside the grid of {name} "
+            raise InputError(f"{how.key('crop')} = {sc.crop}: outside the grid of {name} "
                              f"({list(h.shape)})")
         h = h[y0:y1, x0:x1]
     # 3. missing points
@@ -272,7 +298,7 @@ def prepare(raw: RawTopography, sc: SurfaceConfig, run_unit: str | None, role: s
     if n_missing and sc.missing == "error":
         iy, ix = (int(v) for v in np.argwhere(missing)[0])
         raise InputError(f"{name}: {n_missing} missing point(s) of {h.size} (NaN or masked), "
-                         f"first at [iy, ix] = [{iy}, {ix}]; set {role}.missing = "
+                         f"first at [iy, ix] = [{iy}, {ix}]; set {how.key('missing')} = "
                          f"\"interpolate\" or \"void\"")
     if n_missing and sc.missing == "interpolate":
         h = harmonic_fill(h)
@@ -284,7 +310,8 @@ def prepare(raw: RawTopography, sc: SurfaceConfig, run_unit: str | None, role: s
     if k > 1:
         ny, nx = (h.shape[0] // k) * k, (h.shape[1] // k) * k
         if ny == 0 or nx == 0:
-            raise InputError(f"{role}.downsample = {k}: larger than the grid {list(h.shape)}")
+            raise InputError(f"{how.key('downsample')} = {k}: larger than the grid "
+                             f"{list(h.shape)}")
         blocks = h[:ny, :nx].reshape(ny // k, k, nx // k, k)
         valid = np.isfinite(blocks)
         count = valid.sum(axis=(1, 3))
@@ -296,7 +323,7 @@ def prepare(raw: RawTopography, sc: SurfaceConfig, run_unit: str | None, role: s
     ty, tx = sc.tiles or (1, 1)
     sy, sx = h.shape[0] // ty, h.shape[1] // tx
     if sy < 2 or sx < 2:
-        raise InputError(f"{role}.tiles = {sc.tiles}: tiles of {sy} x {sx} pixels from a "
+        raise InputError(f"{how.key('tiles')} = {sc.tiles}: tiles of {sy} x {sx} pixels from a "
                          f"{list(h.shape)} grid; use fewer tiles")
     tiles = [h[i * sy:(i + 1) * sy, j * sx:(j + 1) * sx].copy()
              for i in range(ty) for j in range(tx)]
