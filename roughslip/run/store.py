@@ -1,4 +1,5 @@
-"""HDF5 run files: layout, provenance, resumable single writer, readers.
+"""HDF5 run files: layout, provenance and the resumable single writer (readers:
+:mod:`roughslip.run.reading`).
 
 Layout of ``OUT.h5`` (``n_s`` samples, ``n_d`` depths or loads)::
 
