@@ -32,6 +32,7 @@ from typing import Any
 from roughslip.contact.laws import LAWS, LawParameterError
 from roughslip.contact.pull import methods_for
 from roughslip.errors import ConfigError
+from roughslip.run import schema
 from roughslip.run.digest import RENAMED, RETIRED
 from roughslip.run.machine import machine_file, read_machine
 from roughslip.run.sections import (
@@ -446,7 +447,7 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
             and cfg.surface.n_tiles != es.n_tiles):
         raise ctx.fail("elastic_surface.tiles", es.tiles, f"must give as many tiles as "
                        f"surface.tiles ({cfg.surface.tiles})")
-    pull_fields = {"fx", "ux", "stick", "pull_curve"} & set(cfg.output.fields)
+    pull_fields = {n for n in cfg.output.fields if schema.needs_pull(n)}
     if pull_fields and not cfg.pull.enabled:
         raise ctx.fail("output.fields", cfg.output.fields,
                        f"{sorted(pull_fields)} need pull.enabled = true")

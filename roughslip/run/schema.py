@@ -86,12 +86,14 @@ ROOT = {
 
 @dataclass(frozen=True)
 class Field:
-    """A per-(sample, depth) array in ``/samples/sNNNNNN/dKKK/name``."""
+    """A per-(sample, depth) array in ``/samples/sNNNNNN/dKKK/name``, computed by ``stage``
+    (``"squeeze"`` or ``"pull"``: a pull field needs the pull)."""
 
     name: str
     description: str
     grid: bool = True  # (ny, nx) on the grid, else a curve (one entry per event)
     boolean: bool = False
+    stage: str = "squeeze"
 
 
 FIELDS: tuple[Field, ...] = (
@@ -99,20 +101,27 @@ FIELDS: tuple[Field, ...] = (
     Field("uz", "normal surface displacement after the squeeze"),
     Field("gap", "gap u_z - overlap (0 in contact)"),
     Field("contact", "contact sites", boolean=True),
-    Field("fx", "tangential pixel forces at the friction peak"),
-    Field("ux", "tangential surface displacement at the friction peak"),
-    Field("stick", "bonded (stick) sites at the friction peak", boolean=True),
-    Field("dx_lim", "pull curve: displacement of each event", grid=False),
-    Field("fx_lim", "pull curve: pull force of each event", grid=False),
-    Field("fz_lim", "pull curve (coupled model): normal force of each event", grid=False),
+    Field("fx", "tangential pixel forces at the friction peak", stage="pull"),
+    Field("ux", "tangential surface displacement at the friction peak", stage="pull"),
+    Field("stick", "bonded (stick) sites at the friction peak", boolean=True, stage="pull"),
+    Field("dx_lim", "pull curve: displacement of each event", grid=False, stage="pull"),
+    Field("fx_lim", "pull curve: pull force of each event", grid=False, stage="pull"),
+    Field("fz_lim", "pull curve (coupled model): normal force of each event", grid=False,
+          stage="pull"),
     Field("dz_lim", "pull curve (coupled model): depth D_z of each event (it moves when the "
-          "pull holds the force)", grid=False),
-    Field("broken_site", "pull curve: flat index iy * nx + ix of each event's site", grid=False),
+          "pull holds the force)", grid=False, stage="pull"),
+    Field("broken_site", "pull curve: flat index iy * nx + ix of each event's site",
+          grid=False, stage="pull"),
 )
 FIELD_BY_NAME = {f.name: f for f in FIELDS}
 BOOL_FIELDS = tuple(f.name for f in FIELDS if f.boolean)
 #: ``output.fields`` entries that stand for several arrays
 FIELD_GROUPS = {"pull_curve": ("dx_lim", "fx_lim", "fz_lim", "dz_lim", "broken_site")}
+
+
+def needs_pull(name: str) -> bool:
+    """Whether the ``output.fields`` entry ``name`` (a field or a group) needs the pull."""
+    return any(FIELD_BY_NAME[n].stage == "pull" for n in FIELD_GROUPS.get(name, (name,)))
 
 
 def stages(pull: bool, coupled: bool) -> tuple[str, ...]:
