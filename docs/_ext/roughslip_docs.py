@@ -60,6 +60,7 @@ def _default(f: dataclasses.Field) -> str:
 def config_reference() -> list[str]:
     """reStructuredText of every section and key."""
     from roughslip.run import config as C
+    from roughslip.run import digest as D
 
     lines: list[str] = []
     for name, cls in C.SECTIONS.items():
@@ -81,8 +82,8 @@ def config_reference() -> list[str]:
                       f"     - {_default(f)}", f"     - {_rule(meta)}", f"     - {text}"]
         lines.append("")
     renamed = ", ".join(f"``{s}.{old}`` (now ``{new}``)" for (s, old), new in
-                        C._RENAMED.items())
-    retired = ", ".join(f"``{s}.{k}`` ({why})" for (s, k), (_, _, why) in C._RETIRED.items())
+                        D.RENAMED.items())
+    retired = ", ".join(f"``{s}.{k}`` ({why})" for (s, k), (_, _, why) in D.RETIRED.items())
     lines += ["Keys read under a former name: " + renamed + ".", "",
               "Keys accepted but without effect (kept so that older configurations load): "
               + retired + ".", ""]
