@@ -25,15 +25,19 @@ STORED = [("run_v1_demo.h5", 1), ("run_v1_coupled.h5", 1), ("run_v1_load.h5", 1)
           ("run_v2_coupled.h5", 2), ("run_v3_coupled.h5", 3)]
 
 
-@pytest.fixture
-def added_key(monkeypatch):
-    """A copy of the schema with one key more, ``pull.memory`` (default 0.0), and nothing
-    else edited."""
+def _add_key(monkeypatch) -> type:
+    """Make the schema a copy with one key more, ``pull.memory`` (default 0.0), and nothing
+    else edited; returns the widened section."""
     plus = dataclasses.make_dataclass(
         "PullConfig", [("memory", float, option(0.0, "a key added in a later version"))],
         bases=(PullConfig,), frozen=True)
     monkeypatch.setitem(sections.SECTIONS, "pull", plus)
     return plus
+
+
+@pytest.fixture
+def added_key(monkeypatch):
+    return _add_key(monkeypatch)
 
 
 def _stored(tmp_path: Path, name: str) -> tuple[Path, Path, str]:
@@ -102,15 +106,17 @@ def test_a_run_of_this_version_resumes_after_a_key_is_added(tmp_path, monkeypatc
     with h5py.File(out, "r") as f:
         assert int(f.attrs["defaults_version"]) == digest.DEFAULTS_VERSION
         assert f["complete"][()].tolist() == [1, 0, 0]
-    plus = dataclasses.make_dataclass(
-        "PullConfig", [("memory", float, option(0.0, "a key added in a later version"))],
-        bases=(PullConfig,), frozen=True)
-    monkeypatch.setitem(sections.SECTIONS, "pull", plus)
+    _add_key(monkeypatch)
     with pytest.raises(InputError, match="different configuration"):
         run(load_config(cfg_path, ["pull.memory=0.5"]), out, resume=True)
     summary = run(load_config(cfg_path), out, resume=True)
     assert summary.skipped == 1 and summary.computed == 2
     assert differences(ref, out) == []
+    # a file made under defaults newer than this version knows says so
+    with h5py.File(out, "r+") as f:
+        f.attrs["defaults_version"] = digest.DEFAULTS_VERSION + 1
+    with pytest.raises(InputError, match="written by a newer roughslip"):
+        run(load_config(cfg_path), out, resume=True)
 
 
 def test_a_changed_default_needs_its_old_value(monkeypatch):

@@ -147,6 +147,14 @@ def settle(st: ContactState, limit: int, where: str = "coupled squeeze") -> int:
     return n
 
 
+def _bonded_overlap(problem: Problem, solver, setup: Setup) -> tuple[ContactState, int]:
+    """The start of the bonded histories: the geometric overlap bonded with u_x = 0 at
+    D_x = 0, its tensile contacts dropped; with the number of states so far."""
+    st = _state(solver, problem, setup, overlap_start(problem, setup))
+    st.slope = False
+    return st, drop_tensile(st)
+
+
 def _released(st: ContactState) -> int:
     return int((st.C & ~st.S).sum())
 
@@ -156,9 +164,7 @@ def _released(st: ContactState) -> int:
 def bonded(problem: Problem, solver, setup: Setup) -> Squeezed:
     """Every contact bonded at the final depth (the report's steps 3-6), the overloaded bonds
     released one at a time, most overloaded first (:func:`settle`); module docstring."""
-    st = _state(solver, problem, setup, overlap_start(problem, setup))
-    st.slope = False
-    n = drop_tensile(st)
+    st, n = _bonded_overlap(problem, solver, setup)
     st.solve()  # the updated inverse from here on (the bulk passes may have used CG)
     n += 1 + settle(st, setup.limit)
     return Squeezed(st, _released(st), n)
@@ -173,9 +179,7 @@ def simultaneous(problem: Problem, solver, setup: Setup) -> Squeezed:
     contact leaves; else every penetrating site enters, unbonded; else every overloaded bond
     fails by the slip law), until the state is admissible. A round that changes one site is
     the one-at-a-time rule's step; the rounds end because no set repeats (checked)."""
-    st = _state(solver, problem, setup, overlap_start(problem, setup))
-    st.slope = False
-    n = drop_tensile(st)
+    st, n = _bonded_overlap(problem, solver, setup)
     cycle = _Cycle("coupled squeeze (simultaneous)")
     while (v := st.violated(0.0)) is not None:
         if n >= setup.limit:

@@ -86,8 +86,8 @@ class Boundary:
     def pair_table(self, component: str, shape: tuple[int, int], a: float, E: float,
                    nu: float, real_space: Callable[[str], np.ndarray]
                    ) -> tuple[np.ndarray, int, int]:
-        """``(T, w, oy, ox)``-style flat table: ``G(i - j) = T[dy w + dx + oy w + ox]``;
-        returns ``(T, w, off)`` with ``off = oy w + ox``."""
+        """Flat table ``(T, w, off)`` of the kernel between any two sites: for offsets
+        ``(dy, dx)`` between them, ``G = T[dy w + dx + off]``."""
         raise NotImplementedError
 
     def dense(self, component: str, shape: tuple[int, int], a: float, E: float, nu: float,

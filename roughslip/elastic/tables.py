@@ -47,9 +47,11 @@ class KernelTables:
 
     @property
     def nbytes(self) -> int:
-        """Bytes of the tables built so far."""
-        return (sum(t.nbytes for t in self._real.values())
-                + sum(t[0].nbytes for t in self._pairs.values()))
+        """Bytes of the tables built so far (a pair table that is a view of a window table,
+        as on periodic grids, is counted once)."""
+        owners = {id(a if a.base is None else a.base): (a if a.base is None else a.base)
+                  for a in [*self._real.values(), *(t[0] for t in self._pairs.values())]}
+        return sum(a.nbytes for a in owners.values())
 
     def real_space(self, component: str) -> np.ndarray:
         """The kernel in real space, laid out so that every source has a contiguous window.

@@ -165,9 +165,9 @@ class Scene:
         """What the run file's writer needs (:class:`roughslip.run.store.Layout`)."""
         cfg = self.config
         out = cfg.output
-        comp: dict = ({} if out.compression == "none" else {"compression": "lzf"}
-                      if out.compression == "lzf" else
-                      {"compression": "gzip", "compression_opts": out.compression_level})
+        comp = {"none": {}, "lzf": {"compression": "lzf"},
+                "gzip": {"compression": "gzip", "compression_opts": out.compression_level}
+                }[out.compression]
         return Layout(config_text=cfg.to_toml(), digest=cfg.digest(),
                       defaults_version=DEFAULTS_VERSION, matches=cfg.matches,
                       control=cfg.control, axis=np.asarray(cfg.targets, dtype=float),

@@ -144,6 +144,17 @@ def _digest_mismatch(path: Path, stored: str, layout: Layout) -> InputError:
         "`roughslip inspect` to see the stored one, or use --overwrite")
 
 
+def _check_stamp(path: Path, stamp: tuple[str, int | None], layout: Layout) -> None:
+    """Refuse a run whose stored digest is not this configuration's, saying so plainly when
+    it was made under defaults newer than this version knows."""
+    digest, version = stamp
+    if version is not None and version > layout.defaults_version:
+        raise InputError(f"{path}: written by a newer roughslip (configuration defaults "
+                         f"version {version}; this one knows up to {layout.defaults_version})")
+    if not layout.matches(digest, version):
+        raise _digest_mismatch(path, digest, layout)
+
+
 def _stored_stamp(attrs: Any) -> tuple[str, int | None]:
     """The digest and defaults version stored in ``attrs`` (None: written before versioned
     defaults)."""
@@ -243,9 +254,7 @@ class RunWriter:
                              f"journal to rebuild it from ({exc})") from None
         try:
             check_format(f, path)
-            digest, version = _stored_stamp(f.attrs)
-            if not layout.matches(digest, version):
-                raise _digest_mismatch(path, digest, layout)
+            _check_stamp(path, _stored_stamp(f.attrs), layout)
         except InputError:
             f.close()
             raise
@@ -259,8 +268,8 @@ class RunWriter:
         for tmp in jdir.glob("*.tmp"):
             tmp.unlink(missing_ok=True)
         stored = _journal_digest(jdir, path)
-        if stored is not None and not layout.matches(*stored):
-            raise _digest_mismatch(path, stored[0], layout)
+        if stored is not None:
+            _check_stamp(path, stored, layout)
         entries = sorted(jdir.glob("s*.h5"))
         try:
             if not (jdir / "run.json").exists():  # journal of an older version
