@@ -49,6 +49,7 @@ from typing import Protocol
 
 import numpy as np
 
+from roughslip.contact import pk_passes
 from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem, check_heights, finite
 from roughslip.elastic.operators import Grid, Material
@@ -333,9 +334,9 @@ class PolonskyKeer:
     def _workspace(self) -> dict[str, np.ndarray]:
         if self._ws is None:
             shape = self.grid.shape
-            ws = {k: np.zeros(shape) for k in ("p", "u", "g", "gs", "t", "r", "Sf", "ubar",
-                                               "tmp", "tmp_g")}
-            ws["mb"] = np.zeros(shape, dtype=bool)
+            ws = {k: np.zeros(shape) for k in ("p", "u", "g", "gs", "off", "t", "r", "Sf",
+                                               "ubar")}
+            ws["flags"] = np.zeros(shape, dtype=np.int8)
             self._ws = ws
         return self._ws
 
@@ -345,7 +346,7 @@ class PolonskyKeer:
         ws = self._workspace()
         p, u, g, gs, t, r, Sf, ubar = (ws[k] for k in ("p", "u", "g", "gs", "t", "r", "Sf",
                                                         "ubar"))
-        mb, tmp, tmp_g = ws["mb"], ws["tmp"], ws["tmp_g"]
+        flags, off = ws["flags"], ws["off"]
         np.add(self._base, 0.0 if load else depth, out=ubar)
         p.fill(0.0)
         if x0 is not None:
@@ -363,18 +364,14 @@ class PolonskyKeer:
         scale = 0.0 if load else depth
         message, converged = "", False
         while True:
-            np.subtract(u, ubar, out=g)
-            np.sign(p, out=Sf)  # p >= 0: the contact mask as 0.0 / 1.0 in one pass
-            n_s = int(np.count_nonzero(Sf))
-            np.multiply(g, Sf, out=gs)
+            # the gap, the contact mask (sign of p >= 0) and the gap on contact: one pass
+            n_s, gs_max, gs_min, off_min = pk_passes.gap(u, ubar, p, g, Sf, gs, off)
             if load:
                 shift = float(gs.sum()) / n_s  # the unknown approach D_z
-                np.subtract(g, shift, out=g)
-                np.multiply(g, Sf, out=gs)
+                gs_max, gs_min, off_min = pk_passes.shift_gap(g, Sf, gs, off, shift)
                 scale = shift
-            gap_err = max(float(gs.max()), -float(gs.min()))
-            np.subtract(g, gs, out=tmp_g)  # g off the contact set, 0 on it
-            pen = max(0.0, -float(tmp_g.min()))
+            gap_err = max(gs_max, -gs_min)
+            pen = max(0.0, -off_min)
             res = max(gap_err, pen) / max(scale, np.finfo(float).tiny)
             if not math.isfinite(res):
                 raise NumericalError(f"squeeze (pk): non-finite gap at iteration {it} (a NaN or "
@@ -393,9 +390,7 @@ class PolonskyKeer:
             g_norm = float(np.dot(gsf, gsf))
             beta = delta * g_norm / g_old
             if beta:
-                np.multiply(t, beta, out=t)
-                np.multiply(t, Sf, out=t)
-                np.add(t, gs, out=t)
+                pk_passes.direction(t, beta, Sf, gs)
             else:
                 np.copyto(t, gs)
             g_old = g_norm if g_norm > 0 else 1.0
@@ -404,19 +399,14 @@ class PolonskyKeer:
             if load:  # r - mean_S(r), without forming it
                 rt -= float(np.dot(rf, Sff)) / n_s * float(tf.sum())
             tau = float(np.dot(gsf, tf)) / rt if rt > 0 else 1.0 / self._diag
-            np.multiply(t, tau, out=tmp)
-            np.subtract(p, tmp, out=p)
-            np.multiply(r, tau, out=tmp)
-            np.subtract(u, tmp, out=u)
+            clipped, entering = pk_passes.step(p, t, u, r, g, Sf, tau, flags)
             stale += 1
-            entered, synced = self._project(p, u, g, tmp_g, mb, tau, limit)
+            entered, synced = self._project(p, u, g, clipped, entering, tau, limit)
             delta = 0.0 if entered else 1.0  # conjugacy restarts when sites enter
             if synced:
                 stale = 0
             if load:
-                s_ = force / float(p.sum())
-                p *= s_
-                u *= s_
+                pk_passes.scale(p, u, force / float(p.sum()))
             if stale >= _SYNC:
                 self._apply(p, u)
                 stale = 0
@@ -424,27 +414,26 @@ class PolonskyKeer:
         return Outcome(p.copy(), u.copy(), d, it, converged,
                        message or f"converged in {it} iterations")
 
-    def _project(self, p: np.ndarray, u: np.ndarray, g: np.ndarray, g_off: np.ndarray,
-                 mb: np.ndarray, tau: float, limit: int) -> tuple[bool, bool]:
+    def _project(self, p: np.ndarray, u: np.ndarray, g: np.ndarray, clipped: np.ndarray,
+                 entering: np.ndarray, tau: float, limit: int) -> tuple[bool, bool]:
         """Project the forces after a step, and carry the displacement along exactly.
 
-        Sites with :math:`p < 0` lift off (clipped to 0); sites with :math:`p = 0` and
-        :math:`g < 0` enter contact with :math:`p = -\\tau g` (off the old contact set that is
-        ``g_off < 0``; clipped sites are checked against ``g``). The changes are added to ``u``
+        Sites with :math:`p < 0` (``clipped``) lift off, clipped to 0; sites with :math:`p = 0`
+        and :math:`g < 0` enter contact with :math:`p = -\\tau g`: those off the old contact set
+        (``entering``) and the clipped ones with a negative gap
+        (:func:`~roughslip.contact.pk_passes.step` lists both). The changes are added to ``u``
         by direct sums when there are at most ``limit`` of them, else ``u = G p`` afresh.
         Returns (sites entered, ``u`` recomputed).
         """
+        if not (clipped.size or entering.size):
+            return False, False
         pf = p.ravel()
         sites, vals = [], []
-        clipped = None
-        if float(p.min()) < 0.0:
-            clipped = np.flatnonzero(pf < 0.0)
+        idx = entering
+        if clipped.size:
             sites.append(clipped)
             vals.append(-pf[clipped])
             pf[clipped] = 0.0
-        np.less(g_off, 0.0, out=mb)
-        idx = np.flatnonzero(mb)
-        if clipped is not None:
             idx = np.concatenate([idx, clipped[g.ravel()[clipped] < 0.0]])
         if idx.size:
             v = -tau * g.ravel()[idx]
@@ -452,13 +441,11 @@ class PolonskyKeer:
             sites.append(idx)
             vals.append(v)
         synced = False
-        if sites:
-            if sum(x.size for x in sites) <= limit:
-                self.op.tables.add_sources("zz", u, np.concatenate(sites),
-                                           np.concatenate(vals))
-            else:
-                self._apply(p, u)
-                synced = True
+        if sum(x.size for x in sites) <= limit:
+            self.op.tables.add_sources("zz", u, np.concatenate(sites), np.concatenate(vals))
+        else:
+            self._apply(p, u)
+            synced = True
         return bool(idx.size), synced
 
     def _initial(self, ubar: np.ndarray, force: float | None) -> np.ndarray:
