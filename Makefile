@@ -49,6 +49,7 @@ bench: $(STAMP)
 	$(PY) scripts/bench_pull.py
 	$(PY) scripts/bench_run.py
 	$(PY) scripts/bench_coupled.py
+	$(PY) scripts/bench_peers.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache build *.egg-info docs/_build docs/_generated

@@ -189,3 +189,30 @@ def test_the_operator_reports_its_memory(boundary):
     table = 8 * 4 * ny * nx
     slack = (2 * (table - 8 * (2 * ny - 1) * (2 * nx - 1)) if boundary == "open" else table)
     assert bound - op.nbytes == transforms + len(comps) * slack
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("boundary", ["open", "periodic"])
+@pytest.mark.parametrize("threads", [1, 2])
+def test_work_buffers_are_transformed_directly_with_the_same_numbers(backend, boundary,
+                                                                      threads):
+    shape = (20, 20)
+    base = ElasticOperator(shape, material=Material(1.0, 0.3), boundary=boundary,
+                           components=("zz", "xx", "zx"), fft=backend)
+    op = base.with_threads(threads)
+    f = np.random.default_rng(3).standard_normal(shape)
+    ref = {c: op.apply(c, f) for c in ("zz", "xx", "zx")}
+    a, b = op.work_buffer(), op.work_buffer()
+    assert a.shape == shape and not a.any()
+    direct = boundary == "periodic" and backend == "pyfftw"
+    assert op._transforms_directly(a) is direct
+    a[...] = f
+    for c, u in ref.items():
+        assert op.apply(c, a, out=b).tobytes() == u.tobytes()
+        assert a.tobytes() == f.tobytes()  # the input is kept
+    # in place: the input is the output
+    assert op.apply("zz", a, out=a).tobytes() == ref["zz"].tobytes()
+    # a transposed view at the same address is not taken for the buffer
+    assert not op._transforms_directly(a.T)
+    a[...] = f.T
+    assert op.apply("zz", a.T, out=b).tobytes() == ref["zz"].tobytes()

@@ -334,8 +334,9 @@ class PolonskyKeer:
     def _workspace(self) -> dict[str, np.ndarray]:
         if self._ws is None:
             shape = self.grid.shape
-            ws = {k: np.zeros(shape) for k in ("p", "u", "g", "gs", "off", "t", "r", "Sf",
-                                               "ubar")}
+            ws = {k: np.zeros(shape) for k in ("g", "gs", "off", "Sf", "ubar")}
+            # the arrays that go through the convolution: transformed in place where it can
+            ws.update({k: self.op.work_buffer() for k in ("p", "u", "t", "r")})
             ws["flags"] = np.zeros(shape, dtype=np.int8)
             self._ws = ws
         return self._ws
