@@ -99,6 +99,13 @@ def test_import_graph_has_no_cycles():
             visit(m)
 
 
+def test_the_run_layer_keeps_one_job_per_file():
+    """The run layer was split so that each file does one job; none may grow past 500 lines
+    again (the size at which the configuration module held five)."""
+    sizes = {f.name: len(f.read_text().splitlines()) for f in (PKG / "run").glob("*.py")}
+    assert sizes and max(sizes.values()) <= 500, sorted(sizes.items(), key=lambda kv: -kv[1])
+
+
 def test_the_checker_sees_an_upward_import(tmp_path):
     """The layer check is not vacuous: a contact module importing the run layer is caught,
     also when the import is only for type checking or inside a function."""

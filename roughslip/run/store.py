@@ -137,13 +137,6 @@ def _write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
-def _digest_mismatch(path: Path, stored: str, layout: Layout) -> InputError:
-    return InputError(
-        f"{path}: was made with a different configuration (stored digest "
-        f"{str(stored)[:12]}..., now {layout.digest[:12]}...); run "
-        "`roughslip inspect` to see the stored one, or use --overwrite")
-
-
 def _check_stamp(path: Path, stamp: tuple[str, int | None], layout: Layout) -> None:
     """Refuse a run whose stored digest is not this configuration's, saying so plainly when
     it was made under defaults newer than this version knows."""
@@ -152,7 +145,9 @@ def _check_stamp(path: Path, stamp: tuple[str, int | None], layout: Layout) -> N
         raise InputError(f"{path}: written by a newer roughslip (configuration defaults "
                          f"version {version}; this one knows up to {layout.defaults_version})")
     if not layout.matches(digest, version):
-        raise _digest_mismatch(path, digest, layout)
+        raise InputError(f"{path}: was made with a different configuration (stored digest "
+                         f"{str(digest)[:12]}..., now {layout.digest[:12]}...); run "
+                         "`roughslip inspect` to see the stored one, or use --overwrite")
 
 
 def _stored_stamp(attrs: Any) -> tuple[str, int | None]:
