@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from roughslip.elastic.operators import ElasticOperator, Material
+from roughslip.elastic.operators import ElasticOperator, Grid, Material
 from roughslip.errors import InputError
 
 BACKENDS = ["pyfftw", "scipy"]
@@ -202,8 +202,9 @@ def test_work_buffers_are_transformed_directly_with_the_same_numbers(backend, bo
     op = base.with_threads(threads)
     f = np.random.default_rng(3).standard_normal(shape)
     ref = {c: op.apply(c, f) for c in ("zz", "xx", "zx")}
-    a, b = op.work_buffer(), op.work_buffer()
+    a, b = op.work_buffer("a"), op.work_buffer("b")
     assert a.shape == shape and not a.any()
+    assert op.work_buffer("a") is a and base.work_buffer("a") is a
     direct = boundary == "periodic" and backend == "pyfftw"
     assert op._transforms_directly(a) is direct
     a[...] = f
@@ -216,3 +217,21 @@ def test_work_buffers_are_transformed_directly_with_the_same_numbers(backend, bo
     assert not op._transforms_directly(a.T)
     a[...] = f.T
     assert op.apply("zz", a.T, out=b).tobytes() == ref["zz"].tobytes()
+
+
+def test_solvers_on_one_operator_share_its_work_buffers_and_plans():
+    """A new squeeze solver on the same problem (``squeeze(problem, ...)`` makes one per call)
+    reuses the operator's work buffers and their FFT plans instead of adding its own."""
+    from roughslip.contact.problem import Problem
+    from roughslip.contact.squeeze import NormalSolver
+    from roughslip.surfaces.synthetic import sphere
+
+    n = 32
+    pb = Problem(sphere((n, n), radius=80.0), Grid((n, n), 1.0, "periodic"), Material(1.0, 0.3))
+    op = pb.operator("zz")
+    first = NormalSolver(pb, tol=1e-10).solve(depth=0.5)
+    plans, buffers = len(op.fft._plans), len(op._work_buffers)
+    for depth in (0.5, 0.7, 0.5):
+        r = NormalSolver(pb, tol=1e-10).solve(depth=depth)
+    assert (len(op.fft._plans), len(op._work_buffers)) == (plans, buffers)
+    assert r.fz.tobytes() == first.fz.tobytes() and r.iterations == first.iterations

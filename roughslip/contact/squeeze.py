@@ -335,8 +335,9 @@ class PolonskyKeer:
         if self._ws is None:
             shape = self.grid.shape
             ws = {k: np.zeros(shape) for k in ("g", "gs", "off", "Sf", "ubar")}
-            # the arrays that go through the convolution: transformed in place where it can
-            ws.update({k: self.op.work_buffer() for k in ("p", "u", "t", "r")})
+            # the arrays that go through the convolution: the operator's, transformed where
+            # they are when it can (every solve sets all four before reading them)
+            ws.update({k: self.op.work_buffer(f"pk_{k}") for k in ("p", "u", "t", "r")})
             ws["flags"] = np.zeros(shape, dtype=np.int8)
             self._ws = ws
         return self._ws

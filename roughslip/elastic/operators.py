@@ -171,7 +171,9 @@ class ElasticOperator:
         self._out = self.fft.real_buffer()
         self._spec = [self.fft.spectrum_buffer() for _ in range(2)]
         self._work = None
-        #: addresses of the :meth:`work_buffer` arrays, which :meth:`apply` transforms directly
+        #: the :meth:`work_buffer` arrays by name, and the addresses of those that
+        #: :meth:`apply` transforms directly
+        self._work_buffers: dict[str, np.ndarray] = {}
         self._direct: set[int] = set()
         self._khat: dict[str, np.ndarray] = {}
         #: kernel tables in real space, built on demand (shared with thread views)
@@ -304,18 +306,26 @@ class ElasticOperator:
         if f.shape != self.shape:
             raise InputError(f"{name} has shape {f.shape}, operator grid is {self.shape}")
 
-    def work_buffer(self) -> np.ndarray:
-        """A zeroed field of the grid's shape for repeated :meth:`apply` calls.
+    def work_buffer(self, name: str) -> np.ndarray:
+        """The operator's field ``name`` of the grid's shape, for repeated :meth:`apply` calls:
+        created (zeroed) at the first request, the same array after that, also for every
+        solver and thread view of this operator, so its user must set it before each use.
 
         On a grid that is its own transform grid (periodic) and with the pyfftw backend, it is
         aligned for the FFT, and :meth:`apply` transforms it directly, as input or as output,
-        instead of copying it through the operator's buffers. The numbers are bitwise those
-        of any other array (tested): the plans see the same sizes, strides and alignment.
+        instead of copying it through the operator's buffers (one plan per buffer and
+        direction, made once). The numbers are bitwise those of any other array (tested): the
+        plans see the same sizes, strides and alignment. These fields are the solvers' work
+        arrays: :attr:`nbytes` and :meth:`footprint` do not count them (a run's memory
+        estimate counts them with the solver's).
         """
-        direct = self.padded_shape == self.shape and self.fft.backend == "pyfftw"
-        buf = self.fft.real_buffer() if direct else np.zeros(self.shape)
-        if direct:
-            self._direct.add(buf.ctypes.data)
+        buf = self._work_buffers.get(name)
+        if buf is None:
+            direct = self.padded_shape == self.shape and self.fft.backend == "pyfftw"
+            buf = self.fft.real_buffer() if direct else np.zeros(self.shape)
+            self._work_buffers[name] = buf
+            if direct:
+                self._direct.add(buf.ctypes.data)
         return buf
 
     def _transforms_directly(self, a: np.ndarray | None) -> bool:
