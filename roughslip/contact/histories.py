@@ -159,15 +159,22 @@ def _released(st: ContactState) -> int:
     return int((st.C & ~st.S).sum())
 
 
+def _ready(st: ContactState, n: int, limit: int) -> Squeezed:
+    """The outcome of a history whose sets are final up to the one-at-a-time rule: solved
+    through the updated inverse (certified), overloaded bonds left by a tie settled
+    (:func:`settle`), and the contact sites that hold no bond counted."""
+    st.solve()
+    n += 1 + settle(st, limit)
+    return Squeezed(st, _released(st), n)
+
+
 @HISTORIES.register("bonded", "bond every contact at the final depth with u_x = 0, then "
                     "release the overloaded bonds one at a time, most overloaded first")
 def bonded(problem: Problem, solver, setup: Setup) -> Squeezed:
     """Every contact bonded at the final depth (the report's steps 3-6), the overloaded bonds
     released one at a time, most overloaded first (:func:`settle`); module docstring."""
     st, n = _bonded_overlap(problem, solver, setup)
-    st.solve()  # the updated inverse from here on (the bulk passes may have used CG)
-    n += 1 + settle(st, setup.limit)
-    return Squeezed(st, _released(st), n)
+    return _ready(st, n, setup.limit)  # the updated inverse (the bulk passes may use CG)
 
 
 @HISTORIES.register("simultaneous", "bond every contact at the final depth with u_x = 0, "
@@ -191,9 +198,7 @@ def simultaneous(problem: Problem, solver, setup: Setup) -> Squeezed:
         cycle.check(st)
         st.solve(bulk=True)  # large rounds by CG: the inverse is built for the set they leave
         n += 1
-    st.solve()  # the updated inverse, certified, for the pull
-    n += 1 + settle(st, setup.limit)  # nothing to do unless a bulk solve was off by a tie
-    return Squeezed(st, _released(st), n)
+    return _ready(st, n, setup.limit)  # settles nothing unless a bulk solve was off by a tie
 
 
 @HISTORIES.register("frictionless", "the frictionless squeeze, then every contact bonds "
@@ -217,9 +222,7 @@ def frictionless(problem: Problem, solver, setup: Setup) -> Squeezed:
     fz, fx, _ = st.at(0.0)
     st.offset = np.where(st.C, solver.displacements(fz, fx)[1], 0.0)
     st.S = st.C.copy()
-    st.solve()
-    n += 1 + settle(st, setup.limit)
-    return Squeezed(st, _released(st), n)
+    return _ready(st, n, setup.limit)
 
 
 @HISTORIES.register("indent", "the frictional indentation from first touch: every site "

@@ -8,8 +8,9 @@ clipping of negative forces and the search for overlap off contact. With numpy e
 of its own; on the periodic grid, whose transforms are four times smaller than the open
 grid's, they cost as much as the FFTs (docs/benchmarks.md).
 
-Here they are four passes (:func:`gap`, :func:`shift_gap`, :func:`direction`,
-:func:`step`), compiled with numba when it is installed, else the same operations in numpy.
+Here they are four passes (:func:`gap`, :func:`direction`, :func:`step`, and under load
+control :func:`shift_gap`) and the load-control rescale (:func:`scale`), compiled with numba
+when it is installed, else the same operations in numpy.
 Both paths perform the same IEEE operations in the same order on every element, and the
 reductions that are not exact (sums and dot products) stay with numpy in the caller, so the
 two give bitwise the same iterates (tested). Extremes and counts are exact in any order.
@@ -210,6 +211,9 @@ def direction(t: np.ndarray, beta: float, Sf: np.ndarray, gs: np.ndarray,
         _direction_np(t, beta, Sf, gs)
 
 
+_NONE = np.zeros(0, dtype=np.int64)  # no site changed (never written to)
+
+
 def step(p: np.ndarray, t: np.ndarray, u: np.ndarray, r: np.ndarray, g: np.ndarray,
          Sf: np.ndarray, tau: float, flags: np.ndarray, fused: bool | None = None
          ) -> tuple[np.ndarray, np.ndarray]:
@@ -226,9 +230,6 @@ def step(p: np.ndarray, t: np.ndarray, u: np.ndarray, r: np.ndarray, g: np.ndarr
         out = nb.collect(flat, n_clip, n_enter)
         return out[:n_clip], out[n_clip:][::-1]
     return _step_np(p, t, u, r, g, Sf, tau)
-
-
-_NONE = np.zeros(0, dtype=np.int64)
 
 
 def scale(p: np.ndarray, u: np.ndarray, s: float, fused: bool | None = None) -> None:
