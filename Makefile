@@ -47,6 +47,7 @@ bench: $(STAMP)
 	$(PY) scripts/bench_operator.py
 	$(PY) scripts/bench_squeeze.py
 	$(PY) scripts/bench_pull.py
+	$(PY) scripts/bench_precision.py
 	$(PY) scripts/bench_run.py
 	$(PY) scripts/bench_coupled.py
 	$(PY) scripts/bench_peers.py

@@ -105,6 +105,9 @@ class SlipResult:
     #: the kind of each event of the curve (``"slip+"``, ``"slip-"``, ``"stick"``; empty for
     #: the break law's sequence, whose events are all breaks)
     kinds: tuple[str, ...] = ()
+    #: the precision of the stored inverse of ``"inverse"``: ``"double"`` or ``"single"``
+    #: (empty for the other methods)
+    precision: str = ""
 
     @property
     def peak_dx(self) -> float:
@@ -151,6 +154,8 @@ class PullOptions:
     #: the slip law itself (:data:`roughslip.contact.laws.LAWS`), for the methods that run
     #: every law
     law: object = None
+    #: the precision of the stored inverse (``"double"`` or ``"single"``)
+    precision: str = "double"
 
 
 class Bonds:
@@ -188,13 +193,16 @@ class Bonds:
         m.ravel()[self.sites[positions]] = True
         return m
 
-    def entries(self, i: np.ndarray, j: np.ndarray, order: str = "F") -> np.ndarray:
+    def entries(self, i: np.ndarray, j: np.ndarray, order: str = "F", dtype: type = float
+                ) -> np.ndarray:
         """:math:`G_{xx}` between the bonds at positions ``i`` and ``j`` (the assembler of
-        :func:`bond_inverse`); a square block by columns (:meth:`dense_into`)."""
+        :func:`bond_inverse`); a square block by columns (:meth:`dense_into`), in ``dtype``
+        (the double-precision entries rounded once)."""
         if np.array_equal(i, j):
-            return self.dense(i, order=order)
+            return self.dense(i, order=order, dtype=dtype)
         T, _, off = self.op.tables.pair("xx")
-        return np.array(T[self._lin(i)[:, None] - self._lin(j)[None, :] + off], order=order)
+        return np.array(T[self._lin(i)[:, None] - self._lin(j)[None, :] + off], order=order,
+                        dtype=dtype)
 
     def _lin(self, positions: np.ndarray | None = None) -> np.ndarray:
         """The index of each bond's site in the pair table of :math:`G_{xx}`."""
@@ -203,10 +211,12 @@ class Bonds:
         iy, ix = np.divmod(sites, self.shape[1])
         return (iy * w + ix).astype(np.intp)
 
-    def dense(self, positions: np.ndarray | None = None, order: str = "F") -> np.ndarray:
-        """:math:`G_{xx}[S,S]` assembled from the closed-form kernel."""
+    def dense(self, positions: np.ndarray | None = None, order: str = "F",
+              dtype: type = float) -> np.ndarray:
+        """:math:`G_{xx}[S,S]` assembled from the closed-form kernel (in ``dtype``: no
+        double-precision copy of the matrix is made)."""
         n = self.n if positions is None else len(positions)
-        A = np.empty((n, n), order=order)
+        A = np.empty((n, n), order=order, dtype=dtype)
         return self.dense_into(A, positions)
 
     def dense_into(self, A: np.ndarray, positions: np.ndarray | None = None) -> np.ndarray:
@@ -214,12 +224,18 @@ class Bonds:
 
         The operator's pair table gives one linear index per pair of sites (open or periodic);
         gathering a column at a time keeps the index vector and the table in cache (six
-        times faster than panels of columns).
+        times faster than panels of columns). A float32 ``A`` gathers from the table rounded
+        once to float32 (the same entries as rounding each gathered one).
         """
         T, _, off = self.op.tables.pair("xx")
+        if A.dtype != T.dtype:
+            T = T.astype(A.dtype)
         lin = self._lin(positions)
+        base = lin + off
+        idx = np.empty_like(lin)
         for c in range(lin.size):
-            A[:, c] = T[lin + (off - lin[c])]
+            np.subtract(base, lin[c], out=idx)
+            np.take(T, idx, out=A[:, c])
         return A
 
 
@@ -294,27 +310,38 @@ def shrinking_only(ids: np.ndarray) -> np.ndarray:
     raise AssertionError("the stick set of a pull only shrinks")  # pragma: no cover
 
 
-def bond_inverse(b: Bonds, block: int, threads: int) -> UpdatableInverse:
+#: the pull's precisions by the dtype of the stored inverse
+PRECISION_NAMES = {np.dtype(np.float64): "double", np.dtype(np.float32): "single"}
+
+
+def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64
+                 ) -> UpdatableInverse:
     r"""The inverse of :math:`G_{xx}` on all bonds, in the lower-triangle layout of
     :class:`~roughslip.linalg.inverse.UpdatableInverse` (unknown ``i``: bond position ``i``):
-    one :math:`n \times n` matrix, compacted in place as bonds leave.
+    one :math:`n \times n` matrix of ``dtype`` (float64, or float32 for the single-precision
+    pull), compacted in place as bonds leave.
 
     Raises :class:`MemoryLimitError` before allocating when it does not fit
     (:func:`~roughslip.linalg.inverse.inverse_bytes`), and :class:`NumericalError` when
     :math:`G_{xx}` on the bonds is not positive definite.
     """
     n = b.n
-    need = inverse_bytes(n, lower=True, block=block)
+    dtype = np.dtype(dtype)
+    need = inverse_bytes(n, lower=True, block=block, itemsize=dtype.itemsize)
 
     def room(m: int) -> bool:
         if need > available_bytes():
+            other = ("" if dtype.itemsize == 4 else
+                     "pull precision 'single' (half the memory), ")
             raise MemoryLimitError(
-                f"the inverse of G_xx on {n} bonds needs ~{need / 2**30:.1f} GiB but "
-                f"{available_bytes() / 2**30:.1f} GiB are available; use pull method 'cg' "
-                "(exact, matrix-free) or 'batch' (approximate)")
+                f"the inverse of G_xx on {n} bonds in {PRECISION_NAMES[dtype]} precision "
+                f"needs ~{need / 2**30:.1f} GiB but {available_bytes() / 2**30:.1f} GiB are "
+                f"available; use {other}pull method 'cg' (exact, matrix-free) or 'batch' "
+                "(approximate)")
         return True
 
-    inv = UpdatableInverse(b.entries, n, room=room, threads=threads, block=block, lower=True)
+    inv = UpdatableInverse(b.entries, n, room=room, threads=threads, block=block, lower=True,
+                           dtype=dtype)
     try:
         inv.factor(np.arange(n))
     except NumericalError as exc:
@@ -338,20 +365,22 @@ class BondRows:
         self.cap = b.cap.copy()
         self.alive = b.n
 
-    def remove(self, inv: UpdatableInverse, row: int) -> None:
-        """Remove the bond of ``row`` from the inverse (its tracked solutions follow)."""
-        if not inv.remove(int(inv.ids[row])):
+    def remove(self, inv: UpdatableInverse, row: int, column: np.ndarray | None = None
+               ) -> None:
+        """Remove the bond of ``row`` from the inverse (its tracked solutions follow);
+        ``column``: the current column of the inverse at ``row``, when the caller has it."""
+        if not inv.remove(int(inv.ids[row]), column):
             raise NumericalError("lost positive definiteness in the inverse update")
         self.cap[row] = math.inf
         self.alive -= 1
 
-    def fold(self, inv: UpdatableInverse) -> bool:
-        """Once ``block`` removals are pending, fold them in and compact when a quarter of
-        the rows are dead; True when it did (the moment to certify)."""
+    def fold(self, inv: UpdatableInverse, dead: float = 0.25) -> bool:
+        """Once ``block`` removals are pending, fold them in and compact when a share
+        ``dead`` of the rows are dead; True when it did (the moment to certify)."""
         if inv.k < inv.block:
             return False
         inv.flush()
-        if self.alive < 0.75 * inv.m:
+        if self.alive < (1 - dead) * inv.m:
             self.cap = self.cap[inv.live]
             inv.compact()
         return True

@@ -27,6 +27,7 @@ from roughslip.contact.bonds import (
     stick_residual,
     track,
 )
+from roughslip.contact.breaking_single import break_inverse_single
 from roughslip.linalg.cg import CGResult, cg
 
 
@@ -78,7 +79,11 @@ def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> SlipR
 def break_inverse(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
     r"""Exact break law on the updated inverse (:func:`~roughslip.contact.bonds.bond_inverse`):
     :math:`O(n)` per break plus blocked BLAS-3 updates; :math:`\varphi` is certified against
-    the FFT operator after each block."""
+    the FFT operator after each block. ``opt.precision == "single"``: the float32 inverse
+    with certified decisions (:func:`~roughslip.contact.breaking_single.break_inverse_single`).
+    """
+    if opt.precision == "single":
+        return break_inverse_single(b, opt, t0)
     tol, block = opt.tol, opt.block
     curve = BreakCurve(b, opt.early_stop)
     inv = bond_inverse(b, block, opt.threads)
@@ -105,7 +110,7 @@ def break_inverse(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
         _, res = stick_residual(b, pos, f / dx, 1.0)
         worst, ok = max(worst, res), ok and res <= tol
     return curve.result(t0, "inverse", converged=bool(ok), residual=worst,
-                        solves=refinements,
+                        solves=refinements, precision="double",
                         message=f"{b.n} bonds, block {block}, {refinements} refinements")
 
 

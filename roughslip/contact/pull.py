@@ -31,7 +31,8 @@ Methods (all exact except ``"batch"``)
     removals applied as one symmetric rank-k product (BLAS-3); :math:`\varphi` is updated in
     :math:`O(n)` per break and certified against the FFT operator after every block. Needs
     one :math:`n \times n` matrix of doubles, compacted in place as bonds break (checked
-    before starting, see :func:`inverse_memory_bytes`).
+    before starting, see :func:`inverse_memory_bytes`); with ``precision="single"`` (break
+    law) one of floats, with certified decisions (:mod:`roughslip.contact.breaking_single`).
     ``"cg"``: matrix-free; per break a warm-started CG solve of the correction, with the early
     stop. Memory :math:`O(N^2)`.
     ``"batch"``: approximate; breaks the ``batch_size`` sites with the largest ratios per solve.
@@ -93,10 +94,31 @@ class PullMethod:
 METHODS: Registry[PullMethod] = Registry("pull method")
 
 
-def inverse_memory_bytes(n: int, block: int = 128) -> int:
-    """Peak memory of the ``"inverse"`` method for ``n`` bonds (bytes): one n x n matrix,
-    compacted in place, plus O(n block) work arrays."""
-    return inverse_bytes(n, lower=True, block=block)
+#: the precisions of the inverse method's stored matrix (``pull(..., precision=...)``)
+PRECISIONS = ("auto", "double", "single")
+
+
+def inverse_memory_bytes(n: int, block: int = 128, precision: str = "double") -> int:
+    """Peak memory of the ``"inverse"`` method for ``n`` bonds (bytes): one n x n matrix of
+    doubles (``precision="single"``: of floats), compacted in place, plus O(n block) work
+    arrays."""
+    return inverse_bytes(n, lower=True, block=block, itemsize=4 if precision == "single" else 8)
+
+
+def _single_ok(slip_law: str) -> bool:
+    """Whether ``slip_law`` has the single-precision inverse (the break law)."""
+    return slip_law == "break"
+
+
+def choose_precision(n: int, memory: int | None = None, slip_law: str = "break",
+                     block: int = 128) -> str:
+    """The precision ``"auto"`` picks for the inverse of ``n`` bonds given ``memory`` bytes:
+    double when its matrix fits, else single when that fits and ``slip_law`` has it
+    (the break law), else double (whose memory check then says what would fit)."""
+    memory = available_bytes() if memory is None else memory
+    if inverse_memory_bytes(n, block) <= memory or not _single_ok(slip_law):
+        return "double"
+    return "single" if inverse_memory_bytes(n, block, "single") <= memory else "double"
 
 
 def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
@@ -134,15 +156,18 @@ def methods_for(slip_law: str) -> list[str]:
     return [n for n in METHODS.names() if n == "auto" or n in runs]
 
 
-def choose_method(n: int, memory: int | None = None, slip_law: str = "break") -> str:
+def choose_method(n: int, memory: int | None = None, slip_law: str = "break",
+                  precision: str = "auto") -> str:
     """The exact method ``"auto"`` picks for ``n`` bonds given ``memory`` bytes, among those
     of ``slip_law``.
 
     Tiny contacts use the literal algorithm. Then the inverse (about n^3 flops, n^2 doubles)
     whenever it fits in memory and the LAPACK can index it (for 3 271 bonds it was about 100
-    times faster than one warm-started CG solve per break, docs/benchmarks.md); otherwise the
-    matrix-free exact method. A law with the inverse only (Coulomb) gets it, and it checks
-    its memory itself.
+    times faster than one warm-started CG solve per break, docs/benchmarks.md), in double
+    precision or, under the break law with ``precision`` ``"auto"`` or ``"single"``, in
+    single precision (n^2 floats); otherwise the matrix-free exact method. A law with the
+    inverse only (Coulomb), or ``precision="single"`` under the break law, gets the inverse,
+    which checks its memory itself.
     """
     runs = LAWS.get(slip_law, "slip_law").pull_runs
     exact = [m for m in runs if METHODS.get(m).exact]
@@ -151,12 +176,16 @@ def choose_method(n: int, memory: int | None = None, slip_law: str = "break") ->
                          "the coupled model (coupling.enabled = true, or couple())")
     if exact == ["inverse"]:
         return "inverse"
+    if precision == "single" and _single_ok(slip_law) and "inverse" in runs:
+        return "inverse"  # asked for by name: it checks its memory itself
     memory = available_bytes() if memory is None else memory
     if n <= 12 and "literal" in runs:
         return "literal"
     limit = lapack64.max_n()
-    if "inverse" in runs and inverse_memory_bytes(n) <= memory and \
-            (limit is None or n <= limit):
+    allowed = [p for p in ("double", "single") if precision in ("auto", p)
+               and (p == "double" or _single_ok(slip_law))]
+    fits = any(inverse_memory_bytes(n, precision=p) <= memory for p in allowed)
+    if "inverse" in runs and fits and (limit is None or n <= limit):
         return "inverse"
     return "cg" if "cg" in runs else exact[0]
 
@@ -176,6 +205,7 @@ def pull(
     estimate_error: bool = False,
     lam_dynamic: float | None = None,
     slip_distance: float | None = None,
+    precision: str = "auto",
 ) -> SlipResult:
     r"""Pull a squeezed contact sideways until it slides (docs/theory/pull.rst#break-law).
 
@@ -221,6 +251,13 @@ def pull(
         The residual coefficient :math:`\lambda_d \in [0, \lambda]` and the slip
         :math:`d_c > 0` over which the strength falls to it; ``slip_law="slip-weakening"``
         only, and needed there.
+    precision : {"auto", "double", "single"}
+        The precision of the ``"inverse"`` method's stored matrix. ``"single"`` (the break
+        law) stores it in float32, half the memory, and keeps the break sequence and the
+        friction force exact by certified decisions
+        (:mod:`roughslip.contact.breaking_single`). ``"auto"``: double when its matrix fits
+        in the memory available, else single (:func:`choose_precision`). The other methods
+        take ``"auto"`` only.
 
     Returns
     -------
@@ -230,6 +267,8 @@ def pull(
     check_friction(lam, slip_law)
     law = LAWS.get(slip_law).bind(lam, lam_dynamic=lam_dynamic, slip_distance=slip_distance)
     METHODS.get(method)
+    if precision not in PRECISIONS:
+        raise InputError(f"precision = {precision!r}: must be one of {', '.join(PRECISIONS)}")
     if not 0 < tol < 1:
         raise InputError(f"tol = {tol!r}: must satisfy 0 < tol < 1")
     if int(batch_size) < 1 or int(block) < 1:
@@ -245,12 +284,20 @@ def pull(
         return BreakCurve(b, early_stop).result(t0, method, converged=True,
                                             message="no contact: nothing to pull",
                                             slip_law=slip_law)
-    chosen = choose_method(b.n, slip_law=slip_law) if method == "auto" else method
+    chosen = (choose_method(b.n, slip_law=slip_law, precision=precision) if method == "auto"
+              else method)
     impl = METHODS.get(chosen)
     run = law.pull_runs.get(chosen)
     if run is None:
         raise InputError(f"slip_law = {slip_law!r} supports methods "
                          f"{', '.join(methods_for(slip_law))}, not {chosen!r}")
+    if precision == "auto":
+        precision = (choose_precision(b.n, slip_law=slip_law, block=int(block))
+                     if chosen == "inverse" else "double")
+    if precision == "single" and not (chosen == "inverse" and _single_ok(slip_law)):
+        raise InputError(f"precision = 'single': only the break law's inverse method has it, "
+                         f"not slip_law = {slip_law!r} with method {chosen!r}")
+    opt = replace(opt, precision=precision)
     if impl.dense:
         # Dense linear algebra gets the threads, and the certification's FFTs run on one
         # thread beside it; FFT-bound CG loops keep BLAS single-threaded (competing FFTW and

@@ -27,7 +27,11 @@ Two storage layouts. The default keeps the whole symmetric matrix with spare row
 can grow as well as shrink. ``lower=True`` keeps only the lower triangle of an exactly sized
 matrix, for a set that only shrinks (a pull that breaks bonds): products by the symmetric
 kernel (DSYMV), folding by a symmetric rank-k update (DSYRK), and compaction in place inside
-the one buffer, so the peak memory stays one matrix of the starting order.
+the one buffer, so the peak memory stays one matrix of the starting order. That layout may also
+store the matrix in single precision (``dtype=numpy.float32``: half the memory, twice the
+flops of the factorisation and the folding); columns, products and pending terms are still
+returned and kept in double precision, so only the stored matrix carries the single-precision
+rounding, and callers certify what they compute from it (:func:`refine`).
 
 With ``definite=True`` (the default) the matrix is taken to be positive definite, and an update
 whose pivot or Schur complement is not reports failure, so the caller can factorise afresh.
@@ -65,12 +69,13 @@ BYTES_PER_ORDER2 = 28
 Entries = Callable[[np.ndarray, np.ndarray, str], np.ndarray]
 
 
-def inverse_bytes(m: int, *, lower: bool = False, block: int = 512) -> int:
+def inverse_bytes(m: int, *, lower: bool = False, block: int = 512, itemsize: int = 8) -> int:
     """Peak memory of an :class:`UpdatableInverse` of order ``m`` (bytes): with spare rows
     and a second matrix while it grows (:data:`BYTES_PER_ORDER2`), or for ``lower`` storage
-    one matrix and the ``block`` pending columns with O(m) work arrays."""
+    one matrix of ``itemsize``-byte entries (8: double, 4: single precision) and the
+    ``block`` pending columns with O(m) work arrays (double precision)."""
     if lower:
-        return int(8 * m * m + 8 * m * (3 * block + 64))
+        return int(itemsize * m * m + 8 * m * (3 * block + 64))
     return BYTES_PER_ORDER2 * m * m
 
 
@@ -158,9 +163,12 @@ class UpdatableInverse:
 
     def __init__(self, entries: Entries, size: int, *, room: Callable[[int], bool],
                  threads: int = 1, block: int = 512, definite: bool = True,
-                 lower: bool = False) -> None:
+                 lower: bool = False, dtype: type = np.float64) -> None:
         if lower and not definite:
             raise ValueError("the lower-triangle layout holds a positive definite matrix")
+        self.dtype = np.dtype(dtype)
+        if self.dtype not in lapack64.DTYPES or (self.dtype != np.float64 and not lower):
+            raise ValueError(f"dtype {self.dtype}: float64, or float32 in the lower layout")
         self.entries = entries
         self.lower = lower
         if lower:  # the matrix is large by choice: every product gets the threads
@@ -233,7 +241,8 @@ class UpdatableInverse:
         if not self.room(ids.size):
             return False
         lapack64.check_size(ids.size)
-        A = self.entries(ids, ids, "F")
+        A = (self.entries(ids, ids, "F") if self.dtype == np.float64
+             else self.entries(ids, ids, "F", self.dtype))
         t0 = time.perf_counter()
         try:
             with blas_threads(self.threads):

@@ -8,7 +8,8 @@ When that library is not present (other numpy builds), the scipy routines are us
 matrices are refused with a clear error instead.
 
 Only what the inverse method needs: Cholesky factorisation and inversion of an SPD matrix
-(lower triangle), a symmetric rank-k update and a symmetric matrix-vector product.
+(lower triangle), a symmetric rank-k update and a symmetric matrix-vector product, each in
+double (float64) and single (float32) precision: the routine follows the matrix's dtype.
 """
 
 from __future__ import annotations
@@ -46,22 +47,25 @@ def _load():
         for path in glob.glob(os.path.join(here, pattern)):
             try:
                 lib = ctypes.CDLL(path)
-                potrf = lib.scipy_LAPACKE_dpotrf64_
-                potri = lib.scipy_LAPACKE_dpotri64_
-                symv = lib.scipy_cblas_dsymv64_
-                gemm = lib.scipy_cblas_dgemm64_
+                fns = {p: {name: getattr(lib, f"scipy_{pre}{p}{name}64_")
+                           for pre, name in (("LAPACKE_", "potrf"), ("LAPACKE_", "potri"),
+                                             ("cblas_", "symv"), ("cblas_", "gemm"))}
+                       for p in "ds"}
             except (OSError, AttributeError):
                 continue
-            i64, i32, ptr, dbl = ctypes.c_int64, ctypes.c_int, ctypes.c_void_p, ctypes.c_double
-            for f in (potrf, potri):
-                f.restype = i64
-                f.argtypes = [i32, ctypes.c_char, i64, ptr, i64]
-            symv.restype = None
-            symv.argtypes = [i32, i32, i64, dbl, ptr, i64, ptr, i64, dbl, ptr, i64]
-            gemm.restype = None
-            gemm.argtypes = [i32, i32, i32, i64, i64, i64, dbl, ptr, i64, ptr, i64, dbl, ptr,
-                             i64]
-            _LIB = SimpleNamespace(potrf=potrf, potri=potri, symv=symv, gemm=gemm)
+            i64, i32, ptr = ctypes.c_int64, ctypes.c_int, ctypes.c_void_p
+            for p, num in (("d", ctypes.c_double), ("s", ctypes.c_float)):
+                f = fns[p]
+                for name in ("potrf", "potri"):
+                    f[name].restype = i64
+                    f[name].argtypes = [i32, ctypes.c_char, i64, ptr, i64]
+                f["symv"].restype = None
+                f["symv"].argtypes = [i32, i32, i64, num, ptr, i64, ptr, i64, num, ptr, i64]
+                f["gemm"].restype = None
+                f["gemm"].argtypes = [i32, i32, i32, i64, i64, i64, num, ptr, i64, ptr, i64,
+                                      num, ptr, i64]
+            _LIB = {np.dtype(np.float64): SimpleNamespace(**fns["d"]),
+                    np.dtype(np.float32): SimpleNamespace(**fns["s"])}
             return _LIB
     return None
 
@@ -76,9 +80,19 @@ def max_n() -> int | None:
     return None if available() else LP64_MAX_N
 
 
+#: the precisions these routines take
+DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
+
+
 def _check(a: np.ndarray) -> None:
-    if a.dtype != np.float64 or not a.flags.f_contiguous or a.ndim != 2:
-        raise ValueError("need a Fortran-contiguous float64 matrix")
+    if a.dtype not in DTYPES or not a.flags.f_contiguous or a.ndim != 2:
+        raise ValueError("need a Fortran-contiguous float64 or float32 matrix")
+
+
+def _lib(dtype: np.dtype) -> SimpleNamespace | None:
+    """The 64-bit-integer routines of one precision (None without the library)."""
+    lib = _load()
+    return None if lib is None else lib[np.dtype(dtype)]
 
 
 def check_size(n: int) -> None:
@@ -94,12 +108,13 @@ def cholesky_inverse(a: np.ndarray) -> np.ndarray:
     """Overwrite the lower triangle of SPD ``a`` with that of its inverse (in place)."""
     _check(a)
     n = a.shape[0]
-    lib = _load()
+    lib = _lib(a.dtype)
     if lib is None:
         check_size(n)
-        c, info = lapack.dpotrf(a, lower=1, overwrite_a=1, clean=0)
+        potrf, potri = lapack.get_lapack_funcs(("potrf", "potri"), (a,))
+        c, info = potrf(a, lower=1, overwrite_a=1, clean=0)
         if info == 0:
-            c, info = lapack.dpotri(c, lower=1, overwrite_c=1)
+            c, info = potri(c, lower=1, overwrite_c=1)
         if not np.shares_memory(c, a):
             raise NumericalError("LAPACK did not work in place")
     elif n > SWEEP_MIN_N:
@@ -132,8 +147,8 @@ def sweep_inverse(a: np.ndarray, block: int = 1024) -> np.ndarray:
     n = a.shape[0]
     bounds = [*range(0, n, block), n]
     nb = len(bounds) - 1
-    X = np.empty((n, block), order="F")
-    Z = np.empty((n, block), order="F")
+    X = np.empty((n, block), dtype=a.dtype, order="F")
+    Z = np.empty((n, block), dtype=a.dtype, order="F")
     for k in range(nb):
         k0, k1 = bounds[k], bounds[k + 1]
         w = k1 - k0
@@ -176,10 +191,10 @@ def syrk_update(c: np.ndarray, u: np.ndarray, alpha: float = -1.0) -> None:
     single-threaded it does not).
     """
     _check(c)
-    u = np.asfortranarray(u, dtype=np.float64)
-    lib = _load()
-    if lib is None:
-        out = blas.dsyrk(alpha, u, beta=1.0, c=c, lower=1, overwrite_c=1)
+    u = np.asfortranarray(u, dtype=c.dtype)
+    if _load() is None:
+        syrk = blas.get_blas_funcs("syrk", (c,))
+        out = syrk(alpha, u, beta=1.0, c=c, lower=1, overwrite_c=1)
         if not np.shares_memory(out, c):
             c[...] = out
         return
@@ -191,7 +206,7 @@ def syrk_panels(c: np.ndarray, u: np.ndarray, alpha: float = -1.0, block: int = 
     column panel ``j0:j1`` of width ``block`` (the lower triangle and a little above it
     inside each diagonal block, which is never read)."""
     _check(c)
-    u = np.asfortranarray(u, dtype=np.float64)
+    u = np.asfortranarray(u, dtype=c.dtype)
     n, k = u.shape
     for j0 in range(0, n, block):
         _gemm_nt(c, j0, n, j0, min(j0 + block, n), u, u, k, alpha)
@@ -206,30 +221,35 @@ def _gemm_nt(c: np.ndarray, r0: int, r1: int, j0: int, j1: int, p: np.ndarray, q
     """
     if r1 <= r0 or j1 <= j0 or k == 0:
         return
-    lib = _load()
+    lib = _lib(c.dtype)
     if lib is None:
         raise NumericalError("the panel update needs the 64-bit-integer BLAS")
     n = c.shape[0]
     if p.shape[0] != n or q.shape[0] != n or not (p.flags.f_contiguous and q.flags.f_contiguous):
         raise ValueError("panels must be Fortran-ordered with the rows of c")
-    lib.gemm(_COL_MAJOR, _NO_TRANS, _TRANS, r1 - r0, j1 - j0, k, alpha, p.ctypes.data + 8 * r0,
-             n, q.ctypes.data + 8 * j0, n, 1.0, c.ctypes.data + 8 * (j0 * n + r0), n)
+    if not p.dtype == q.dtype == c.dtype:
+        raise ValueError("panels must have the dtype of c")
+    w = c.itemsize
+    lib.gemm(_COL_MAJOR, _NO_TRANS, _TRANS, r1 - r0, j1 - j0, k, alpha, p.ctypes.data + w * r0,
+             n, q.ctypes.data + w * j0, n, 1.0, c.ctypes.data + w * (j0 * n + r0), n)
 
 
 def symv(a: np.ndarray, x: np.ndarray, n: int | None = None) -> np.ndarray:
     """``a[:n, :n] @ x`` for symmetric ``a[:n, :n]`` of which only the lower triangle is valid
     (``n`` defaults to the order of ``a``; the leading block is read in place). It reads half
-    the memory of a general product."""
+    the memory of a general product. A float32 ``a`` takes ``x`` rounded to float32 and
+    accumulates in float32; the result is returned in float64 either way."""
     _check(a)
-    x = np.ascontiguousarray(x, dtype=np.float64)
+    x = np.ascontiguousarray(x, dtype=a.dtype)
     lda = a.shape[0]
     n = lda if n is None else int(n)
     if x.shape != (n,):
         raise ValueError(f"x has shape {x.shape}, expected ({n},)")
-    lib = _load()
+    lib = _lib(a.dtype)
     if lib is None:
-        return blas.dsymv(1.0, a[:n, :n], x, lower=1)
-    y = np.zeros(n)
+        symv = blas.get_blas_funcs("symv", (a,))
+        return symv(1.0, a[:n, :n], x, lower=1).astype(np.float64)
+    y = np.zeros(n, dtype=a.dtype)
     lib.symv(_COL_MAJOR, _LOWER, n, 1.0, a.ctypes.data, lda, x.ctypes.data, 1, 0.0,
              y.ctypes.data, 1)
-    return y
+    return y.astype(np.float64, copy=False)

@@ -19,6 +19,7 @@ from typing import Any
 from roughslip.contact.histories import HISTORIES
 from roughslip.contact.laws import LAWS
 from roughslip.contact.pull import METHODS as PULL_METHODS
+from roughslip.contact.pull import PRECISIONS as PULL_PRECISIONS
 from roughslip.contact.squeeze import METHODS as SQUEEZE_METHODS
 from roughslip.elastic.boundaries import BOUNDARIES
 from roughslip.run import digest as digests
@@ -202,6 +203,11 @@ class PullConfig:
     early_stop: bool = option(True, "stop the break sequence once no later break can exceed the "
                           "peak (exact for the friction force); false records every break, "
                           "for the bursts after the peak")
+    precision: str = option("auto", "the precision of the inverse method's stored matrix: "
+                            "double, single (the break law: half the memory, the same break "
+                            "sequence and friction force by certified decisions, the other "
+                            "curve points to ~1e-6) or auto (double when it fits in memory, "
+                            "else single)", choices=PULL_PRECISIONS)
 
 
 @dataclass(frozen=True)

@@ -95,7 +95,8 @@ class _DecoupledSample:
             s: SlipResult = pull(r, lam=pl.lam, slip_law=pl.slip_law, method=pl.method,
                                  tol=pl.tol, batch_size=pl.batch_size,
                                  estimate_error=pl.error_estimate, early_stop=pl.early_stop,
-                                 lam_dynamic=pl.lam_dynamic, slip_distance=pl.slip_distance)
+                                 lam_dynamic=pl.lam_dynamic, slip_distance=pl.slip_distance,
+                                 precision=pl.precision)
         except NumericalError as exc:
             raise NumericalError(f"{where}: pull: {exc}") from None
         if cfg.execution.strict and not s.converged:

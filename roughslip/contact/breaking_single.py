@@ -1,0 +1,366 @@
+r"""The break law's exact pull on a single-precision inverse, with certified decisions
+(``pull(..., precision="single")``; docs/theory/pull.rst#single-precision).
+
+The inverse of :math:`G_{xx}` on the bonds is stored in float32
+(:func:`~roughslip.contact.bonds.bond_inverse`): half the memory of the double-precision
+method, and its factorisation and folding run at the single-precision flop rate. Everything
+else is double: the tracked :math:`\tilde\varphi`, its residual against the FFT operator,
+the refinement and the pending rank-one terms. Only the stored matrix carries the
+single-precision rounding, so a removal moves :math:`\tilde\varphi` by a column
+:math:`\tilde c` of relative error about :math:`\kappa\,\epsilon_{32}`.
+
+The error bound
+    With :math:`r = 1_S - G_{SS}\tilde\varphi` the residual on the stick set :math:`S`,
+    :math:`\tilde\varphi - \varphi = -G_{SS}^{-1} r`, so every entry obeys
+
+    .. math:: |\tilde\varphi_i - \varphi_i| \le \nu\,\|r\|_2, \qquad
+              \nu \ge \|G_{SS}^{-1}\|_2 = 1/\lambda_{\min}(G_{SS}),
+
+    and by Cauchy interlacing one :math:`\nu` for the initial bonds serves every later stick
+    set. A removal of row :math:`k` with the column :math:`\tilde c` of the stored inverse
+    (residual :math:`\rho = e_k - G_{SS}\tilde c`) changes the residual by
+    :math:`-\alpha\rho` with :math:`\alpha = \tilde\varphi_k/\tilde c_k`, so between
+    certifications
+
+    .. math:: \|r\|_2 \le R_c + \hat\gamma \sum |\alpha|\,\|\tilde c\|_2,
+
+    :math:`R_c` the residual measured at the last certification and :math:`\hat\gamma` a
+    bound on :math:`\|\rho\|/\|\tilde c\|`. :math:`\nu` is a Lanczos estimate times
+    :data:`NU_SAFETY`; :math:`\hat\gamma` is :data:`GAMMA_SAFETY` times the largest ratio
+    measured on sampled columns (two per certification, by FFT), and is doubled whenever a
+    certification finds the residual above its bound (counted in the message). Both are
+    estimates, so the bound is an estimate of a bound; the decisions it certifies are
+    compared with the double-precision path in the tests.
+
+Certified decisions
+    The next bond is the one with the largest :math:`|\varphi_i|/(\lambda f_{z,i})`, ties
+    within a relative :data:`~roughslip.contact.events.TIE` to the lowest index
+    (:func:`~roughslip.contact.events.argext`). When the bound leaves more than one row able
+    to be that bond, the candidates are *sharpened*: one FFT gives :math:`r`, and
+    :math:`\hat\varphi_i = \tilde\varphi_i + \tilde c_i^T r` for each candidate (error
+    :math:`\le \nu\hat\gamma\|\tilde c_i\|\,\|r\|`, second order). Only if that still leaves
+    the choice open is :math:`\tilde\varphi` refined to the rounding level and the bond
+    chosen as the double-precision path chooses it.
+
+The peak
+    Each break is recorded with the bound on its :math:`F_{x,\rm lim}`; every state that can
+    still be the peak (its upper bound at least the best lower bound) is kept, and at the end
+    (or when the early stop is in doubt) each is solved again by CG on the FFT operator from
+    its :math:`\tilde\varphi`, so the friction force, the peak's curve point and the peak
+    state carry double-precision accuracy. The other points of the curve carry the bound
+    (reported in the message).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from scipy.sparse.linalg import LinearOperator, eigsh
+
+from roughslip.contact.bonds import (
+    BondRows,
+    Bonds,
+    BreakCurve,
+    PullOptions,
+    SlipResult,
+    bond_inverse,
+    stick_residual,
+    track,
+)
+from roughslip.contact.events import TIE, argext
+from roughslip.errors import NumericalError
+from roughslip.linalg.cg import cg
+from roughslip.linalg.inverse import UpdatableInverse
+
+#: safety factor on the Lanczos estimate of :math:`\lambda_{\max}(G_0^{-1})` (a Ritz value,
+#: never above it; ARPACK's tolerance 1e-2)
+NU_SAFETY = 1.25
+#: safety factor on the largest measured column-residual ratio (the rate before any is
+#: realised)
+GAMMA_SAFETY = 8.0
+#: safety factor on the largest realised growth rate of the residual
+GROWTH_SAFETY = 4.0
+#: candidates sharpened one by one at most; more take a full refinement
+MAX_SHARPEN = 32
+#: compact once this share of the rows is dead: the folds' flops follow the stored order,
+#: and at half the bytes compaction is cheap
+COMPACT_DEAD = 0.15
+#: the certification refines to this fraction of ``tol``
+CERT_FRACTION = 1e-2
+#: the peak candidates are solved to this fraction of ``tol`` (near the rounding level)
+PEAK_FRACTION = 1e-4
+
+
+class _Bound:
+    r"""The running bound :math:`\nu(R_c + \hat\gamma A)` on :math:`|\tilde\varphi_i -
+    \varphi_i|` (module docstring) and the counters of the certified decisions."""
+
+    def __init__(self, b: Bonds, inv: UpdatableInverse, tol: float) -> None:
+        self.b, self.inv, self.tol = b, inv, tol
+        op = LinearOperator((inv.m, inv.m), matvec=lambda v: inv.apply(np.ravel(v)),
+                            dtype=np.float64)
+        theta = eigsh(op, k=1, which="LA", v0=np.ones(inv.m), tol=1e-2,
+                      return_eigenvectors=False)[0]
+        self.nu = NU_SAFETY * float(theta)
+        self.gamma = 0.0  # largest measured ||rho|| / ||c||
+        self.growth = 0.0  # largest measured (||r|| - R_c) / A over a stretch of removals
+        self.R, self.A = 0.0, 0.0
+        self.worst, self.refinements = 0.0, 0
+        self.sharpened = self.full = self.exceeded = self.states = 0
+        #: the smallest lambda f_z of a live row, or below it (rows only leave)
+        self.cap_min = float(b.cap.min())
+
+    @property
+    def gamma_hat(self) -> float:
+        r"""The growth rate of the residual per unit of :math:`\sum|\alpha|\,\|\tilde
+        c\|`: :data:`GROWTH_SAFETY` times the largest realised rate once one is measured,
+        before that :data:`GAMMA_SAFETY` times the largest column ratio."""
+        if self.growth:
+            return GROWTH_SAFETY * self.growth
+        return GAMMA_SAFETY * self.gamma
+
+    def measured(self, rn: float) -> None:
+        """A residual norm ``rn`` measured after the removals counted in ``A``: check the
+        bound, learn the rate, restart the count from it."""
+        if self.A > 0:
+            if rn > (1 + 1e-6) * (self.R + self.gamma_hat * self.A):
+                self.exceeded += 1
+            self.growth = max(self.growth, (rn - self.R) / self.A)
+        self.R, self.A = rn, 0.0
+
+    def beta(self) -> float:
+        r"""The bound on every :math:`|\tilde\varphi_i - \varphi_i|` now."""
+        return self.nu * (self.R + self.gamma_hat * self.A)
+
+    def _residual_on_rows(self, first: list[float] | None = None
+                          ) -> Callable[[np.ndarray], tuple[np.ndarray, float]]:
+        """``residual(x)`` for :meth:`~roughslip.linalg.inverse.UpdatableInverse.refine`: the
+        residual of ``x`` on the rows (zero on dead rows) by the FFT operator and its relative
+        norm; the first relative norm is appended to ``first``."""
+        inv = self.inv
+        live = inv.live
+        pos = inv.ids[live]
+
+        def residual(x: np.ndarray) -> tuple[np.ndarray, float]:
+            r, res = stick_residual(self.b, pos, x[live], 1.0)
+            full = np.zeros(inv.m)
+            full[live] = r
+            if first is not None and not first:
+                first.append(res)
+            return full, res
+
+        return residual
+
+    def residual(self) -> tuple[np.ndarray, float]:
+        """The residual of the tracked solution on the rows and its 2-norm."""
+        r, res = self._residual_on_rows()(self.inv.tracked["phi"].x)
+        return r, res * math.sqrt(float(self.inv.live.sum()))
+
+    def removed(self, alpha: float, column: np.ndarray) -> None:
+        self.A += abs(alpha) * float(np.linalg.norm(column[self.inv.live]))
+
+    def certify(self, cap: np.ndarray) -> None:
+        r"""Refine the tracked solution to ``CERT_FRACTION x tol``, check the bound against the
+        residual found, and sample the column ratio on the two leading rows (``cap``:
+        :math:`\lambda f_z` on the rows, infinite on dead ones)."""
+        live = self.inv.live
+        alive = int(live.sum())
+        scale = math.sqrt(alive)
+        first: list[float] = []
+        t = self.inv.tracked["phi"]
+        t.x, res, n = self.inv.refine(t.x, self._residual_on_rows(first), CERT_FRACTION
+                                      * self.tol, 4)
+        self.measured(first[0] * scale)
+        self.refinements += n
+        self.worst = max(self.worst, res)
+        self.R, self.A = res * scale, 0.0
+        ratio = np.abs(t.x) / cap
+        ratio[~live] = -1.0
+        for row in np.argsort(-ratio, kind="stable")[:min(2, alive)]:
+            self._sample(int(row))
+
+    def _sample(self, row: int) -> None:
+        r"""Measure :math:`\|\rho\|/\|\tilde c\|` for the column of ``row`` (one FFT)."""
+        inv, live = self.inv, self.inv.live
+        c = inv.column(row)
+        u = self.b.restricted(inv.ids[live]).matvec(c[live])
+        rho = -u
+        rho[int(np.count_nonzero(live[:row]))] += 1.0
+        self.gamma = max(self.gamma, float(np.linalg.norm(rho) /
+                                           max(np.linalg.norm(c[live]), 1e-300)))
+
+    def decide(self, phi: np.ndarray, cap: np.ndarray) -> tuple[int, float, float]:
+        r"""The row of the next break, the largest ratio :math:`m` and the bound on the error
+        of :math:`m` (module docstring)."""
+        self.states += 1
+        ratio = np.abs(phi) / cap
+        beta = self.beta()
+        j = argext(ratio, None, "max")
+        m = float(ratio[j])
+        if not math.isfinite(m):
+            raise NumericalError("pull: non-finite tangential force ratio")
+        low = m - beta / cap[j]
+        # rows whose upper bound reaches the tie band of the leader's lower bound (a
+        # prefilter with the smallest cap, then the exact test on the few it keeps)
+        pre = np.flatnonzero(ratio >= (1 - TIE) * low - beta / self.cap_min)
+        cand = pre[ratio[pre] + beta / cap[pre] >= (1 - TIE) * low]
+        if cand.size <= 1:
+            return j, m, beta / cap[j]
+        if cand.size <= MAX_SHARPEN:
+            picked = self._sharpen(phi, cap, cand, low)
+            if picked is not None:
+                return picked
+        self.full += 1
+        live = self.inv.live
+        t = self.inv.tracked["phi"]
+        t.x, res, n = self.inv.refine(t.x, self._residual_on_rows(), CERT_FRACTION * self.tol,
+                                      6)
+        self.refinements += n
+        self.R, self.A = res * math.sqrt(live.sum()), 0.0
+        ratio = np.abs(t.x) / cap
+        j = argext(ratio, None, "max")
+        return j, float(ratio[j]), self.beta() / cap[j]
+
+    def _sharpen(self, phi: np.ndarray, cap: np.ndarray, cand: np.ndarray, low: float
+                 ) -> tuple[int, float, float] | None:
+        """Sharpen the candidates (one FFT); the decision, or None when still open."""
+        self.sharpened += 1
+        r, rn = self.residual()
+        self.measured(rn)
+        vals, errs = np.empty(cand.size), np.empty(cand.size)
+        live = self.inv.live
+        for k, i in enumerate(cand):
+            c = self.inv.column(int(i))
+            c[~live] = 0.0
+            vals[k] = abs(phi[i] + float(c @ r)) / cap[i]
+            errs[k] = (self.nu * self.gamma_hat * float(np.linalg.norm(c)) * rn
+                       + 4 * np.finfo(float).eps * abs(phi[i])) / cap[i]
+        lower, upper = vals - errs, vals + errs
+        rest = (1 - TIE) * low  # above every upper bound outside the candidates
+        for k in range(cand.size):  # rows in increasing order: the tie rule's order
+            others = np.delete(np.arange(cand.size), k)
+            hi = max(float(upper[others].max()) if others.size else -math.inf, rest)
+            lo = max(float(lower[others].max()) if others.size else -math.inf, 0.0)
+            # row k ties with the extreme iff rho_k >= (1 - TIE) max of the others
+            if upper[k] < (1 - TIE) * lo:
+                continue  # certainly out of the tie set
+            if lower[k] >= (1 - TIE) * hi:
+                top = int(np.argmax(vals))
+                return int(cand[k]), float(vals[top]), float(errs[top])
+            return None
+        return None
+
+
+class _Peaks:
+    """The break states that can still be the peak, kept until they are solved exactly."""
+
+    def __init__(self, b: Bonds, curve: BreakCurve, tol: float, max_iter: int) -> None:
+        self.b, self.curve, self.tol, self.max_iter = b, curve, tol, max_iter
+        self.kept: list[tuple[int, np.ndarray, np.ndarray, float, float]] = []
+        self.low = -math.inf  # the largest lower bound of a recorded F_x,lim
+        self.high = -math.inf  # the largest upper bound among the kept states
+        self.solved = 0
+        self.worst = 0.0
+        self.curve_error = 0.0
+
+    def add(self, step: int, pos: np.ndarray, phi: np.ndarray, F: float, err: float) -> None:
+        """Record break ``step`` (stick positions ``pos``, tracked ``phi`` on them, both
+        taken as they are) if it can still be the peak."""
+        self.curve_error = max(self.curve_error, err / max(abs(F), 1e-300))
+        if F + err < self.low:
+            return
+        self.low = max(self.low, F - err)
+        self.kept = [k for k in self.kept if k[3] + k[4] >= self.low]
+        self.kept.append((step, pos, phi, F, err))
+        self.high = max(k[3] + k[4] for k in self.kept)
+
+    def solve(self) -> None:
+        """Solve every kept state by CG from its tracked solution; the curve takes the exact
+        values and the best of them becomes the peak."""
+        b, curve = self.b, self.curve
+        best = -math.inf
+        done = []
+        for step, pos, phi, _, err in self.kept:
+            if err == 0.0:  # solved before
+                done.append((step, pos, phi, curve.fx[step], 0.0))
+                best = max(best, curve.fx[step])
+                continue
+            A = b.restricted(pos)
+            res = cg(A, A.weights, x0=b.field(phi, pos), tol=PEAK_FRACTION * self.tol,
+                     max_iter=self.max_iter)
+            phi = A.gather(res.x)
+            _, rel = stick_residual(b, pos, phi, 1.0)
+            self.worst = max(self.worst, rel)
+            self.solved += 1
+            m = float(np.max(np.abs(phi) / b.cap[pos]))
+            dx = 1.0 / m
+            F = float(phi.sum()) * dx
+            curve.dx[step], curve.fx[step] = dx, F
+            done.append((step, pos, phi, F, 0.0))
+            best = max(best, F)
+        self.kept = [k for k in done if k[3] >= best]
+        step, pos, phi, F, _ = self.kept[0]
+        curve.best, curve.peak = F, step
+        curve.peak_state = (pos, phi * curve.dx[step], curve.dx[step])
+        self.low = self.high = F
+
+    def stop(self, cap_sum_after: float) -> bool:
+        """The exact early stop (every later F_x,lim <= lambda sum f_z over the stick set),
+        solving the kept states first when the bounds leave it open."""
+        if not self.curve.early_stop or cap_sum_after > self.high:
+            return False
+        if cap_sum_after > self.low:
+            self.solve()
+        if cap_sum_after <= self.low:
+            self.curve.stopped = True
+        return self.curve.stopped
+
+
+def break_inverse_single(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    r"""The break law on a float32 inverse with certified decisions (module docstring): the
+    same break sequence as the double-precision method, and the friction force to its
+    accuracy."""
+    tol, block = opt.tol, opt.block
+    curve = BreakCurve(b, opt.early_stop)
+    inv = bond_inverse(b, block, opt.threads, dtype=np.float32)
+    track(inv, "phi", np.ones(b.n))
+    rows = BondRows(b)
+    bound = _Bound(b, inv, tol)
+    bound.certify(rows.cap)
+    peaks = _Peaks(b, curve, tol, opt.max_iter)
+    cap_sum = float(b.cap.sum())
+    while rows.alive:
+        phi, cap, pos = inv.tracked["phi"].x, rows.cap, inv.ids
+        j, m, dm = bound.decide(phi, cap)
+        phi = inv.tracked["phi"].x  # a full refinement replaces it
+        live = np.isfinite(cap)
+        on = phi[live]
+        dx = 1.0 / m
+        F = float(on.sum()) * dx
+        R = bound.R + bound.gamma_hat * bound.A
+        err = (math.sqrt(float(on @ on)) * R * dx + abs(F) * dm / m) * 1.01
+        curve.dx.append(dx)
+        curve.fx.append(F)
+        curve.site.append(int(b.sites[pos[j]]))
+        peaks.add(len(curve.fx) - 1, pos[live], on, F, err)
+        cap_sum -= float(cap[j])
+        if peaks.stop(cap_sum) or rows.alive == 1:
+            break
+        c = inv.column(j)
+        bound.removed(phi[j] / c[j], c)
+        rows.remove(inv, j, c)
+        if rows.fold(inv, dead=COMPACT_DEAD):
+            bound.certify(rows.cap)
+    if peaks.kept:
+        peaks.solve()
+    worst = max(bound.worst, peaks.worst)
+    ok = worst <= tol
+    msg = (f"{b.n} bonds, block {block}, single precision: {bound.refinements} refinements, "
+           f"{bound.sharpened} of {bound.states} decisions sharpened, {bound.full} refined in "
+           f"full, bound exceeded {bound.exceeded} times, {peaks.solved} peak candidates "
+           f"solved; curve points within {peaks.curve_error:.1e} relative, the peak exact")
+    return curve.result(t0, "inverse", converged=bool(ok), residual=worst,
+                        solves=bound.refinements + peaks.solved, message=msg,
+                        precision="single")

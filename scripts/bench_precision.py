@@ -1,0 +1,97 @@
+"""The exact pull's inverse in double and in single precision, side by side.
+
+    python scripts/bench_precision.py [--size 256] [--area 0.2] [--repeat 3] [--threads 2]
+
+The scene is bench_pull.py's (rough, H = 0.8, open, nu = 0.3, lambda = 0.2, tol = 1e-10).
+Each run is a fresh process, alternating the precisions, so that its peak resident memory
+is its own: ``peak`` is the process's, ``pull`` the rise of the peak over the resident set
+just before the pull. Prints the medians, whether the break sequences are identical, the
+friction forces' relative difference and the single-precision path's counters.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+
+def _rss() -> int:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def child(size: int, area: float, precision: str, threads: int, out: str) -> None:
+    sys.path.insert(0, os.path.dirname(__file__))
+    from bench_pull import contact
+
+    from roughslip.contact.pull import pull
+
+    normal = contact(size, area)
+    before = _rss()
+    t0 = time.perf_counter()
+    res = pull(normal, lam=0.2, method="inverse", tol=1e-10, threads=threads,
+               precision=precision)
+    sec = time.perf_counter() - t0
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    np.save(out + ".npy", res.broken_site)
+    with open(out + ".json", "w") as f:
+        json.dump({"sec": sec, "peak": peak, "pull": peak - before, "bonds": res.n_bonds,
+                   "steps": res.steps, "friction": res.friction_force,
+                   "converged": res.converged, "message": res.message}, f)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--area", type=float, default=0.2)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--child", nargs=2, metavar=("PRECISION", "OUT"), help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.child:
+        child(a.size, a.area, a.child[0], a.threads, a.child[1])
+        return
+    runs: dict[str, list[dict]] = {"double": [], "single": []}
+    seqs: dict[str, np.ndarray] = {}
+    tmp = f"/tmp/bench_precision_{os.getpid()}"
+    for _ in range(a.repeat):
+        for p in runs:
+            subprocess.run([sys.executable, __file__, "--size", str(a.size), "--area",
+                            str(a.area), "--threads", str(a.threads), "--child", p, tmp],
+                           check=True)
+            with open(tmp + ".json") as f:
+                runs[p].append(json.load(f))
+            seqs[p] = np.load(tmp + ".npy")
+    med = {p: {k: statistics.median(r[k] for r in rs) for k in ("sec", "peak", "pull")}
+           for p, rs in runs.items()}
+    d, s = runs["double"][0], runs["single"][0]
+    print(f"# cores: {os.cpu_count()}, threads {a.threads}; N = {a.size}, area {a.area}, "
+          f"{d['bonds']} bonds, medians of {a.repeat}")
+    print(f"{'precision':>9} {'sec':>8} {'peak GiB':>9} {'pull GiB':>9} {'steps':>6} "
+          f"{'F_friction':>20}")
+    for p, rs in runs.items():
+        print(f"{p:>9} {med[p]['sec']:8.2f} {med[p]['peak'] / 2**30:9.3f} "
+              f"{med[p]['pull'] / 2**30:9.3f} {rs[0]['steps']:>6} {rs[0]['friction']:20.15f}")
+    same = np.array_equal(seqs["double"], seqs["single"])
+    print(f"ratios single/double: time {med['single']['sec'] / med['double']['sec']:.3f}, "
+          f"peak {med['single']['peak'] / med['double']['peak']:.3f}, "
+          f"pull {med['single']['pull'] / med['double']['pull']:.3f}")
+    print(f"same break sequence: {same}; friction relative difference "
+          f"{(s['friction'] - d['friction']) / d['friction']:.1e}; converged "
+          f"{d['converged']} / {s['converged']}")
+    print(f"single: {s['message']}")
+    for ext in (".npy", ".json"):
+        os.remove(tmp + ext)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,206 @@
+"""The single-precision inverse of the pull: the float32 kernels against float64 references,
+and the certified break sequence against the double-precision path on many scenes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roughslip.contact.bonds import Bonds
+from roughslip.contact.pull import (
+    choose_method,
+    choose_precision,
+    inverse_memory_bytes,
+    pull,
+)
+from roughslip.contact.squeeze import squeeze
+from roughslip.errors import InputError, MemoryLimitError
+from roughslip.linalg import lapack64, memory
+from roughslip.linalg.inverse import UpdatableInverse
+from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
+
+EPS32 = float(np.finfo(np.float32).eps)
+
+
+def _spd(n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    a = rng.standard_normal((n, n))
+    return a @ a.T / n + np.eye(n)
+
+
+def _full(lower: np.ndarray) -> np.ndarray:
+    low = np.tril(lower).astype(float)
+    return low + np.tril(low, -1).T
+
+
+@pytest.mark.parametrize("sweep", [False, True])
+def test_float32_inverse_kernels_match_float64(sweep):
+    A = _spd(200)
+    ref = np.linalg.inv(A)
+    B = np.asfortranarray(A.astype(np.float32))
+    (lapack64.sweep_inverse(B, block=48) if sweep else lapack64.cholesky_inverse(B))
+    assert B.dtype == np.float32
+    err = np.abs(_full(B) - ref).max() / np.abs(ref).max()
+    assert err < 50 * EPS32 * np.linalg.cond(A)
+    assert err > 1e-12  # it really is single precision
+    x = np.random.default_rng(1).standard_normal(200)
+    y = lapack64.symv(B, x)
+    assert y.dtype == np.float64
+    np.testing.assert_allclose(y, _full(B) @ x, rtol=0, atol=1e-4 * np.abs(y).max())
+    U = np.random.default_rng(2).standard_normal((200, 7))
+    C = np.asfortranarray(A.astype(np.float32))
+    lapack64.syrk_update(C, U, -1.0)
+    np.testing.assert_allclose(np.tril(C), np.tril(A - U @ U.T), atol=1e-5 * np.abs(A).max())
+
+
+def test_float32_storage_only_in_the_lower_layout():
+    with pytest.raises(ValueError, match="float32"):
+        UpdatableInverse(lambda i, j, o: None, 4, room=lambda m: True, dtype=np.float32)
+    with pytest.raises(ValueError, match="float64 or float32"):
+        lapack64.symv(np.asfortranarray(np.eye(3, dtype=np.float16)), np.ones(3))
+
+
+def test_float32_inverse_tracks_removals_to_single_precision():
+    """Removals on a float32 inverse: columns within a few single-precision units (relative to
+    the condition number) of the inverse of the remaining block, computed in float64."""
+    A = _spd(150, seed=3)
+
+    def entries(i, j, order="F", dtype=float):
+        return np.array(A[np.ix_(i, j)], order=order, dtype=dtype)
+
+    inv = UpdatableInverse(entries, 150, room=lambda m: True, lower=True, block=8,
+                           dtype=np.float32)
+    inv.factor(np.arange(150))
+    assert inv.buf.dtype == np.float32
+    keep = np.ones(150, bool)
+    for r in np.random.default_rng(4).permutation(150)[:40]:
+        assert inv.remove(int(r))
+        keep[r] = False
+        if inv.k == inv.block:
+            inv.flush()
+    ref = np.linalg.inv(A[np.ix_(keep, keep)])
+    rows = np.flatnonzero(inv.live)
+    col = inv.column(int(rows[5]))[rows]
+    assert col.dtype == np.float64
+    bound = 100 * EPS32 * np.linalg.cond(A) * np.abs(ref[:, 5]).max()
+    np.testing.assert_allclose(col, ref[:, 5], rtol=0, atol=bound)
+
+
+def test_bond_matrix_in_float32_is_the_double_matrix_rounded():
+    normal = squeeze(self_affine((24, 24), hurst=0.8, rms_height=1.0, rng=sample_rng(5, 0)),
+                     depth=1.0, tol=1e-12)
+    b = Bonds(normal, 0.2)
+    G = b.dense()
+    assert np.array_equal(b.dense(dtype=np.float32), G.astype(np.float32))
+    assert np.array_equal(b.dense(order="C"), G)
+    i, j = np.arange(0, b.n, 3), np.arange(1, b.n, 4)
+    assert np.array_equal(b.entries(i, j, "C", np.float32), G[np.ix_(i, j)].astype(np.float32))
+
+
+def _scenes():
+    """22 scenes: rough (open and periodic, several seeds, depths, sizes and nu), symmetric
+    spheres (exact ties, broken by the lowest flat index) and spheres with their symmetry
+    broken at 1e-7 (near-ties inside the single-precision error)."""
+    out = []
+    for k, (n, depth, nu, boundary) in enumerate([
+            (48, 2.2, 0.3, "open"), (48, 2.8, 0.3, "open"), (64, 2.0, 0.25, "open"),
+            (64, 2.6, 0.45, "open"), (80, 2.2, 0.3, "open"), (96, 2.0, 0.3, "open"),
+            (48, 2.0, 0.3, "periodic"), (64, 2.4, 0.3, "periodic"),
+            (80, 2.0, 0.2, "periodic"), (64, 1.4, 0.3, "open"), (96, 2.6, 0.3, "open"),
+            (96, 2.0, 0.35, "periodic")]):
+        h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(100 + k, 0))
+        out.append((f"rough{k}-{boundary}", h, depth, nu, boundary))
+    for n, radius, depth in [(16, 12.0, 1.0), (24, 20.0, 1.5), (32, 30.0, 2.0), (20, 8.0, 1.2),
+                             (28, 25.0, 1.0)]:
+        out.append((f"sphere{n}", sphere((n, n), radius=radius), depth, 0.3, "open"))
+    rng = np.random.default_rng(7)
+    for n, radius, depth in [(16, 12.0, 1.0), (24, 20.0, 1.5), (32, 30.0, 2.0), (20, 8.0, 1.2),
+                             (28, 25.0, 1.0)]:
+        h = sphere((n, n), radius=radius) + 1e-7 * rng.standard_normal((n, n))
+        out.append((f"near-tie{n}", h, depth, 0.3, "open"))
+    return out
+
+
+SCENES = _scenes()
+
+
+@pytest.fixture(scope="module")
+def pairs():
+    out = {}
+    for name, h, depth, nu, boundary in SCENES:
+        normal = squeeze(h, depth=depth, nu=nu, boundary=boundary, tol=1e-13)
+        out[name] = tuple(pull(normal, method="inverse", precision=p, tol=1e-10)
+                          for p in ("double", "single"))
+    return out
+
+
+def test_at_least_twenty_scenes_with_ties_and_near_ties(pairs):
+    assert len(pairs) >= 20
+    assert min(d.n_bonds for d, _ in pairs.values()) >= 20
+
+
+@pytest.mark.parametrize("name", [s[0] for s in SCENES])
+def test_single_precision_gives_the_double_break_sequence(pairs, name):
+    d, s = pairs[name]
+    assert (d.precision, s.precision) == ("double", "single")
+    np.testing.assert_array_equal(s.broken_site, d.broken_site)
+    assert s.peak_index == d.peak_index
+    assert abs(s.friction_force - d.friction_force) <= 1e-10 * abs(d.friction_force)
+    np.testing.assert_array_equal(s.stick_at_peak, d.stick_at_peak)
+    np.testing.assert_allclose(s.fx_at_peak, d.fx_at_peak, rtol=0,
+                               atol=1e-9 * np.abs(d.fx_at_peak).max())
+    # the other points of the curve carry the single-precision error, inside their bound
+    bound = float(s.message.split("curve points within ")[1].split(" ")[0])
+    assert np.all(np.abs(s.fx_lim - d.fx_lim) <= bound * np.abs(d.fx_lim) + 1e-300)
+    assert s.converged and d.converged
+    assert "bound exceeded 0 times" in s.message
+
+
+def test_near_ties_are_sharpened(pairs):
+    """The broken symmetry leaves gaps below the single-precision error: those decisions
+    were sharpened, and still came out as in double precision (previous test)."""
+    sharpened = [int(s.message.split(" of ")[0].split()[-1]) for name, (_, s) in pairs.items()
+                 if name.startswith("near-tie")]
+    assert sum(sharpened) > 0
+
+
+def test_auto_chooses_double_when_it_fits_and_single_when_only_that_fits():
+    n = 5000
+    double, single = inverse_memory_bytes(n), inverse_memory_bytes(n, precision="single")
+    assert single < 0.55 * double
+    assert choose_precision(n, memory=double) == "double"
+    assert choose_precision(n, memory=(single + double) // 2) == "single"
+    assert choose_precision(n, memory=(single + double) // 2, slip_law="coulomb") == "double"
+    assert choose_method(n, memory=(single + double) // 2) == "inverse"
+    assert choose_method(n, memory=(single + double) // 2, precision="double") == "cg"
+    assert choose_method(n, memory=single // 2) == "cg"
+    assert choose_method(5, precision="single") == "inverse"  # not the literal algorithm
+
+
+def test_memory_guard_knows_both_precisions():
+    normal = squeeze(self_affine((32, 32), hurst=0.8, rms_height=1.0, rng=sample_rng(9, 0)),
+                     depth=1.0, tol=1e-12)
+    n = Bonds(normal, 0.2).n
+    double, single = inverse_memory_bytes(n), inverse_memory_bytes(n, precision="single")
+    ref = pull(normal)
+    assert (ref.method, ref.precision) == ("inverse", "double")
+    with memory.limited((single + double) / 2 / 2**30):
+        with pytest.raises(MemoryLimitError, match="precision 'single'"):
+            pull(normal, method="inverse", precision="double")
+        res = pull(normal)
+        assert (res.method, res.precision) == ("inverse", "single")
+        assert res.friction_force == pytest.approx(ref.friction_force, rel=1e-10)
+    with memory.limited(single / 2 / 2**30):
+        with pytest.raises(MemoryLimitError, match="single precision"):
+            pull(normal, method="inverse", precision="single")
+        assert pull(normal).method == "cg"
+
+
+def test_bad_precision():
+    normal = squeeze(sphere((12, 12), radius=10.0), depth=1.0, tol=1e-12)
+    with pytest.raises(InputError, match="precision"):
+        pull(normal, precision="half")
+    with pytest.raises(InputError, match="only the break law"):
+        pull(normal, precision="single", slip_law="coulomb")
+    with pytest.raises(InputError, match="only the break law"):
+        pull(normal, precision="single", method="cg")
