@@ -204,3 +204,14 @@ def test_bad_precision():
         pull(normal, precision="single", slip_law="coulomb")
     with pytest.raises(InputError, match="only the break law"):
         pull(normal, precision="single", method="cg")
+
+
+@pytest.mark.parametrize("depth", [0.005, 0.05, 0.3])
+def test_tiny_contacts_in_single_precision(depth):
+    """One bond, a handful and a few dozen: the bound's eigenvalue estimate is dense there."""
+    normal = squeeze(sphere((9, 9), radius=20.0), depth=depth, tol=1e-13)
+    d = pull(normal, method="inverse", precision="double")
+    s = pull(normal, precision="single")
+    assert s.method == "inverse" and s.precision == "single"
+    np.testing.assert_array_equal(s.broken_site, d.broken_site)
+    assert abs(s.friction_force - d.friction_force) <= 1e-10 * abs(d.friction_force)

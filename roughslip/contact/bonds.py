@@ -105,8 +105,8 @@ class SlipResult:
     #: the kind of each event of the curve (``"slip+"``, ``"slip-"``, ``"stick"``; empty for
     #: the break law's sequence, whose events are all breaks)
     kinds: tuple[str, ...] = ()
-    #: the precision of the stored inverse of ``"inverse"``: ``"double"`` or ``"single"``
-    #: (empty for the other methods)
+    #: the precision of the break law's ``"inverse"`` method: ``"double"`` or ``"single"``
+    #: (empty for the other methods and laws)
     precision: str = ""
 
     @property
@@ -331,8 +331,9 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64
 
     def room(m: int) -> bool:
         if need > available_bytes():
-            other = ("" if dtype.itemsize == 4 else
-                     "pull precision 'single' (half the memory), ")
+            half = inverse_bytes(n, lower=True, block=block, itemsize=4)
+            other = ("pull precision 'single' (half the memory), "
+                     if dtype.itemsize == 8 and half <= available_bytes() else "")
             raise MemoryLimitError(
                 f"the inverse of G_xx on {n} bonds in {PRECISION_NAMES[dtype]} precision "
                 f"needs ~{need / 2**30:.1f} GiB but {available_bytes() / 2**30:.1f} GiB are "

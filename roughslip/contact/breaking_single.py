@@ -22,15 +22,18 @@ The error bound
     :math:`-\alpha\rho` with :math:`\alpha = \tilde\varphi_k/\tilde c_k`, so between
     certifications
 
-    .. math:: \|r\|_2 \le R_c + \hat\gamma \sum |\alpha|\,\|\tilde c\|_2,
+    .. math:: \|r\|_2 \le R_c + \hat g \sum |\alpha|\,\|\tilde c\|_2,
 
-    :math:`R_c` the residual measured at the last certification and :math:`\hat\gamma` a
-    bound on :math:`\|\rho\|/\|\tilde c\|`. :math:`\nu` is a Lanczos estimate times
-    :data:`NU_SAFETY`; :math:`\hat\gamma` is :data:`GAMMA_SAFETY` times the largest ratio
-    measured on sampled columns (two per certification, by FFT), and is doubled whenever a
-    certification finds the residual above its bound (counted in the message). Both are
-    estimates, so the bound is an estimate of a bound; the decisions it certifies are
-    compared with the double-precision path in the tests.
+    :math:`R_c` the residual measured at the last check. :math:`\hat g` bounds the growth
+    per unit of the sum: at most :math:`\hat\gamma \ge \|\rho\|/\|\tilde c\|`, far less
+    in practice because the removals' errors partly cancel. It is :data:`GROWTH_SAFETY`
+    times the largest growth rate measured so far (at every certification and sharpening),
+    and :data:`GAMMA_SAFETY` times the largest column ratio :math:`\hat\gamma` before the first
+    measurement; a measurement above the bound is counted in the message. :math:`\nu` is a
+    Lanczos estimate (dense for small sets) times :data:`NU_SAFETY`; :math:`\hat\gamma` is
+    measured on sampled columns (two per certification, by FFT). These are estimates, so the
+    bound is an estimate of a bound; the decisions it certifies are compared with the
+    double-precision path in the tests.
 
 Certified decisions
     The next bond is the one with the largest :math:`|\varphi_i|/(\lambda f_{z,i})`, ties
@@ -38,7 +41,9 @@ Certified decisions
     (:func:`~roughslip.contact.events.argext`). When the bound leaves more than one row able
     to be that bond, the candidates are *sharpened*: one FFT gives :math:`r`, and
     :math:`\hat\varphi_i = \tilde\varphi_i + \tilde c_i^T r` for each candidate (error
-    :math:`\le \nu\hat\gamma\|\tilde c_i\|\,\|r\|`, second order). Only if that still leaves
+    :math:`\le \nu\,\|\rho_i\|\,\|r\| \le \nu\hat\gamma\|\tilde c_i\|\,\|r\|`, second
+    order, with :data:`GAMMA_SAFETY` times the largest measured column ratio as
+    :math:`\hat\gamma`). Only if that still leaves
     the choice open is :math:`\tilde\varphi` refined to the rounding level and the bond
     chosen as the double-precision path chooses it.
 
@@ -77,8 +82,8 @@ from roughslip.linalg.inverse import UpdatableInverse
 #: safety factor on the Lanczos estimate of :math:`\lambda_{\max}(G_0^{-1})` (a Ritz value,
 #: never above it; ARPACK's tolerance 1e-2)
 NU_SAFETY = 1.25
-#: safety factor on the largest measured column-residual ratio (the rate before any is
-#: realised)
+#: safety factor on the largest measured column-residual ratio (the sharpening's error, and
+#: the growth rate before one is realised)
 GAMMA_SAFETY = 8.0
 #: safety factor on the largest realised growth rate of the residual
 GROWTH_SAFETY = 4.0
@@ -93,17 +98,25 @@ CERT_FRACTION = 1e-2
 PEAK_FRACTION = 1e-4
 
 
+def _largest_eigenvalue(inv: UpdatableInverse) -> float:
+    """The largest eigenvalue of the stored inverse: dense for small orders, else Lanczos
+    from the vector of ones (deterministic) with ARPACK's tolerance 1e-2."""
+    if inv.m <= 500:
+        low = np.tril(inv.buf[: inv.m, : inv.m]).astype(np.float64)
+        return float(np.linalg.eigvalsh(low, UPLO="L")[-1])
+    op = LinearOperator((inv.m, inv.m), matvec=lambda v: inv.apply(np.ravel(v)),
+                        dtype=np.float64)
+    return float(eigsh(op, k=1, which="LA", v0=np.ones(inv.m), tol=1e-2,
+                       return_eigenvectors=False)[0])
+
+
 class _Bound:
-    r"""The running bound :math:`\nu(R_c + \hat\gamma A)` on :math:`|\tilde\varphi_i -
+    r"""The running bound :math:`\nu(R_c + \hat g A)` on :math:`|\tilde\varphi_i -
     \varphi_i|` (module docstring) and the counters of the certified decisions."""
 
     def __init__(self, b: Bonds, inv: UpdatableInverse, tol: float) -> None:
         self.b, self.inv, self.tol = b, inv, tol
-        op = LinearOperator((inv.m, inv.m), matvec=lambda v: inv.apply(np.ravel(v)),
-                            dtype=np.float64)
-        theta = eigsh(op, k=1, which="LA", v0=np.ones(inv.m), tol=1e-2,
-                      return_eigenvectors=False)[0]
-        self.nu = NU_SAFETY * float(theta)
+        self.nu = NU_SAFETY * _largest_eigenvalue(inv)
         self.gamma = 0.0  # largest measured ||rho|| / ||c||
         self.growth = 0.0  # largest measured (||r|| - R_c) / A over a stretch of removals
         self.R, self.A = 0.0, 0.0
@@ -114,25 +127,33 @@ class _Bound:
 
     @property
     def gamma_hat(self) -> float:
-        r"""The growth rate of the residual per unit of :math:`\sum|\alpha|\,\|\tilde
-        c\|`: :data:`GROWTH_SAFETY` times the largest realised rate once one is measured,
-        before that :data:`GAMMA_SAFETY` times the largest column ratio."""
-        if self.growth:
-            return GROWTH_SAFETY * self.growth
+        r""":math:`\hat\gamma`: :data:`GAMMA_SAFETY` times the largest measured column
+        ratio :math:`\|\rho\|/\|\tilde c\|`."""
         return GAMMA_SAFETY * self.gamma
+
+    @property
+    def g_hat(self) -> float:
+        r""":math:`\hat g`, the growth rate of the residual per unit of
+        :math:`\sum|\alpha|\,\|\tilde c\|`: :data:`GROWTH_SAFETY` times the largest
+        realised rate once one is measured, :math:`\hat\gamma` before that."""
+        return GROWTH_SAFETY * self.growth if self.growth else self.gamma_hat
+
+    def residual_bound(self) -> float:
+        """The bound on the 2-norm of the tracked solution's residual now."""
+        return self.R + self.g_hat * self.A
 
     def measured(self, rn: float) -> None:
         """A residual norm ``rn`` measured after the removals counted in ``A``: check the
         bound, learn the rate, restart the count from it."""
         if self.A > 0:
-            if rn > (1 + 1e-6) * (self.R + self.gamma_hat * self.A):
+            if rn > (1 + 1e-6) * self.residual_bound():
                 self.exceeded += 1
             self.growth = max(self.growth, (rn - self.R) / self.A)
         self.R, self.A = rn, 0.0
 
     def beta(self) -> float:
         r"""The bound on every :math:`|\tilde\varphi_i - \varphi_i|` now."""
-        return self.nu * (self.R + self.gamma_hat * self.A)
+        return self.nu * self.residual_bound()
 
     def _residual_on_rows(self, first: list[float] | None = None
                           ) -> Callable[[np.ndarray], tuple[np.ndarray, float]]:
@@ -265,15 +286,16 @@ class _Peaks:
         self.worst = 0.0
         self.curve_error = 0.0
 
-    def add(self, step: int, pos: np.ndarray, phi: np.ndarray, F: float, err: float) -> None:
-        """Record break ``step`` (stick positions ``pos``, tracked ``phi`` on them, both
-        taken as they are) if it can still be the peak."""
+    def add(self, step: int, F: float, err: float,
+            state: Callable[[], tuple[np.ndarray, np.ndarray]]) -> None:
+        """Record break ``step`` with its bound; if it can still be the peak keep its state,
+        ``state()`` (the stick positions and the tracked solution on them, new arrays)."""
         self.curve_error = max(self.curve_error, err / max(abs(F), 1e-300))
         if F + err < self.low:
             return
         self.low = max(self.low, F - err)
         self.kept = [k for k in self.kept if k[3] + k[4] >= self.low]
-        self.kept.append((step, pos, phi, F, err))
+        self.kept.append((step, *state(), F, err))
         self.high = max(k[3] + k[4] for k in self.kept)
 
     def solve(self) -> None:
@@ -339,12 +361,12 @@ def break_inverse_single(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
         on = phi[live]
         dx = 1.0 / m
         F = float(on.sum()) * dx
-        R = bound.R + bound.gamma_hat * bound.A
+        R = bound.residual_bound()
         err = (math.sqrt(float(on @ on)) * R * dx + abs(F) * dm / m) * 1.01
         curve.dx.append(dx)
         curve.fx.append(F)
         curve.site.append(int(b.sites[pos[j]]))
-        peaks.add(len(curve.fx) - 1, pos[live], on, F, err)
+        peaks.add(len(curve.fx) - 1, F, err, lambda p=pos, lv=live, o=on: (p[lv], o))
         cap_sum -= float(cap[j])
         if peaks.stop(cap_sum) or rows.alive == 1:
             break

@@ -76,6 +76,9 @@ class SlipLaw:
     lands
         Its decoupled pull records the state each burst lands in, at the drive (an event
         with site -1): :func:`roughslip.analysis.bursts.landing_curve` reads its curve.
+    single
+        Its ``"inverse"`` method also runs on a single-precision inverse
+        (``pull(..., precision="single")``).
     """
 
     #: the law's own parameters: keywords of :func:`~roughslip.contact.pull.pull` and keys
@@ -90,6 +93,7 @@ class SlipLaw:
     pull_runs: dict[str, Callable] = field(default_factory=dict)
     couples: bool = True
     lands: bool = False
+    single: bool = False
 
     def bind(self, lam: float, **params: float | None) -> SlipLaw:
         """The law with its own parameters (``None``: not given), checked against the static
@@ -200,7 +204,7 @@ class SlipWeakeningLaw(SlipLaw):
 LAWS: Registry[SlipLaw] = Registry("slip law")
 
 LAWS.register("break", "a failed bond carries no force (the report's law)")(BreakLaw(
-    "break", failed="released", curve="break sequence",
+    "break", failed="released", curve="break sequence", single=True,
     pull_runs={"literal": break_literal, "inverse": break_inverse, "cg": break_cg,
                "batch": break_batch}))
 LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(

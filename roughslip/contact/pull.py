@@ -106,8 +106,9 @@ def inverse_memory_bytes(n: int, block: int = 128, precision: str = "double") ->
 
 
 def _single_ok(slip_law: str) -> bool:
-    """Whether ``slip_law`` has the single-precision inverse (the break law)."""
-    return slip_law == "break"
+    """Whether ``slip_law`` has the single-precision inverse
+    (:attr:`~roughslip.contact.laws.SlipLaw.single`)."""
+    return LAWS.get(slip_law, "slip_law").single
 
 
 def choose_precision(n: int, memory: int | None = None, slip_law: str = "break",

@@ -438,11 +438,12 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
             raise ctx.fail("pull.method", cfg.pull.method,
                            f"slip_law = {cfg.pull.slip_law!r} needs one of {', '.join(laws)}")
     if cfg.pull.precision == "single" and (
-            cfg.coupling.enabled or cfg.pull.slip_law != "break"
+            cfg.coupling.enabled or not law.single
             or cfg.pull.method not in ("auto", "inverse")):
-        raise ctx.fail("pull.precision", "single", "is the decoupled break law's inverse "
-                       "method only (coupling.enabled = false, slip_law = 'break', method "
-                       "'auto' or 'inverse')")
+        single = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)
+        raise ctx.fail("pull.precision", "single", "is the decoupled inverse method of "
+                       f"slip_law {single} only (coupling.enabled = false, method 'auto' or "
+                       "'inverse')")
     es = cfg.elastic_surface
     tiled = [r for r in ("surface", "elastic_surface") if getattr(cfg, r) is not None
              and getattr(cfg, r).kind == "file" and getattr(cfg, r).tiles]
