@@ -97,6 +97,42 @@ def test_bond_matrix_in_float32_is_the_double_matrix_rounded():
     assert np.array_equal(b.entries(i, j, "C", np.float32), G[np.ix_(i, j)].astype(np.float32))
 
 
+def test_per_row_bound_holds_against_the_dense_inverse():
+    """The diagonal taken at a fold bounds the exact diagonal of the stick set's inverse
+    after further removals, and sqrt(nu d_i) ||r|| bounds each row's error of the tracked
+    solution (against a dense float64 solve)."""
+    from roughslip.contact.bonds import BondRows, bond_inverse, track
+    from roughslip.contact.breaking_single import _Bound
+
+    normal = squeeze(self_affine((40, 40), hurst=0.8, rms_height=1.0, rng=sample_rng(9, 0)),
+                     depth=2.0, tol=1e-13)
+    b = Bonds(normal, 0.2)
+    G = b.dense()
+    inv = bond_inverse(b, 16, 1, dtype=np.float32)
+    track(inv, "phi", np.ones(b.n))
+    rows = BondRows(b)
+    bound = _Bound(b, inv, 1e-10)
+    bound.certify(rows.cap)
+    checked = 0
+    for step in range(b.n // 2):
+        phi = inv.tracked["phi"].x
+        j = int(np.argmax(np.abs(phi) / rows.cap))
+        c = inv.column(j)
+        bound.removed(phi[j] / c[j], c)
+        rows.remove(inv, j, c)
+        live = inv.live
+        pos = inv.ids[live]
+        M = np.linalg.inv(G[np.ix_(pos, pos)])
+        assert np.all(bound.d[live] >= np.diag(M))
+        err = np.abs(inv.tracked["phi"].x[live] - M.sum(axis=1))
+        assert np.all(err <= bound.beta(np.flatnonzero(live)))
+        assert np.all(bound.beta(np.flatnonzero(live)) <= bound.nu * bound.residual_bound())
+        checked += 1
+        if rows.fold(inv, dead=0.15):
+            bound.certify(rows.cap)
+    assert checked >= 40
+
+
 def _scenes():
     """22 scenes: rough (open and periodic, several seeds, depths, sizes and nu), symmetric
     spheres (exact ties, broken by the lowest flat index) and spheres with their symmetry

@@ -13,10 +13,14 @@ The error bound
     With :math:`r = 1_S - G_{SS}\tilde\varphi` the residual on the stick set :math:`S`,
     :math:`\tilde\varphi - \varphi = -G_{SS}^{-1} r`, so every entry obeys
 
-    .. math:: |\tilde\varphi_i - \varphi_i| \le \nu\,\|r\|_2, \qquad
+    .. math:: |\tilde\varphi_i - \varphi_i| \le \|G_{SS}^{-1} e_i\|_2\,\|r\|_2
+              \le \sqrt{\nu\, d_i}\;\|r\|_2, \qquad
               \nu \ge \|G_{SS}^{-1}\|_2 = 1/\lambda_{\min}(G_{SS}),
 
-    and by Cauchy interlacing one :math:`\nu` for the initial bonds serves every later stick
+    (:math:`\|M e_i\|^2 = e_i^T M^2 e_i \le \lambda_{\max}(M) M_{ii}` for positive definite
+    :math:`M`), with :math:`d_i \ge (G_{SS}^{-1})_{ii}` the diagonal of the stored inverse at
+    the last fold times :math:`1 +` :data:`DIAG_PAD` (a removal only lowers the diagonal).
+    By Cauchy interlacing one :math:`\nu` for the initial bonds serves every later stick
     set. A removal of row :math:`k` with the column :math:`\tilde c` of the stored inverse
     (residual :math:`\rho = e_k - G_{SS}\tilde c`) changes the residual by
     :math:`-\alpha\rho` with :math:`\alpha = \tilde\varphi_k/\tilde c_k`, so between
@@ -94,6 +98,9 @@ MAX_SHARPEN = 32
 COMPACT_DEAD = 0.15
 #: the certification refines to this fraction of ``tol``
 CERT_FRACTION = 1e-2
+#: relative pad on the diagonal of the stored inverse (its float32 rounding and the
+#: rounding of the rank-one updates between folds)
+DIAG_PAD = 1e-3
 #: the peak candidates are solved to this fraction of ``tol`` (near the rounding level)
 PEAK_FRACTION = 1e-4
 
@@ -120,6 +127,7 @@ class _Bound:
         self.gamma = 0.0  # largest measured ||rho|| / ||c||
         self.growth = 0.0  # largest measured (||r|| - R_c) / A over a stretch of removals
         self.R, self.A = 0.0, 0.0
+        self.d = self.d_max = None  # the inverse's diagonal on the rows, and its maximum
         self.worst, self.refinements = 0.0, 0
         self.sharpened = self.full = self.exceeded = self.states = 0
         #: the smallest lambda f_z of a live row, or below it (rows only leave)
@@ -151,9 +159,16 @@ class _Bound:
             self.growth = max(self.growth, (rn - self.R) / self.A)
         self.R, self.A = rn, 0.0
 
-    def beta(self) -> float:
-        r"""The bound on every :math:`|\tilde\varphi_i - \varphi_i|` now."""
-        return self.nu * self.residual_bound()
+    def refresh(self) -> None:
+        r"""Take the diagonal :math:`d_i = (G_{SS}^{-1})_{ii}` from the stored inverse (after a
+        fold, when no removal is pending)."""
+        self.d = np.maximum(self.inv.diagonal().astype(np.float64), 0.0) * (1 + DIAG_PAD)
+        self.d_max = float(self.d[self.inv.live].max()) if self.inv.live.any() else 0.0
+
+    def beta(self, rows: np.ndarray | int) -> np.ndarray | float:
+        r"""The bound on :math:`|\tilde\varphi_i - \varphi_i|` for ``rows`` now:
+        :math:`\sqrt{\nu d_i}` times the residual bound (module docstring)."""
+        return np.sqrt(self.nu * self.d[rows]) * self.residual_bound()
 
     def _residual_on_rows(self, first: list[float] | None = None
                           ) -> Callable[[np.ndarray], tuple[np.ndarray, float]]:
@@ -180,6 +195,10 @@ class _Bound:
         return r, res * math.sqrt(float(self.inv.live.sum()))
 
     def removed(self, alpha: float, column: np.ndarray) -> None:
+        r"""A row leaves with the column ``column`` of the inverse and the step ``alpha``:
+        the residual's count grows by :math:`|\alpha|\,\|\tilde c\|`. The diagonal is
+        left as it is: a removal only lowers it (:math:`d_i - \tilde c_i^2/\tilde c_k`), so
+        the one taken at the last fold stays an upper bound."""
         self.A += abs(alpha) * float(np.linalg.norm(column[self.inv.live]))
 
     def certify(self, cap: np.ndarray) -> None:
@@ -197,6 +216,7 @@ class _Bound:
         self.refinements += n
         self.worst = max(self.worst, res)
         self.R, self.A = res * scale, 0.0
+        self.refresh()
         ratio = np.abs(t.x) / cap
         ratio[~live] = -1.0
         for row in np.argsort(-ratio, kind="stable")[:min(2, alive)]:
@@ -217,18 +237,20 @@ class _Bound:
         of :math:`m` (module docstring)."""
         self.states += 1
         ratio = np.abs(phi) / cap
-        beta = self.beta()
         j = argext(ratio, None, "max")
         m = float(ratio[j])
         if not math.isfinite(m):
             raise NumericalError("pull: non-finite tangential force ratio")
-        low = m - beta / cap[j]
+        dm = float(self.beta(j)) / cap[j]
+        low = m - dm
         # rows whose upper bound reaches the tie band of the leader's lower bound (a
-        # prefilter with the smallest cap, then the exact test on the few it keeps)
-        pre = np.flatnonzero(ratio >= (1 - TIE) * low - beta / self.cap_min)
-        cand = pre[ratio[pre] + beta / cap[pre] >= (1 - TIE) * low]
+        # prefilter with the largest diagonal and the smallest cap, then the exact test on
+        # the few it keeps)
+        wide = math.sqrt(self.nu * self.d_max) * self.residual_bound()
+        pre = np.flatnonzero(ratio >= (1 - TIE) * low - wide / self.cap_min)
+        cand = pre[ratio[pre] + self.beta(pre) / cap[pre] >= (1 - TIE) * low]
         if cand.size <= 1:
-            return j, m, beta / cap[j]
+            return j, m, dm
         if cand.size <= MAX_SHARPEN:
             picked = self._sharpen(phi, cap, cand, low)
             if picked is not None:
@@ -242,7 +264,7 @@ class _Bound:
         self.R, self.A = res * math.sqrt(live.sum()), 0.0
         ratio = np.abs(t.x) / cap
         j = argext(ratio, None, "max")
-        return j, float(ratio[j]), self.beta() / cap[j]
+        return j, float(ratio[j]), float(self.beta(j)) / cap[j]
 
     def _sharpen(self, phi: np.ndarray, cap: np.ndarray, cand: np.ndarray, low: float
                  ) -> tuple[int, float, float] | None:
