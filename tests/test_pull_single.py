@@ -114,7 +114,7 @@ def test_per_row_bound_holds_against_the_dense_inverse():
     bound = _Bound(b, inv, 1e-10)
     bound.certify(rows.cap)
     checked = 0
-    for step in range(b.n // 2):
+    for _ in range(b.n // 2):
         phi = inv.tracked["phi"].x
         j = int(np.argmax(np.abs(phi) / rows.cap))
         c = inv.column(j)

@@ -109,7 +109,7 @@ def _largest_eigenvalue(inv: UpdatableInverse) -> float:
     """The largest eigenvalue of the stored inverse: dense for small orders, else Lanczos
     from the vector of ones (deterministic) with ARPACK's tolerance 1e-2."""
     if inv.m <= 500:
-        low = np.tril(inv.buf[: inv.m, : inv.m]).astype(np.float64)
+        low = inv.buf[: inv.m, : inv.m].astype(np.float64)  # eigvalsh reads the lower part
         return float(np.linalg.eigvalsh(low, UPLO="L")[-1])
     op = LinearOperator((inv.m, inv.m), matvec=lambda v: inv.apply(np.ravel(v)),
                         dtype=np.float64)
