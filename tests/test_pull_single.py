@@ -3,6 +3,8 @@ and the certified break sequence against the double-precision path on many scene
 
 from __future__ import annotations
 
+import tracemalloc
+
 import numpy as np
 import pytest
 
@@ -16,7 +18,7 @@ from roughslip.contact.pull import (
 from roughslip.contact.squeeze import squeeze
 from roughslip.errors import InputError, MemoryLimitError
 from roughslip.linalg import lapack64, memory
-from roughslip.linalg.inverse import UpdatableInverse
+from roughslip.linalg.inverse import LOWER_RESERVE, UpdatableInverse
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
 
 EPS32 = float(np.finfo(np.float32).eps)
@@ -201,7 +203,7 @@ def test_near_ties_are_sharpened(pairs):
 
 
 def test_auto_chooses_double_when_it_fits_and_single_when_only_that_fits():
-    n = 5000
+    n = 20000
     double, single = inverse_memory_bytes(n), inverse_memory_bytes(n, precision="single")
     assert single < 0.55 * double
     assert choose_precision(n, memory=double) == "double"
@@ -230,6 +232,35 @@ def test_memory_guard_knows_both_precisions():
         with pytest.raises(MemoryLimitError, match="single precision"):
             pull(normal, method="inverse", precision="single")
         assert pull(normal).method == "cg"
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_memory_estimate_covers_the_inverse_with_its_work_panels(monkeypatch, dtype):
+    """The estimate the guard checks covers what building the bond inverse allocates, also
+    by the block sweep that large orders take (forced here at a small order), whose two
+    n x SWEEP_BLOCK panels once went uncounted: an N = 512 pull of 77 036 bonds peaked
+    0.37 GiB above that estimate."""
+    from roughslip.contact.bonds import bond_inverse
+
+    normal = squeeze(self_affine((64, 64), hurst=0.8, rms_height=1.0, rng=sample_rng(9, 0)),
+                     depth=1.5, tol=1e-12)
+    b = Bonds(normal, 0.2)
+    assert b.n > 200
+    b.entries(np.arange(2), np.arange(2))  # the kernel tables exist before the count
+    monkeypatch.setattr(lapack64, "SWEEP_MIN_N", b.n - 1)
+    assert lapack64.cholesky_inverse_work_bytes(b.n, 4) > 8 * b.n * lapack64.SWEEP_BLOCK
+    tracemalloc.start()
+    try:
+        inv = bond_inverse(b, 16, 1, dtype=dtype)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    itemsize = np.dtype(dtype).itemsize
+    assert inv.buf.dtype == dtype
+    assert peak > itemsize * b.n**2 + 2 * itemsize * b.n * lapack64.SWEEP_BLOCK  # the panels
+    reserve = LOWER_RESERVE[0] + itemsize * b.n**2 * LOWER_RESERVE[1]
+    estimate = inverse_memory_bytes(b.n, 16, "single" if itemsize == 4 else "double")
+    assert peak <= estimate - reserve  # covered without the reserve for the rest
 
 
 def test_bad_precision():

@@ -100,8 +100,9 @@ PRECISIONS = ("auto", "double", "single")
 
 def inverse_memory_bytes(n: int, block: int = 128, precision: str = "double") -> int:
     """Peak memory of the ``"inverse"`` method for ``n`` bonds (bytes): one n x n matrix of
-    doubles (``precision="single"``: of floats), compacted in place, plus O(n block) work
-    arrays."""
+    doubles (``precision="single"``: of floats), compacted in place, plus the larger of the
+    factorisation's work panels and the O(n block) work arrays of the pull, and a reserve
+    (:func:`~roughslip.linalg.inverse.inverse_bytes`)."""
     return inverse_bytes(n, lower=True, block=block, itemsize=4 if precision == "single" else 8)
 
 

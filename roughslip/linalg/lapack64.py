@@ -31,6 +31,8 @@ LP64_MAX_N = 46340
 #: process; OpenBLAS issues #352 and #2562). The block sweep is GEMM-based and as fast (25 698:
 #: 172 s by the sweep, 2 threads).
 SWEEP_MIN_N = 16384
+#: the block of :func:`sweep_inverse`: its two work panels hold ``n x SWEEP_BLOCK`` entries each
+SWEEP_BLOCK = 1024
 
 _COL_MAJOR, _LOWER, _NO_TRANS, _TRANS = 102, 122, 111, 112
 _LIB = None
@@ -128,7 +130,18 @@ def cholesky_inverse(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def sweep_inverse(a: np.ndarray, block: int = 1024) -> np.ndarray:
+def cholesky_inverse_work_bytes(n: int, itemsize: int = 8) -> int:
+    """Memory :func:`cholesky_inverse` allocates besides the matrix (bytes): above
+    :data:`SWEEP_MIN_N`, the two ``n x SWEEP_BLOCK`` panels of :func:`sweep_inverse` and a
+    few copies of its pivot block (counted as four in double precision), else none (LAPACK
+    works in place)."""
+    if n > SWEEP_MIN_N:
+        block = min(SWEEP_BLOCK, n)
+        return 2 * itemsize * n * SWEEP_BLOCK + 32 * block * block
+    return 0
+
+
+def sweep_inverse(a: np.ndarray, block: int = SWEEP_BLOCK) -> np.ndarray:
     r"""Overwrite the lower triangle of SPD ``a`` with that of its inverse, by block sweeps.
 
     The sweep operator on a pivot block :math:`p` with the rest :math:`r`,
