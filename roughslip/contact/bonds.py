@@ -336,7 +336,7 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64
                      if dtype.itemsize == 8 and half <= available_bytes() else "")
             raise MemoryLimitError(
                 f"the inverse of G_xx on {n} bonds in {PRECISION_NAMES[dtype]} precision "
-                f"needs ~{need / 2**30:.1f} GiB but {available_bytes() / 2**30:.1f} GiB are "
+                f"needs ~{need / 2**30:.2f} GiB but {available_bytes() / 2**30:.2f} GiB are "
                 f"available; use {other}pull method 'cg' (exact, matrix-free) or 'batch' "
                 "(approximate)")
         return True

@@ -106,8 +106,8 @@ class WeakeningState:
             if inverse_bytes(m) > available_bytes():
                 raise MemoryLimitError(
                     f"slip-weakening: the inverse on {m} bonds needs "
-                    f"~{inverse_bytes(m) / 2**30:.1f} GiB but "
-                    f"{available_bytes() / 2**30:.1f} GiB are available")
+                    f"~{inverse_bytes(m) / 2**30:.2f} GiB but "
+                    f"{available_bytes() / 2**30:.2f} GiB are available")
             return True
 
         self.inv = UpdatableInverse(self._entries, n, room=room, threads=opt.threads,
