@@ -203,7 +203,7 @@ def test_near_ties_are_sharpened(pairs):
 
 
 def test_auto_chooses_double_when_it_fits_and_single_when_only_that_fits():
-    n = 20000
+    n = 20000  # large enough that the matrices outweigh the estimate's fixed reserve
     double, single = inverse_memory_bytes(n), inverse_memory_bytes(n, precision="single")
     assert single < 0.55 * double
     assert choose_precision(n, memory=double) == "double"

@@ -119,7 +119,7 @@ def cholesky_inverse(a: np.ndarray) -> np.ndarray:
             c, info = potri(c, lower=1, overwrite_c=1)
         if not np.shares_memory(c, a):
             raise NumericalError("LAPACK did not work in place")
-    elif n > SWEEP_MIN_N:
+    elif _sweeps(n, a.dtype):
         return sweep_inverse(a)
     else:
         info = lib.potrf(_COL_MAJOR, b"L", n, a.ctypes.data, n)
@@ -130,12 +130,17 @@ def cholesky_inverse(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def _sweeps(n: int, dtype: np.dtype) -> bool:
+    """Whether :func:`cholesky_inverse` of order ``n`` takes the block sweep."""
+    return n > SWEEP_MIN_N and _lib(dtype) is not None
+
+
 def cholesky_inverse_work_bytes(n: int, itemsize: int = 8) -> int:
-    """Memory :func:`cholesky_inverse` allocates besides the matrix (bytes): above
-    :data:`SWEEP_MIN_N`, the two ``n x SWEEP_BLOCK`` panels of :func:`sweep_inverse` and a
-    few copies of its pivot block (counted as four in double precision), else none (LAPACK
+    """Memory :func:`cholesky_inverse` allocates besides the matrix (bytes): when it takes
+    the block sweep, the two ``n x SWEEP_BLOCK`` panels of :func:`sweep_inverse` and a few
+    copies of its pivot block (counted as four in double precision), else none (LAPACK
     works in place)."""
-    if n > SWEEP_MIN_N:
+    if _sweeps(n, np.float32 if itemsize == 4 else np.float64):
         block = min(SWEEP_BLOCK, n)
         return 2 * itemsize * n * SWEEP_BLOCK + 32 * block * block
     return 0
