@@ -6,16 +6,15 @@ sideways until its contact bonds break (:func:`pull`). The documentation in ``do
 """
 
 from roughslip._version import __version__
-from roughslip.contact.coupled import (
+from roughslip.contact.problem import Problem
+from roughslip.contact.squeeze import NormalResult, NormalSolver, squeeze
+from roughslip.coupling.coupled import (
     CoupledResult,
     IndentResult,
     couple,
     indent,
     squeeze_pull_coupled,
 )
-from roughslip.contact.problem import Problem
-from roughslip.contact.pull import SlipResult, pull
-from roughslip.contact.squeeze import NormalResult, NormalSolver, squeeze
 from roughslip.elastic.operators import ElasticOperator, Grid, Material
 from roughslip.errors import (
     ConfigError,
@@ -27,6 +26,7 @@ from roughslip.errors import (
     RoughslipError,
     SizeLimitError,
 )
+from roughslip.friction.pull import SlipResult, pull
 from roughslip.run.config import RunConfig, load_config
 
 __all__ = [

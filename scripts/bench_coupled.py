@@ -24,9 +24,9 @@ import time
 from benchlib import depth_for_area  # the same scenes as the squeeze benchmark
 
 from roughslip import couple, pull
-from roughslip.contact.histories import HISTORIES
 from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import NormalSolver
+from roughslip.coupling.histories import HISTORIES
 from roughslip.elastic.operators import Grid, Material
 from roughslip.surfaces import sample_rng, self_affine
 

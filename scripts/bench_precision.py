@@ -32,7 +32,7 @@ def child(size: int, area: float, precision: str, threads: int, out: str) -> Non
     sys.path.insert(0, os.path.dirname(__file__))
     from bench_pull import contact
 
-    from roughslip.contact.pull import pull
+    from roughslip.friction.pull import pull
 
     normal = contact(size, area)
     before = _rss()

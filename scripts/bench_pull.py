@@ -27,9 +27,9 @@ import time
 from benchlib import depth_for_area
 
 from roughslip.contact.problem import Problem
-from roughslip.contact.pull import bond_spectrum, pull
 from roughslip.contact.squeeze import NormalSolver
 from roughslip.elastic.operators import Grid, Material
+from roughslip.friction.pull import bond_spectrum, pull
 from roughslip.surfaces.synthetic import sample_rng, self_affine
 
 

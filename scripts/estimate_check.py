@@ -15,8 +15,8 @@ import argparse
 
 import numpy as np
 
-from roughslip.contact.pull import pull
 from roughslip.contact.squeeze import squeeze
+from roughslip.friction.pull import pull
 from roughslip.surfaces.synthetic import sample_rng, self_affine
 
 FLOOR = 1e-13  # the reference's own accuracy: errors below are not resolved

@@ -19,10 +19,10 @@ from collections.abc import Callable
 import numpy as np
 
 from roughslip.contact.analytic import hertz, mindlin_bonded_punch_stiffness
-from roughslip.contact.pull import pull
 from roughslip.contact.squeeze import squeeze
 from roughslip.elastic.operators import ElasticOperator
 from roughslip.errors import InputError, NumericalError
+from roughslip.friction.pull import pull
 from roughslip.surfaces.synthetic import punch, sample_rng, self_affine, sphere
 
 ROWS: list[tuple[str, str, str, str, str, str]] = []

@@ -10,9 +10,9 @@ from click.testing import CliRunner
 
 from roughslip.analysis.bursts import fit_power_law, log_binned, pull_curve
 from roughslip.cli import cli
-from roughslip.contact.pull import pull
 from roughslip.contact.squeeze import squeeze
 from roughslip.errors import InputError
+from roughslip.friction.pull import pull
 from roughslip.run.config import dumps_toml, load_config
 from roughslip.run.executor import run
 from roughslip.surfaces.synthetic import sample_rng, self_affine

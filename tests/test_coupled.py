@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from roughslip.contact.coupled import squeeze_pull_coupled
-from roughslip.contact.histories import HISTORIES
-from roughslip.contact.pull import pull
 from roughslip.contact.squeeze import squeeze
+from roughslip.coupling.coupled import squeeze_pull_coupled
+from roughslip.coupling.histories import HISTORIES
 from roughslip.errors import InputError
+from roughslip.friction.pull import pull
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
 
 
@@ -126,8 +126,8 @@ def test_no_contact_and_bad_input():
 def test_reciprocity_of_the_coupled_block():
     """Maxwell-Betti: u_z at i from a unit f_x at j equals u_x at j from a unit f_z at i, and
     the reduced block the solver factorises is symmetric."""
-    from roughslip.contact.blocksolvers import DenseBlockSolver as _Dense
     from roughslip.contact.problem import Problem
+    from roughslip.coupling.blocksolvers import DenseBlockSolver as _Dense
     from roughslip.elastic.operators import Grid, Material
 
     grid, mat = Grid((9, 11)), Material(1.0, 0.1)
@@ -155,7 +155,7 @@ def test_dense_solver_checks_its_memory_first():
     """The dense path estimates its memory before it allocates: explicit ``dense`` refuses with
     the need, the budget and the alternatives; ``auto`` falls back to the matrix-free solver
     and says so (same events)."""
-    from roughslip.contact.coupled import dense_memory_bytes
+    from roughslip.coupling.coupled import dense_memory_bytes
     from roughslip.errors import MemoryLimitError
     from roughslip.linalg import memory
 
@@ -179,8 +179,8 @@ def test_dense_solver_checks_its_memory_first():
     free = squeeze_pull_coupled(h, **kw)
     with memory.limited(0.5 * need / 2**30):
         tight = squeeze_pull_coupled(h, tol=1e-13, **kw)
-    from roughslip.contact.coupled import indent
     from roughslip.contact.problem import Problem
+    from roughslip.coupling.coupled import indent
 
     pb = Problem.from_arrays(h, nu=0.25)
     with memory.limited(0.02 * need / 2**30):  # the indentation grows its inverse from one site
@@ -319,8 +319,8 @@ def test_updated_inverse_tracks_solutions_through_set_changes(symv_min):
     pending terms folded in) and its tracked solutions agree with a direct solve of the block
     to 1e-10 through a random sequence of set changes, from one factorisation; with the
     products by the symmetric kernel (lower triangle) or the general one."""
-    from roughslip.contact.blocksolvers import DenseBlockSolver as _Dense
     from roughslip.contact.problem import Problem
+    from roughslip.coupling.blocksolvers import DenseBlockSolver as _Dense
     from roughslip.elastic.operators import Grid, Material
 
     grid = Grid((12, 12))
@@ -366,9 +366,9 @@ def test_a_slow_rate_is_flat_only_on_the_scale_of_the_pull_so_far():
     interval came out empty, [inf, -inf]; the loop then evaluated the state at D = -inf
     (a NaN from 0 x inf). Over the pull so far the gap is not flat: it has been open since
     D = 0.1. A non-finite displacement is an error, never a NaN."""
-    from roughslip.contact.laws import LAWS
-    from roughslip.contact.state import ContactState as _State
+    from roughslip.coupling.state import ContactState as _State
     from roughslip.errors import NumericalError
+    from roughslip.friction.laws import LAWS
 
     st = object.__new__(_State)
     st.C = np.array([[True, True, False]])
@@ -397,7 +397,7 @@ def test_bulk_passes_by_cg_then_the_updated_inverse_match_the_reference(monkeypa
     ``bulk_min`` unknowns; the inverse is built for the set they leave. Forced on a small
     grid, the path is the reference's (every state factorised afresh, dense sums), event for
     event, to 1e-8."""
-    from roughslip.contact import blocksolvers
+    from roughslip.coupling import blocksolvers
 
     h = rough(16, seed=seed)
     ref = squeeze_pull_coupled(h, **load, lam=0.2, nu=0.25, method="dense", reference=True)
@@ -522,8 +522,8 @@ def _cylinder(n=64, radius=None):
 def test_indentation_at_half_poisson_ratio_is_the_frictionless_squeeze():
     """At nu = 1/2 nothing couples: every site touches and stays stuck with no tangential
     force, and the normal forces are the frictionless squeeze's at the same depth."""
-    from roughslip.contact.coupled import indent
     from roughslip.contact.problem import Problem
+    from roughslip.coupling.coupled import indent
 
     h = sphere((14, 14), radius=12.0)
     r = indent(Problem.from_arrays(h, nu=0.5), depth=0.8, lam=0.2)
@@ -542,8 +542,8 @@ def test_indentation_agrees_between_the_solvers_and_the_direct_reference(case):
     reference follow the same events to 1e-8, every state is admissible, and slip runs the
     way the theory says: for nu < 1/2 the surface is drawn towards the middle of the contact,
     so friction pushes it outwards (f_x < 0 on the left, > 0 on the right of a cylinder)."""
-    from roughslip.contact.coupled import indent
     from roughslip.contact.problem import Problem
+    from roughslip.coupling.coupled import indent
 
     if case == "sphere":
         pb = Problem.from_arrays(sphere((12, 12), radius=10.0), nu=0.0)
@@ -584,8 +584,8 @@ def test_the_stick_zone_of_a_loaded_cylinder_is_the_continuum_one(ratio):
     of the continuum value, and each new contact costs a couple of events (not the 24 of a
     slip zone sticking and slipping again at every new contact)."""
     from roughslip.contact.analytic import plane_indentation_stick_ratio
-    from roughslip.contact.coupled import indent
     from roughslip.contact.problem import Problem
+    from roughslip.coupling.coupled import indent
 
     nu = 0.49
     beta = (1 - 2 * nu) / (2 * (1 - nu))
@@ -605,8 +605,8 @@ def test_the_stick_zone_of_a_loaded_cylinder_is_the_continuum_one(ratio):
 
 
 def test_indentation_rejects_bad_input():
-    from roughslip.contact.coupled import indent
     from roughslip.contact.problem import Problem
+    from roughslip.coupling.coupled import indent
 
     pb = Problem.from_arrays(sphere((8, 8), radius=5.0), nu=0.3)
     for kw, match in (({"depth": -1.0}, "depth"), ({"depth": float("nan")}, "depth"),
@@ -645,8 +645,8 @@ def test_the_coupled_squeeze_under_load_honours_the_squeeze_method():
     """Under load control the starting contact set comes from the frictionless squeeze by
     the chosen method; the coupled squeeze corrects it exactly, so both methods give the same
     answer to the solver's tolerance, and an unknown method is an error that names it."""
-    from roughslip.contact.coupled import couple
     from roughslip.contact.problem import Problem
+    from roughslip.coupling.coupled import couple
     from roughslip.elastic.operators import Grid, Material
 
     h = self_affine((20, 20), hurst=0.8, rms_height=1.0, rng=sample_rng(2, 0))

@@ -12,7 +12,6 @@ from click.testing import CliRunner
 
 from roughslip.cli import cli
 from roughslip.contact.analytic import mindlin_bonded_punch_stiffness
-from roughslip.contact.pull import pull
 from roughslip.contact.squeeze import squeeze
 from roughslip.elastic.operators import ElasticOperator
 from roughslip.errors import (
@@ -22,6 +21,7 @@ from roughslip.errors import (
     OutputError,
     WorkerError,
 )
+from roughslip.friction.pull import pull
 from roughslip.linalg import memory
 from roughslip.run.config import dumps_toml, load_config
 from roughslip.run.executor import estimate_memory, run

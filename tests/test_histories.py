@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from roughslip.contact.coupled import couple, indent
-from roughslip.contact.histories import HISTORIES
 from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import squeeze
+from roughslip.coupling.coupled import couple, indent
+from roughslip.coupling.histories import HISTORIES
 from roughslip.errors import InputError
 from roughslip.surfaces.synthetic import sample_rng, self_affine
 

@@ -8,13 +8,13 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from roughslip.contact.coupled import couple, indent
-from roughslip.contact.laws import LAWS, CoulombLaw
 from roughslip.contact.problem import Problem
-from roughslip.contact.pull import pull
 from roughslip.contact.squeeze import squeeze
+from roughslip.coupling.coupled import couple, indent
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import InputError
+from roughslip.friction.laws import LAWS, CoulombLaw
+from roughslip.friction.pull import pull
 from roughslip.surfaces.synthetic import sample_rng, self_affine
 
 

@@ -8,15 +8,15 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from roughslip.contact.bonds import Bonds
-from roughslip.contact.pull import (
+from roughslip.contact.squeeze import squeeze
+from roughslip.errors import InputError, MemoryLimitError
+from roughslip.friction.bonds import Bonds
+from roughslip.friction.pull import (
     choose_method,
     choose_precision,
     inverse_memory_bytes,
     pull,
 )
-from roughslip.contact.squeeze import squeeze
-from roughslip.errors import InputError, MemoryLimitError
 from roughslip.linalg import lapack64, memory
 from roughslip.linalg.inverse import LOWER_RESERVE, UpdatableInverse
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
@@ -103,8 +103,8 @@ def test_per_row_bound_holds_against_the_dense_inverse():
     """The diagonal taken at a fold bounds the exact diagonal of the stick set's inverse
     after further removals, and sqrt(nu d_i) ||r|| bounds each row's error of the tracked
     solution (against a dense float64 solve)."""
-    from roughslip.contact.bonds import BondRows, bond_inverse, track
-    from roughslip.contact.breaking_single import _Bound
+    from roughslip.friction.bonds import BondRows, bond_inverse, track
+    from roughslip.friction.breaking_single import _Bound
 
     normal = squeeze(self_affine((40, 40), hurst=0.8, rms_height=1.0, rng=sample_rng(9, 0)),
                      depth=2.0, tol=1e-13)
@@ -240,7 +240,7 @@ def test_memory_estimate_covers_the_inverse_with_its_work_panels(monkeypatch, dt
     by the block sweep that large orders take (forced here at a small order), whose two
     n x SWEEP_BLOCK panels once went uncounted: an N = 512 pull of 77 036 bonds peaked
     0.37 GiB above that estimate."""
-    from roughslip.contact.bonds import bond_inverse
+    from roughslip.friction.bonds import bond_inverse
 
     normal = squeeze(self_affine((64, 64), hurst=0.8, rms_height=1.0, rng=sample_rng(9, 0)),
                      depth=1.5, tol=1e-12)

@@ -285,8 +285,8 @@ def test_coupled_run_under_load_control_holds_the_force(tmp_path):
 def test_coupled_run_with_the_coulomb_law_is_the_library_result(tmp_path):
     """pull.slip_law = "coulomb" with coupling: the run stores what the library computes for
     the same scene, and its notes count the bonds slipping from the start."""
-    from roughslip.contact.coupled import couple
     from roughslip.contact.problem import Problem
+    from roughslip.coupling.coupled import couple
     from roughslip.run.scene import Scene
 
     data = {**CFG, "grid": {"n": 16}, "ensemble": {"samples": 1, "seed": 3},
@@ -384,7 +384,7 @@ def test_runs_started_before_keys_were_renamed_or_added_resume(tmp_path):
 def test_coupled_run_says_when_the_dense_inverse_did_not_fit(tmp_path, monkeypatch):
     """A coupled run whose block inverse does not fit the memory budget goes on matrix-free:
     same friction forces, and the sample's notes say why."""
-    from roughslip.contact import blocksolvers
+    from roughslip.coupling import blocksolvers
 
     data = {**CFG, "grid": {"n": 16}, "ensemble": {"samples": 1, "seed": 3},
             "material": {"nu": 0.25}, "coupling": {"enabled": True}}

@@ -9,16 +9,16 @@ import pytest
 
 from roughslip.analysis.verify import hertz_scene
 from roughslip.contact.analytic import cattaneo_mindlin, mindlin_bonded_punch_stiffness
-from roughslip.contact.bonds import Bonds as _Bonds
-from roughslip.contact.pull import (
+from roughslip.contact.squeeze import squeeze
+from roughslip.errors import InputError, MemoryLimitError
+from roughslip.friction.bonds import Bonds as _Bonds
+from roughslip.friction.pull import (
     bond_spectrum,
     choose_method,
     coulomb_force_at,
     pull,
     refinement_estimate,
 )
-from roughslip.contact.squeeze import squeeze
-from roughslip.errors import InputError, MemoryLimitError
 from roughslip.linalg import memory
 from roughslip.surfaces.synthetic import punch, sample_rng, self_affine, sphere
 
@@ -327,7 +327,7 @@ def test_coulomb_force_at_follows_the_drive_past_an_avalanche():
     backwards), and a break-law result is refused."""
     from dataclasses import replace
 
-    from roughslip.contact.bonds import SlipResult
+    from roughslip.friction.bonds import SlipResult
 
     z = np.zeros((1, 3))
     res = SlipResult(friction_force=5.0, peak_index=3, dx_lim=np.array([1.0, 2.0, 1.5, 3.0]),
@@ -346,9 +346,9 @@ def test_a_slipping_bond_that_sticks_again_keeps_its_force_and_the_equilibrium()
     forced here): after some slip events a slipping bond sticks again at the current pull;
     no force jumps, and on every stick bond, before and after further events, the FFT-free
     dense equilibrium G_xx f = D + offset holds, slip forces included."""
-    from roughslip.contact.bonds import Bonds, PullOptions
-    from roughslip.contact.laws import LAWS
-    from roughslip.contact.sliding import TangentialState
+    from roughslip.friction.bonds import Bonds, PullOptions
+    from roughslip.friction.laws import LAWS
+    from roughslip.friction.sliding import TangentialState
 
     h = self_affine((20, 20), hurst=0.8, rms_height=1.0, rng=sample_rng(3, 0))
     normal = squeeze(h, depth=1.2, nu=0.3, tol=1e-13)

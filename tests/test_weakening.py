@@ -1,4 +1,4 @@
-"""The slip-weakening law (roughslip.contact.weakening): its limits, every state of its path
+"""The slip-weakening law (roughslip.friction.weakening): its limits, every state of its path
 against a dense equilibrium of the law, its bursts, and its inputs."""
 
 from __future__ import annotations
@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from roughslip import couple, pull
-from roughslip.contact import weakening
 from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import NormalSolver
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import InputError
+from roughslip.friction import weakening
 from roughslip.surfaces import sphere
 
 LAM = 0.2

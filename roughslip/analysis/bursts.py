@@ -1,6 +1,6 @@
 r"""The pull as an experiment sees it: the curve under monotone :math:`D_x`, and its bursts.
 
-The break law's pull (:mod:`roughslip.contact.pull`) yields the break sequence
+The break law's pull (:mod:`roughslip.friction.pull`) yields the break sequence
 :math:`(D_{x,{\rm lim},i}, F_{x,{\rm lim},i})`, :math:`i = 0, 1, \dots`: break :math:`i` would
 happen at :math:`D_{x,{\rm lim},i}` with the stick set :math:`S_i` it finds, whose stiffness is
 :math:`K_i = \mathbf 1^T G_{xx}[S_i,S_i]^{-1}\mathbf 1 = F_{x,{\rm lim},i}/D_{x,{\rm lim},i}`
@@ -40,8 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from roughslip.contact.laws import LAWS
 from roughslip.errors import InputError
+from roughslip.friction.laws import LAWS
 
 PHASES = ("all", "before", "after")
 

@@ -11,8 +11,8 @@ import numpy as np
 
 from roughslip.analysis.fit import fit_power_law, quantity
 from roughslip.analysis.summary import axis_unit, length_unit, pixel_size
-from roughslip.contact.laws import LAWS
 from roughslip.errors import InputError, io_failure
+from roughslip.friction.laws import LAWS
 from roughslip.run.store import read_run
 
 

@@ -60,18 +60,18 @@ from pathlib import Path
 import numpy as np
 
 from roughslip.contact import analytic
-from roughslip.contact.coupled import couple
 from roughslip.contact.estimates import squeeze_correction
 from roughslip.contact.problem import Problem
-from roughslip.contact.pull import (
+from roughslip.contact.squeeze import NormalResult, squeeze
+from roughslip.coupling.coupled import couple
+from roughslip.errors import VerificationError
+from roughslip.friction.pull import (
     SlipResult,
     bond_spectrum,
     coulomb_force_at,
     pull,
     refinement_estimate,
 )
-from roughslip.contact.squeeze import NormalResult, squeeze
-from roughslip.errors import VerificationError
 from roughslip.surfaces.synthetic import punch as punch_shape
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sinusoid, sphere
 

@@ -1,3 +1,4 @@
-"""Contact mechanics: the problem object (:mod:`.problem`), the squeeze (:mod:`.squeeze`), the
-decoupled pull (:mod:`.pull`), the coupled model (:mod:`.coupled`), the method registries
-(:mod:`.methods`) and the closed-form references (:mod:`.analytic`)."""
+"""Contact mechanics: the problem object (:mod:`.problem`), the squeeze (:mod:`.squeeze`) and
+its estimates (:mod:`.estimates`), the method registries (:mod:`.methods`) and the closed-form
+references (:mod:`.analytic`). The pull is in :mod:`roughslip.friction`, the coupled model in
+:mod:`roughslip.coupling`."""

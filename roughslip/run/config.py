@@ -29,9 +29,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from roughslip.contact.laws import LAWS, LawParameterError
-from roughslip.contact.pull import methods_for
 from roughslip.errors import ConfigError
+from roughslip.friction.laws import LAWS, LawParameterError
+from roughslip.friction.pull import methods_for
 from roughslip.run import schema
 from roughslip.run.digest import RENAMED, RETIRED
 from roughslip.run.machine import machine_file, read_machine

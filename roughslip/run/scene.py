@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from roughslip.contact.coupled import COUPLED_TOL
+from roughslip.coupling.coupled import COUPLED_TOL
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import InputError
 from roughslip.run import schema

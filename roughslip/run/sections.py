@@ -16,12 +16,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from roughslip.contact.histories import HISTORIES
-from roughslip.contact.laws import LAWS
-from roughslip.contact.pull import METHODS as PULL_METHODS
-from roughslip.contact.pull import PRECISIONS as PULL_PRECISIONS
 from roughslip.contact.squeeze import METHODS as SQUEEZE_METHODS
+from roughslip.coupling.histories import HISTORIES
 from roughslip.elastic.boundaries import BOUNDARIES
+from roughslip.friction.laws import LAWS
+from roughslip.friction.pull import METHODS as PULL_METHODS
+from roughslip.friction.pull import PRECISIONS as PULL_PRECISIONS
 from roughslip.run import digest as digests
 from roughslip.run import schema
 from roughslip.run.rules import (

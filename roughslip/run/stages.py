@@ -19,12 +19,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from roughslip.contact.coupled import COUPLED_TOL, couple
-from roughslip.contact.laws import LAWS
 from roughslip.contact.problem import Problem
-from roughslip.contact.pull import SlipResult, pull
 from roughslip.contact.squeeze import NormalResult, NormalSolver
+from roughslip.coupling.coupled import COUPLED_TOL, couple
 from roughslip.errors import ConvergenceError, NumericalError
+from roughslip.friction.laws import LAWS
+from roughslip.friction.pull import SlipResult, pull
 from roughslip.run.scene import Scene
 
 

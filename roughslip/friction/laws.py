@@ -13,7 +13,7 @@ affine constraint rows per stick site, :math:`\lambda f_z - f_x \ge 0` (event ``
   slipping bond whose slip the drive would turn around sticks again where it is (event
   ``"stick"``);
 * **its decoupled pull methods** (:attr:`SlipLaw.pull_runs`, by name of
-  :data:`roughslip.contact.pull.METHODS`).
+  :data:`roughslip.friction.pull.METHODS`).
 
 The laws are registered in :data:`LAWS`, which the configuration reads for the choices and the
 help of ``pull.slip_law``. docs/extending.md says how to add one.
@@ -28,12 +28,12 @@ from typing import ClassVar
 
 import numpy as np
 
-from roughslip.contact.breaking import break_batch, break_cg, break_inverse, break_literal
-from roughslip.contact.events import RATE_TIE, TIE
 from roughslip.contact.methods import Registry
-from roughslip.contact.sliding import slide
-from roughslip.contact.weakening import weaken
 from roughslip.errors import InputError
+from roughslip.friction.breaking import break_batch, break_cg, break_inverse, break_literal
+from roughslip.friction.events import RATE_TIE, TIE
+from roughslip.friction.sliding import slide
+from roughslip.friction.weakening import weaken
 
 
 class LawParameterError(InputError):
@@ -72,7 +72,7 @@ class SlipLaw:
     pull_runs
         Its decoupled pull methods: ``{method name: run(bonds, options, t0)}``.
     couples
-        The coupled model (:func:`~roughslip.contact.coupled.couple`) runs it exactly.
+        The coupled model (:func:`~roughslip.coupling.coupled.couple`) runs it exactly.
     lands
         Its decoupled pull records the state each burst lands in, at the drive (an event
         with site -1): :func:`roughslip.analysis.bursts.landing_curve` reads its curve.
@@ -81,7 +81,7 @@ class SlipLaw:
         (``pull(..., precision="single")``).
     """
 
-    #: the law's own parameters: keywords of :func:`~roughslip.contact.pull.pull` and keys
+    #: the law's own parameters: keywords of :func:`~roughslip.friction.pull.pull` and keys
     #: of ``[pull]``
     params: ClassVar[tuple[str, ...]] = ()
 
@@ -171,7 +171,7 @@ class CoulombLaw(SlipLaw):
 
 @dataclass(frozen=True)
 class SlipWeakeningLaw(SlipLaw):
-    r"""Linear slip-weakening friction (:mod:`roughslip.contact.weakening`): a failed bond
+    r"""Linear slip-weakening friction (:mod:`roughslip.friction.weakening`): a failed bond
     slips, and its strength falls from :math:`\lambda_s f_z` (``lam``) to
     :math:`\lambda_d f_z` (``lam_dynamic``) over the slip :math:`d_c` (``slip_distance``).
     The break law is its limit :math:`\lambda_d = 0,\ d_c \to 0`; the Coulomb law is

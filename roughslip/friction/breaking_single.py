@@ -2,7 +2,7 @@ r"""The break law's exact pull on a single-precision inverse, with certified dec
 (``pull(..., precision="single")``; docs/theory/pull.rst#single-precision).
 
 The inverse of :math:`G_{xx}` on the bonds is stored in float32
-(:func:`~roughslip.contact.bonds.bond_inverse`): half the memory of the double-precision
+(:func:`~roughslip.friction.bonds.bond_inverse`): half the memory of the double-precision
 method, and its factorisation and folding run at the single-precision flop rate. Everything
 else is double: the tracked :math:`\tilde\varphi`, its residual against the FFT operator,
 the refinement and the pending rank-one terms. Only the stored matrix carries the
@@ -41,8 +41,8 @@ The error bound
 
 Certified decisions
     The next bond is the one with the largest :math:`|\varphi_i|/(\lambda f_{z,i})`, ties
-    within a relative :data:`~roughslip.contact.events.TIE` to the lowest index
-    (:func:`~roughslip.contact.events.argext`). When the bound leaves more than one row able
+    within a relative :data:`~roughslip.friction.events.TIE` to the lowest index
+    (:func:`~roughslip.friction.events.argext`). When the bound leaves more than one row able
     to be that bond, the candidates are *sharpened*: one FFT gives :math:`r`, and
     :math:`\hat\varphi_i = \tilde\varphi_i + \tilde c_i^T r` for each candidate (error
     :math:`\le \nu\,\|\rho_i\|\,\|r\| \le \nu\hat\gamma\|\tilde c_i\|\,\|r\|`, second
@@ -68,7 +68,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, eigsh
 
-from roughslip.contact.bonds import (
+from roughslip.errors import NumericalError
+from roughslip.friction.bonds import (
     BondRows,
     Bonds,
     BreakCurve,
@@ -78,8 +79,7 @@ from roughslip.contact.bonds import (
     stick_residual,
     track,
 )
-from roughslip.contact.events import TIE, argext
-from roughslip.errors import NumericalError
+from roughslip.friction.events import TIE, argext
 from roughslip.linalg.cg import cg
 from roughslip.linalg.inverse import UpdatableInverse
 

@@ -41,8 +41,8 @@ class Event:
 @dataclass(frozen=True)
 class Curve:
     """A pull curve, one entry per event: the vocabulary the decoupled pull
-    (:attr:`roughslip.contact.bonds.SlipResult.curve`) and the coupled model
-    (:attr:`roughslip.contact.coupled.CoupledResult.curve`) share."""
+    (:attr:`roughslip.friction.bonds.SlipResult.curve`) and the coupled model
+    (:attr:`roughslip.coupling.coupled.CoupledResult.curve`) share."""
 
     dx: np.ndarray  # D_x
     fx: np.ndarray  # F_x, the total tangential force
@@ -147,8 +147,8 @@ class EventPath:
 
 class EventState(Protocol):
     """What :func:`follow_events` asks of a state: the coupled model's
-    :class:`~roughslip.contact.state.ContactState` and the decoupled pull's
-    :class:`~roughslip.contact.sliding.TangentialState` implement it. Sites are flat grid
+    :class:`~roughslip.coupling.state.ContactState` and the decoupled pull's
+    :class:`~roughslip.friction.sliding.TangentialState` implement it. Sites are flat grid
     indices."""
 
     C: np.ndarray  # contact sites (bool grid)
@@ -185,10 +185,10 @@ def follow_events(st: EventState, limit: int, record_states: bool,
                   end: float | Callable[[], float] = math.inf, *, landings: bool = False,
                   avalanche_peaks: bool = True) -> EventPath:
     """Follow the events from D = 0 (module docstring): for a pull until no bond holds
-    (:meth:`EventState.holds`), for a driven depth (:func:`~roughslip.contact.coupled.indent`)
+    (:meth:`EventState.holds`), for a driven depth (:func:`~roughslip.coupling.coupled.indent`)
     until ``end``. A callable ``end`` is asked again after every solve: the end of a drive
     known only through the current state (the depth at which an indentation reaches a normal
-    force, :func:`~roughslip.contact.histories.indent_to`).
+    force, :func:`~roughslip.coupling.histories.indent_to`).
 
     ``landings``: record the state an avalanche ends in, at the drive that set it off (event
     ``"jump"``), and the state after an event that changed the forces at constant drive

@@ -37,7 +37,7 @@ than the elastic force it carries, down to :math:`\lambda_d f_z`). A weakening b
 stability when a neighbour is released does the same: the one nearest its residual strength
 among those whose release restores stability (:math:`(M^{-1})_{jj} > 0`). The drive is held
 while the new state violates a bound, and each further failure happens there; the event loop
-(:func:`~roughslip.contact.events.follow_events`) records each intermediate state at its own
+(:func:`~roughslip.friction.events.follow_events`) records each intermediate state at its own
 limit below the drive, and the state the burst lands in at the drive (event ``"jump"``). The
 friction force is the largest force of the stable path and the landings, never of a state
 inside a burst. Every state the loop accepts is stable.
@@ -59,9 +59,9 @@ import time
 
 import numpy as np
 
-from roughslip.contact.bonds import Bonds, PullOptions, SlipResult
-from roughslip.contact.events import RATE_TIE, TIE, Snapshot, argext, event_table, follow_events
 from roughslip.errors import MemoryLimitError, NumericalError
+from roughslip.friction.bonds import Bonds, PullOptions, SlipResult
+from roughslip.friction.events import RATE_TIE, TIE, Snapshot, argext, event_table, follow_events
 from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 
@@ -249,7 +249,7 @@ class WeakeningState:
 
     def interval(self, D: float) -> tuple[float, float, str, int]:
         """The admissible interval of the drive and the event ending it
-        (:func:`~roughslip.contact.events.event_table`)."""
+        (:func:`~roughslip.friction.events.event_table`)."""
         if not self.stable():  # a weakening bond runs away: admissible nowhere
             return math.inf, -math.inf, "snap", -1
         cons, ids, _ = self._cons(D)
@@ -440,7 +440,7 @@ class WeakeningState:
 
 def weaken(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
     r"""The decoupled pull under slip-weakening friction to full sliding, on the event loop
-    (:func:`~roughslip.contact.events.follow_events`): the exact piecewise-linear path, its
+    (:func:`~roughslip.friction.events.follow_events`): the exact piecewise-linear path, its
     bursts at constant drive, and the state each lands in (module docstring).
     ``friction_force`` is the largest force of the stable path and the landings."""
     st = WeakeningState(b, opt)

@@ -18,10 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from roughslip.contact.events import Curve, argext
 from roughslip.contact.squeeze import NormalResult
 from roughslip.elastic.operators import ElasticOperator
 from roughslip.errors import MemoryLimitError, NumericalError
+from roughslip.friction.events import Curve, argext
 from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.restricted import Restricted
@@ -151,7 +151,7 @@ class PullOptions:
     max_iter: int = 10_000
     #: BLAS threads of the dense methods
     threads: int = 1
-    #: the slip law itself (:data:`roughslip.contact.laws.LAWS`), for the methods that run
+    #: the slip law itself (:data:`roughslip.friction.laws.LAWS`), for the methods that run
     #: every law
     law: object = None
     #: the precision of the stored inverse (``"double"`` or ``"single"``)
@@ -241,7 +241,7 @@ class Bonds:
 
 def select(phi: np.ndarray, cap: np.ndarray) -> tuple[int, float]:
     r"""Position of the next bond to break and the maximum ratio :math:`|\varphi|/(\lambda
-    f_z)` (ties: :func:`~roughslip.contact.events.argext`)."""
+    f_z)` (ties: :func:`~roughslip.friction.events.argext`)."""
     ratio = np.abs(phi) / cap
     m = float(ratio.max())
     if not math.isfinite(m):

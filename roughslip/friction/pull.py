@@ -32,7 +32,7 @@ Methods (all exact except ``"batch"``)
     :math:`O(n)` per break and certified against the FFT operator after every block. Needs
     one :math:`n \times n` matrix of doubles, compacted in place as bonds break (checked
     before starting, see :func:`inverse_memory_bytes`); with ``precision="single"`` (break
-    law) one of floats, with certified decisions (:mod:`roughslip.contact.breaking_single`).
+    law) one of floats, with certified decisions (:mod:`roughslip.friction.breaking_single`).
     ``"cg"``: matrix-free; per break a warm-started CG solve of the correction, with the early
     stop. Memory :math:`O(N^2)`.
     ``"batch"``: approximate; breaks the ``batch_size`` sites with the largest ratios per solve.
@@ -48,35 +48,35 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from roughslip.contact.bonds import Bonds, BreakCurve, PullOptions, SlipResult
-from roughslip.contact.events import TIE
-from roughslip.contact.laws import LAWS
 from roughslip.contact.methods import Registry
-from roughslip.contact.pull_estimates import (  # noqa: F401  (public here too)
+from roughslip.contact.squeeze import NormalResult
+from roughslip.errors import InputError
+from roughslip.friction.bonds import Bonds, BreakCurve, PullOptions, SlipResult
+from roughslip.friction.events import TIE
+from roughslip.friction.laws import LAWS
+from roughslip.friction.pull_estimates import (  # noqa: F401  (public here too)
     REFINE_TOL,
     bond_spectrum,
     normal_share,
     refinement_estimate,
 )
-from roughslip.contact.squeeze import NormalResult
-from roughslip.errors import InputError
 from roughslip.linalg import lapack64
 from roughslip.linalg.inverse import inverse_bytes
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.threads import blas_threads
 
-#: the slip laws' names when this module was loaded (:data:`roughslip.contact.laws.LAWS` is
+#: the slip laws' names when this module was loaded (:data:`roughslip.friction.laws.LAWS` is
 #: the registry)
 SLIP_LAWS = LAWS.names()
-#: deprecated: the tie rule is :func:`roughslip.contact.events.argext` with
-#: :data:`roughslip.contact.events.TIE`
+#: deprecated: the tie rule is :func:`roughslip.friction.events.argext` with
+#: :data:`roughslip.friction.events.TIE`
 TIE_TOL = TIE
 
 
 @dataclass(frozen=True)
 class PullMethod:
     """A pull method. Each slip law says which methods it has and runs them
-    (:attr:`roughslip.contact.laws.SlipLaw.pull_runs`).
+    (:attr:`roughslip.friction.laws.SlipLaw.pull_runs`).
 
     Attributes
     ----------
@@ -108,7 +108,7 @@ def inverse_memory_bytes(n: int, block: int = 128, precision: str = "double") ->
 
 def _single_ok(slip_law: str) -> bool:
     """Whether ``slip_law`` has the single-precision inverse
-    (:attr:`~roughslip.contact.laws.SlipLaw.single`)."""
+    (:attr:`~roughslip.friction.laws.SlipLaw.single`)."""
     return LAWS.get(slip_law, "slip_law").single
 
 
@@ -141,7 +141,7 @@ def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
 
 def check_friction(lam: float, slip_law: str, coupled: bool = False) -> None:
     """Raise :class:`InputError` unless ``lam`` is a finite number > 0 and ``slip_law`` a name
-    in :data:`~roughslip.contact.laws.LAWS` (the pull, the coupled model and the indentation
+    in :data:`~roughslip.friction.laws.LAWS` (the pull, the coupled model and the indentation
     share the rule), which the coupled model runs when ``coupled``."""
     if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
         raise InputError(f"lam = {lam!r}: must be a finite number > 0")
@@ -223,7 +223,7 @@ def pull(
         ``"break"``: a broken bond carries no force (the report). ``"coulomb"``: a slipping
         site carries :math:`\lambda f_z`. ``"slip-weakening"``: a slipping site's strength
         falls from :math:`\lambda f_z` to ``lam_dynamic`` :math:`f_z` over the slip
-        ``slip_distance`` (:mod:`roughslip.contact.weakening`).
+        ``slip_distance`` (:mod:`roughslip.friction.weakening`).
     method : str
         A name from :data:`METHODS`: ``"auto"``, ``"literal"``, ``"inverse"``, ``"cg"`` or
         ``"batch"`` (module docstring). ``"auto"`` picks an exact method by bond count and
@@ -257,7 +257,7 @@ def pull(
         The precision of the ``"inverse"`` method's stored matrix. ``"single"`` (the break
         law) stores it in float32, half the memory, and keeps the break sequence and the
         friction force exact by certified decisions
-        (:mod:`roughslip.contact.breaking_single`). ``"auto"``: double when its matrix fits
+        (:mod:`roughslip.friction.breaking_single`). ``"auto"``: double when its matrix fits
         in the memory available, else single (:func:`choose_precision`). The other methods
         take ``"auto"`` only.
 

@@ -4,7 +4,7 @@ docs/methods.rst#cattaneo-mindlin).
 
 The normal forces are those of the squeeze and do not change. With the stick set :math:`S` and
 the slipping set :math:`L`, whose bonds carry fixed forces :math:`f_L = w f_z` (the slip law's
-:meth:`~roughslip.contact.laws.SlipLaw.carried`; nothing under the break law), the stick forces
+:meth:`~roughslip.friction.laws.SlipLaw.carried`; nothing under the break law), the stick forces
 are affine in the pull:
 
 .. math:: f_S = D\,\varphi - \psi, \qquad G_{SS}\varphi = 1_S, \qquad
@@ -14,9 +14,9 @@ with :math:`o` the offsets of bonds that stuck again. When bond :math:`k` fails,
 :math:`\varphi \leftarrow \varphi - c\,\varphi_k/c_k` and
 :math:`\psi \leftarrow \psi - c\,(\psi_k + f_{L,k})/c_k` (:math:`c` the column of
 :math:`G_{SS}^{-1}`), in :math:`O(n)` on the updated inverse
-(:func:`~roughslip.contact.bonds.bond_inverse`); both are certified against the FFT operator
+(:func:`~roughslip.friction.bonds.bond_inverse`); both are certified against the FFT operator
 after each block. The events, the avalanches at constant drive and the reversal rule are the
-event loop's (:func:`~roughslip.contact.events.follow_events`), the same as in the coupled
+event loop's (:func:`~roughslip.friction.events.follow_events`), the same as in the coupled
 model. A bond that sticks again (rare: none on the rough test scenes) changes the stick set
 upwards, and the inverse is factorised afresh on it.
 """
@@ -28,7 +28,8 @@ import time
 
 import numpy as np
 
-from roughslip.contact.bonds import (
+from roughslip.errors import NumericalError
+from roughslip.friction.bonds import (
     BondRows,
     Bonds,
     PullOptions,
@@ -38,14 +39,13 @@ from roughslip.contact.bonds import (
     shrinking_only,
     track,
 )
-from roughslip.contact.events import TIE, Snapshot, argext, event_table, follow_events
-from roughslip.errors import NumericalError
+from roughslip.friction.events import TIE, Snapshot, argext, event_table, follow_events
 from roughslip.linalg.inverse import Tracked
 
 
 class TangentialState:
     """The bonds of a squeeze under a slip law, affine in the pull (module docstring); an
-    :class:`~roughslip.contact.events.EventState`."""
+    :class:`~roughslip.friction.events.EventState`."""
 
     def __init__(self, b: Bonds, opt: PullOptions) -> None:
         self.b, self.law, self.opt = b, opt.law, opt
@@ -101,7 +101,7 @@ class TangentialState:
 
     def interval(self, D: float) -> tuple[float, float, str, int]:
         """The admissible interval of the drive and the event ending it: the stick rows of the
-        slip law on the live bonds (:func:`~roughslip.contact.events.event_table`)."""
+        slip law on the live bonds (:func:`~roughslip.friction.events.event_table`)."""
         phi, psi, fz, live = self._rows()
         Dref = max(self.Dscale, abs(D))
         fs = max(float(np.abs(fz).max()), np.finfo(float).tiny)
@@ -129,7 +129,7 @@ class TangentialState:
 
     def reversal(self) -> int | None:
         """A slipping bond whose slip the pull would turn around (the slip law's
-        :meth:`~roughslip.contact.laws.SlipLaw.turned_back`): one FFT product per stick set,
+        :meth:`~roughslip.friction.laws.SlipLaw.turned_back`): one FFT product per stick set,
         only under a law that reverses and while bonds slip."""
         slipping = self.sigma != 0
         if not (self.law.reverses and slipping.any()):

@@ -4,7 +4,7 @@ T17 and T18).
 
 On the stick set :math:`S`, :math:`G_{xx}[S,S]\,\varphi = 1_S` and :math:`f_x = D_x\varphi`;
 the next bond breaks at :math:`D_{x,\rm lim} = 1/\max_i |\varphi_i|/(\lambda f_{z,i})`. The
-methods differ in how they get :math:`\varphi` for each stick set (:mod:`roughslip.contact.pull`
+methods differ in how they get :math:`\varphi` for each stick set (:mod:`roughslip.friction.pull`
 lists them).
 """
 
@@ -15,7 +15,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from roughslip.contact.bonds import (
+from roughslip.friction.bonds import (
     BondRows,
     Bonds,
     BreakCurve,
@@ -27,7 +27,7 @@ from roughslip.contact.bonds import (
     stick_residual,
     track,
 )
-from roughslip.contact.breaking_single import break_inverse_single
+from roughslip.friction.breaking_single import break_inverse_single
 from roughslip.linalg.cg import CGResult, cg
 
 
@@ -77,10 +77,10 @@ def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> SlipR
 
 
 def break_inverse(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
-    r"""Exact break law on the updated inverse (:func:`~roughslip.contact.bonds.bond_inverse`):
+    r"""Exact break law on the updated inverse (:func:`~roughslip.friction.bonds.bond_inverse`):
     :math:`O(n)` per break plus blocked BLAS-3 updates; :math:`\varphi` is certified against
     the FFT operator after each block. ``opt.precision == "single"``: the float32 inverse
-    with certified decisions (:func:`~roughslip.contact.breaking_single.break_inverse_single`).
+    with certified decisions (:func:`~roughslip.friction.breaking_single.break_inverse_single`).
     """
     if opt.precision == "single":
         return break_inverse_single(b, opt, t0)

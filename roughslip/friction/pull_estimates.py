@@ -8,12 +8,12 @@ import math
 
 import numpy as np
 
-from roughslip.contact.bonds import Bonds, SlipResult
 from roughslip.contact.estimates import REFINE_TOL as SQUEEZE_REFINE_TOL
 from roughslip.contact.estimates import squeeze_correction
-from roughslip.contact.laws import LAWS
 from roughslip.contact.squeeze import NormalResult
 from roughslip.errors import InputError, NumericalError
+from roughslip.friction.bonds import Bonds, SlipResult
+from roughslip.friction.laws import LAWS
 from roughslip.linalg.cg import cg
 from roughslip.linalg.threads import blas_threads
 

@@ -4,9 +4,9 @@ the pull (docs/theory/coupled.rst#squeeze-histories).
 Under coupling a normal load already needs tangential forces (:math:`G_{xz} f_z \ne 0`), so
 the state the pull starts from depends on how the surfaces came together. A history takes the
 problem to :math:`D_x = 0` at the squeeze's depth or force and leaves a
-:class:`~roughslip.contact.state.ContactState` there, admissible and certified (every
+:class:`~roughslip.coupling.state.ContactState` there, admissible and certified (every
 contact :math:`f_z \ge 0`, every gap :math:`\ge 0`, every bond within its slip law), from which
-:func:`~roughslip.contact.coupled.couple` pulls. The histories are registered in
+:func:`~roughslip.coupling.coupled.couple` pulls. The histories are registered in
 :data:`HISTORIES` (``coupling.history`` of a run):
 
 * ``"bonded"``: every contact bonded at the final depth with :math:`u_x = 0`, then the bonds
@@ -33,11 +33,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from roughslip.contact.events import TIE, follow_events
 from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem
-from roughslip.contact.state import ContactState
+from roughslip.coupling.state import ContactState
 from roughslip.errors import NumericalError
+from roughslip.friction.events import TIE, follow_events
 
 
 @dataclass

@@ -4,8 +4,8 @@ For a contact set :math:`C` (:math:`u_z = \bar u_z` imposed, :math:`f_z` unknown
 set :math:`S \subseteq C` (:math:`u_x = D_x` imposed, :math:`f_x` unknown; other sites carry
 what the slip law gives them) every force, displacement and gap is affine in :math:`D_x`:
 :math:`f = f^0 + D_x f^1`, :math:`g = g^0 + D_x g^1`. :class:`ContactState` solves for both
-parts with a :class:`~roughslip.contact.blocksolvers.BlockSolver` and gives the event loop
-(:mod:`roughslip.contact.events`) its constraints (docs/theory/coupled.rst#coupled).
+parts with a :class:`~roughslip.coupling.blocksolvers.BlockSolver` and gives the event loop
+(:mod:`roughslip.friction.events`) its constraints (docs/theory/coupled.rst#coupled).
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import numpy as np
 from scipy import linalg
 from scipy.sparse.linalg import LinearOperator, gmres
 
-from roughslip.contact.events import TIE, Snapshot, argext, event_table
-from roughslip.contact.laws import LAWS
 from roughslip.errors import NumericalError
+from roughslip.friction.events import TIE, Snapshot, argext, event_table
+from roughslip.friction.laws import LAWS
 from roughslip.linalg.inverse import refine
 
 
@@ -367,7 +367,7 @@ class ContactState:
 
     def reversal(self) -> int | None:
         """A slipping bond whose slip would run against its force (the slip law's
-        :meth:`~roughslip.contact.laws.SlipLaw.turned_back`), or None. The rate is constant
+        :meth:`~roughslip.friction.laws.SlipLaw.turned_back`), or None. The rate is constant
         over a state and changes only when the sets change, so a reversal is found at the
         start of a state, never inside one."""
         if self.u1x is None:

@@ -30,15 +30,15 @@ reduces exactly to the decoupled one.
 
 The squeeze goes to a depth or to a normal force, and the pull holds either the depth (the
 report's pull) or the normal force, with the depth following
-(:class:`~roughslip.contact.state.ContactState`, docs/theory/coupled.rst#coupled-load-control).
+(:class:`~roughslip.coupling.state.ContactState`, docs/theory/coupled.rst#coupled-load-control).
 
 Under the Coulomb law a failed bond slips, carrying :math:`f_x = \sigma\lambda f_z` in the
 direction :math:`\sigma` of its force as :math:`f_z` changes (the system is then not
 symmetric: ``ContactState._solve_many``), and a slipping bond whose slip the pull would turn around
 sticks again where it is (the law's reversal rule,
-:meth:`~roughslip.contact.laws.SlipLaw.turned_back`; docs/theory/coupled.rst#coupled-coulomb).
+:meth:`~roughslip.friction.laws.SlipLaw.turned_back`; docs/theory/coupled.rst#coupled-coulomb).
 
-Solvers (registered in :data:`~roughslip.contact.blocksolvers.SOLVERS`): ``"dense"`` assembles
+Solvers (registered in :data:`~roughslip.coupling.blocksolvers.SOLVERS`): ``"dense"`` assembles
 the reduced block from the closed-form kernels and keeps its inverse up to date, O(m) per
 removed unknown, while it fits in memory (docs/theory/coupled.rst#coupled-solvers); ``"cg"``
 runs conjugate gradients
@@ -55,7 +55,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from roughslip.contact.blocksolvers import (  # noqa: F401  (the coupled model's public names)
+from roughslip.contact.problem import Problem, finite
+from roughslip.coupling.blocksolvers import (  # noqa: F401  (the coupled model's public names)
     DENSE_BYTES_PER_UNKNOWN2,
     SOLVERS,
     BlockSolver,
@@ -63,7 +64,10 @@ from roughslip.contact.blocksolvers import (  # noqa: F401  (the coupled model's
     dense_memory_bytes,
     make_solver,
 )
-from roughslip.contact.events import (  # noqa: F401  (TIE, RATE_TIE: public here too)
+from roughslip.coupling.histories import HISTORIES, Setup, indent_to, overlap_start
+from roughslip.coupling.state import ContactState
+from roughslip.errors import InputError, NumericalError
+from roughslip.friction.events import (  # noqa: F401  (TIE, RATE_TIE: public here too)
     RATE_TIE,
     TIE,
     Curve,
@@ -72,11 +76,7 @@ from roughslip.contact.events import (  # noqa: F401  (TIE, RATE_TIE: public her
     Snapshot,
     follow_events,
 )
-from roughslip.contact.histories import HISTORIES, Setup, indent_to, overlap_start
-from roughslip.contact.problem import Problem, finite
-from roughslip.contact.pull import check_friction
-from roughslip.contact.state import ContactState
-from roughslip.errors import InputError, NumericalError
+from roughslip.friction.pull import check_friction
 from roughslip.linalg.threads import blas_threads
 
 
@@ -127,7 +127,7 @@ class CoupledResult:
     slip_law: str = "break"
     #: GMRES iterations of the solves with Coulomb slip forces (0 under the break law)
     slip_iterations: int = 0
-    #: how the contacts came to carry their bonds (:data:`~roughslip.contact.histories.HISTORIES`)
+    #: how the contacts came to carry their bonds (:data:`~roughslip.coupling.histories.HISTORIES`)
     history: str = "bonded"
     #: states solved before the pull: the squeeze's corrections and releases, or the
     #: indentation's events
@@ -151,8 +151,8 @@ class CoupledResult:
 
     @property
     def curve(self) -> Curve:
-        """The pull curve (:class:`~roughslip.contact.events.Curve`), as the decoupled pull's
-        :attr:`~roughslip.contact.bonds.SlipResult.curve`."""
+        """The pull curve (:class:`~roughslip.friction.events.Curve`), as the decoupled pull's
+        :attr:`~roughslip.friction.bonds.SlipResult.curve`."""
         return Curve.of(self.events)
 
     @property
@@ -276,7 +276,7 @@ def couple(
         at tolerance 1e-8; the coupled squeeze then corrects that set exactly.
     history : str
         How the contacts come to carry their bonds before the pull, a name of
-        :data:`~roughslip.contact.histories.HISTORIES`: ``"bonded"`` (bonded at the final
+        :data:`~roughslip.coupling.histories.HISTORIES`: ``"bonded"`` (bonded at the final
         depth, the overloaded bonds released one at a time), ``"simultaneous"`` (released all
         at once, repeatedly), ``"indent"`` (the frictional indentation from first touch) or
         ``"frictionless"`` (the frictionless squeeze, then bonded where it is);
