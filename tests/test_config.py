@@ -42,6 +42,33 @@ def test_error_names_file_key_value_and_rule(tmp_path):
     assert str(e.value) == "run.toml: material.nu = 0.7: must satisfy -1 < nu <= 0.5"
 
 
+def test_every_independent_error_is_reported_at_once(tmp_path):
+    """A config with several mistakes names them all, each on its own line with where its
+    value came from, so that one round of fixes is enough; a single error keeps its one
+    line (the test above)."""
+    data = {**BASE, "grid": {"n": -4}, "material": {"nu": 0.7},
+            "surface": {"kind": "self-affine", "hurst": 1.7, "rms_height": 1.0},
+            "pull": {"lamda": 0.2}, "materials": {}}
+    with pytest.raises(ConfigError) as e:
+        load_config(write(tmp_path, data), ["ensemble.samples=0"])
+    assert str(e.value).splitlines() == [
+        "run.toml: 6 errors:",
+        "  run.toml: materials: unknown section or key (did you mean 'material'?)",
+        "  run.toml: grid.n = -4: must be >= 1",
+        "  run.toml: material.nu = 0.7: must satisfy -1 < nu <= 0.5",
+        "  run.toml: surface.hurst = 1.7: must be in (0, 1)",
+        "  run.toml: pull.lamda: unknown key (did you mean 'lam'?)",
+        "  run.toml (--set ensemble.samples=0): ensemble.samples = 0: must be >= 1",
+    ]
+    # checks that need the sections come after them: a squeeze with both depths and forces
+    # and a bad surface are two independent errors too
+    bad = {**BASE, "surface": {"kind": "self-affine", "hurst": 0.8},
+           "squeeze": {"depths": [0.1], "forces": [1.0]}}
+    with pytest.raises(ConfigError, match=r"run.toml: 2 errors:\n  .*surface.rms_height.*\n"
+                                          r"  .*exactly one of squeeze.depths"):
+        load_config(write(tmp_path, bad))
+
+
 @pytest.mark.parametrize(
     ("override", "match"),
     [

@@ -35,6 +35,7 @@ from roughslip.friction.pull import methods_for
 from roughslip.run import schema
 from roughslip.run.digest import RENAMED, RETIRED
 from roughslip.run.machine import machine_file, read_machine
+from roughslip.run.messages import Context, Errors
 from roughslip.run.sections import (
     FIELD_NAMES,
     LAW_PARAMS,
@@ -54,33 +55,13 @@ from roughslip.run.sections import (
     SurfaceConfig,
     UnitsConfig,
 )
-from roughslip.run.tomlio import BARE_KEY, dumps_toml, show
+from roughslip.run.tomlio import BARE_KEY, dumps_toml
 
 __all__ = ["FIELD_NAMES", "LAW_PARAMS", "SECTIONS", "SURFACE_KEYS", "SURFACE_KINDS",
            "TOP_LEVEL_KEYS", "CouplingConfig", "EnsembleConfig", "ExecutionConfig",
            "GridConfig", "MaterialConfig", "OutputConfig", "PullConfig", "RunConfig",
            "SqueezeConfig", "SurfaceConfig", "UnitsConfig", "dumps_toml", "load_config",
            "merge_overrides", "parse_override"]
-
-class _Ctx:
-    """Where values came from, for error messages."""
-
-    def __init__(self, source: str, overridden: dict[str, str]):
-        self.source = source
-        self.overridden = overridden
-        #: retired keys given, with their values (dotted key -> value)
-        self.retired: dict[str, Any] = {}
-
-    def fail(self, key: str, value: Any = dataclasses.MISSING, rule: str = "") -> ConfigError:
-        where = self.source
-        hit = self.overridden.get(key) or next(
-            (t for k, t in self.overridden.items() if k.startswith(key + ".")), None)
-        if hit is not None:
-            where = f"{self.source} (--set {hit})"
-        if value is dataclasses.MISSING:
-            return ConfigError(f"{where}: {key}: {rule}")
-        return ConfigError(f"{where}: {key} = {show(value)}: {rule}")
-
 
 def parse_override(text: str) -> tuple[list[str], Any]:
     """Parse ``key.path=value``; the value is inline TOML, or a bare word taken as a string."""
@@ -174,12 +155,12 @@ def load_config(path: str | Path | None = None, overrides: Sequence[str] = (),
     if machine is not None:  # below the experiment's own [execution] (roughslip.run.machine)
         tables = read_machine(machine)
         for name, table in tables.items():
-            _build_section(name, SECTIONS[name], table, _Ctx(str(machine), {}))
+            _build_section(name, SECTIONS[name], table, Context(str(machine), {}))
             mine = data.get(name, {})
             if isinstance(mine, dict):  # else reported as not a table by the checks below
                 data[name] = {**table, **mine}
     origin = merge_overrides(data, overrides)
-    ctx = _Ctx(source, origin)
+    ctx = Context(source, origin)
     base_dir = Path(path).resolve().parent if path is not None else Path.cwd()
     cfg = _build(data, ctx, base_dir)
     return cfg if machine is None else dataclasses.replace(cfg, machine=str(machine))
@@ -201,32 +182,36 @@ def _suggest(key: str, known: Sequence[str]) -> str:
     return f" (known: {', '.join(known)})"
 
 
-def _build(data: dict[str, Any], ctx: _Ctx, base_dir: Path) -> RunConfig:
+def _build(data: dict[str, Any], ctx: Context, base_dir: Path) -> RunConfig:
     known = [*SECTIONS, *TOP_LEVEL_KEYS]
+    errors = Errors(ctx)
     for k, v in data.items():
         if k not in known:
-            raise ctx.fail(k, rule="unknown section or key" + _suggest(k, known))
-        if k in SECTIONS and not isinstance(v, dict):
-            raise ctx.fail(k, v, "must be a table ([" + k + "])")
+            errors.found.append(ctx.fail(k, rule="unknown section or key" + _suggest(k, known)))
+        elif k in SECTIONS and not isinstance(v, dict):
+            errors.found.append(ctx.fail(k, v, "must be a table ([" + k + "])"))
     title = data.get("title")
     if title is not None and not isinstance(title, str):
-        raise ctx.fail("title", title, "must be a string")
+        errors.found.append(ctx.fail("title", title, "must be a string"))
     for required in ("surface",):
         if required not in data:
-            raise ctx.fail(required, rule="missing section [" + required + "]")
+            errors.found.append(ctx.fail(required, rule="missing section [" + required + "]"))
     sections: dict[str, Any] = {}
     for name, cls in SECTIONS.items():
-        if name not in data:
-            continue
-        sections[name] = _build_section(name, cls, data[name], ctx)
+        if name in data and isinstance(data[name], dict):
+            sections[name] = _build_section(name, cls, data[name], ctx, errors)
+    errors.raise_any()
     sections.setdefault("grid", GridConfig())
     sections.setdefault("material", MaterialConfig())
     for name in ("pull", "coupling", "ensemble", "output", "execution"):
         sections.setdefault(name, SECTIONS[name]())
     for name in ("surface", "elastic_surface"):
         if name in sections:
-            sections[name] = _check_surface(name, sections[name], data[name], ctx, base_dir)
-    sections["squeeze"] = _check_squeeze(data.get("squeeze", {}), sections.get("squeeze"), ctx)
+            sections[name] = errors.check(_check_surface, name, sections[name], data[name], ctx,
+                                          base_dir)
+    sections["squeeze"] = errors.check(_check_squeeze, data.get("squeeze", {}),
+                                       sections.get("squeeze"), ctx)
+    errors.raise_any()
     given = frozenset(f"{sec}.{k}" for sec, t in data.items() if isinstance(t, dict)
                       for k in t)
     cfg = RunConfig(title=title, source=ctx.source, given=given, retired=dict(ctx.retired),
@@ -240,7 +225,7 @@ def _type_name(tp: Any) -> str:
         tp, str(tp))
 
 
-def _coerce(value: Any, tp: Any, key: str, ctx: _Ctx) -> Any:
+def _coerce(value: Any, tp: Any, key: str, ctx: Context) -> Any:
     """Check ``value`` against a type hint; return it normalised (ints to floats where needed)."""
     origin = typing.get_origin(tp)
     args = typing.get_args(tp)
@@ -277,40 +262,59 @@ def _coerce(value: Any, tp: Any, key: str, ctx: _Ctx) -> Any:
 
 _SPECIAL = {("squeeze", "depths"), ("squeeze", "forces")}
 
-def _build_section(name: str, cls: type, table: dict[str, Any], ctx: _Ctx) -> Any:
+def _build_section(name: str, cls: type, table: dict[str, Any], ctx: Context,
+                   errors: Errors | None = None) -> Any:
+    """The section's dataclass from its table. Every key is checked; with ``errors`` their
+    errors are collected there (and None returned if there were any), else the first is
+    raised."""
+    own = Errors(ctx)
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs: dict[str, Any] = {}
     for k, v in table.items():
         k = RENAMED.get((name, k), k)
-        key = f"{name}.{k}"
-        if (name, k) in RETIRED:
-            if isinstance(v, bool) or not isinstance(v, int) or v < 2:
-                raise ctx.fail(key, v, "must be an integer >= 2 (the key has no effect: "
-                               f"{RETIRED[(name, k)][2]})")
-            ctx.retired[key] = v
-            continue
         if k in kwargs:
-            raise ctx.fail(key, rule="given twice (once under its former name)")
-        if k not in fields:
-            raise ctx.fail(key, rule="unknown key" + _suggest(k, list(fields)))
-        if (name, k) in _SPECIAL:
-            kwargs[k] = v
+            own.found.append(ctx.fail(f"{name}.{k}",
+                                      rule="given twice (once under its former name)"))
             continue
-        val = _coerce(v, hints[k], key, ctx)
-        meta = fields[k].metadata
-        if meta.get("choices") and val not in meta["choices"]:
-            raise ctx.fail(key, v, "must be one of " + ", ".join(map(repr, meta["choices"])))
-        check = meta.get("check")
-        if check is not None:
-            msg = check(val)
-            if msg:
-                raise ctx.fail(key, v, msg)
-        kwargs[k] = val
+        own.check(_build_key, name, k, v, hints, fields, kwargs, ctx)
+    if errors is None:
+        if own.found:
+            raise own.found[0]
+    elif own.found:
+        errors.found.extend(own.found)
+        return None
     return cls(**kwargs)
 
 
-def _check_surface(name: str, s: SurfaceConfig, table: dict[str, Any], ctx: _Ctx,
+def _build_key(name: str, k: str, v: Any, hints: dict[str, Any],
+               fields: dict[str, dataclasses.Field], kwargs: dict[str, Any], ctx: Context) -> None:
+    """Check key ``k`` of section ``name`` and add its value to ``kwargs``."""
+    key = f"{name}.{k}"
+    if (name, k) in RETIRED:
+        if isinstance(v, bool) or not isinstance(v, int) or v < 2:
+            raise ctx.fail(key, v, "must be an integer >= 2 (the key has no effect: "
+                           f"{RETIRED[(name, k)][2]})")
+        ctx.retired[key] = v
+        return
+    if k not in fields:
+        raise ctx.fail(key, rule="unknown key" + _suggest(k, list(fields)))
+    if (name, k) in _SPECIAL:
+        kwargs[k] = v
+        return
+    val = _coerce(v, hints[k], key, ctx)
+    meta = fields[k].metadata
+    if meta.get("choices") and val not in meta["choices"]:
+        raise ctx.fail(key, v, "must be one of " + ", ".join(map(repr, meta["choices"])))
+    check = meta.get("check")
+    if check is not None:
+        msg = check(val)
+        if msg:
+            raise ctx.fail(key, v, msg)
+    kwargs[k] = val
+
+
+def _check_surface(name: str, s: SurfaceConfig, table: dict[str, Any], ctx: Context,
                    base_dir: Path) -> SurfaceConfig:
     if s.kind is None:
         raise ctx.fail(f"{name}.kind", rule="missing; choose one of " + ", ".join(SURFACE_KINDS))
@@ -344,7 +348,7 @@ def _check_surface(name: str, s: SurfaceConfig, table: dict[str, Any], ctx: _Ctx
     return s
 
 
-def _expand_range(table: dict[str, Any], key: str, ctx: _Ctx) -> list[float]:
+def _expand_range(table: dict[str, Any], key: str, ctx: Context) -> list[float]:
     allowed = {"start", "stop", "num", "spacing"}
     for k in table:
         if k not in allowed:
@@ -377,7 +381,7 @@ def _expand_range(table: dict[str, Any], key: str, ctx: _Ctx) -> list[float]:
     return vals
 
 
-def _check_squeeze(table: dict[str, Any], s: SqueezeConfig | None, ctx: _Ctx) -> SqueezeConfig:
+def _check_squeeze(table: dict[str, Any], s: SqueezeConfig | None, ctx: Context) -> SqueezeConfig:
     s = s or SqueezeConfig()
     has_d = "depths" in table
     has_f = "forces" in table
@@ -403,7 +407,7 @@ def _check_squeeze(table: dict[str, Any], s: SqueezeConfig | None, ctx: _Ctx) ->
     return dataclasses.replace(s, depths=vals if has_d else None, forces=None if has_d else vals)
 
 
-def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: _Ctx) -> None:
+def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: Context) -> None:
     g = cfg.grid
     if g.n is not None and g.shape is not None:
         raise ctx.fail("grid.shape", g.shape, "give grid.n or grid.shape, not both")
