@@ -67,6 +67,16 @@ def test_every_independent_error_is_reported_at_once(tmp_path):
     with pytest.raises(ConfigError, match=r"run.toml: 2 errors:\n  .*surface.rms_height.*\n"
                                           r"  .*exactly one of squeeze.depths"):
         load_config(write(tmp_path, bad))
+    # and so are the rules across sections, once every section is valid
+    with pytest.raises(ConfigError) as e:
+        load_config(write(tmp_path, BASE), ["coupling.enabled=true", "output.fields=['fx']"])
+    assert str(e.value).splitlines() == [
+        "run.toml: 2 errors:",
+        "  run.toml (--set coupling.enabled=true): coupling.enabled = true: needs "
+        "pull.enabled = true",
+        "  run.toml (--set output.fields=['fx']): output.fields = [\"fx\"]: ['fx'] need "
+        "pull.enabled = true",
+    ]
 
 
 @pytest.mark.parametrize(

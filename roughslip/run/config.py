@@ -216,7 +216,8 @@ def _build(data: dict[str, Any], ctx: Context, base_dir: Path) -> RunConfig:
                       for k in t)
     cfg = RunConfig(title=title, source=ctx.source, given=given, retired=dict(ctx.retired),
                     **sections)
-    _check_cross(cfg, data, ctx)
+    _check_cross(cfg, ctx, errors)
+    errors.raise_any()
     return cfg
 
 
@@ -407,19 +408,20 @@ def _check_squeeze(table: dict[str, Any], s: SqueezeConfig | None, ctx: Context)
     return dataclasses.replace(s, depths=vals if has_d else None, forces=None if has_d else vals)
 
 
-def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: Context) -> None:
+def _check_cross(cfg: RunConfig, ctx: Context, errors: Errors) -> None:
+    """The rules across sections, each error collected in ``errors``."""
     g = cfg.grid
     if g.n is not None and g.shape is not None:
-        raise ctx.fail("grid.shape", g.shape, "give grid.n or grid.shape, not both")
+        errors.add("grid.shape", g.shape, "give grid.n or grid.shape, not both")
     file_surface = cfg.surface.kind == "file" or (
         cfg.elastic_surface is not None and cfg.elastic_surface.kind == "file")
     if g.resolved_shape is None and not file_surface:
-        raise ctx.fail("grid.n", rule="missing (give grid.n or grid.shape)")
+        errors.add("grid.n", rule="missing (give grid.n or grid.shape)")
     if cfg.squeeze.forces is not None and cfg.squeeze.depth_unit != "length":
-        raise ctx.fail("squeeze.depth_unit", cfg.squeeze.depth_unit,
-                       "applies to depths only; use squeeze.force_unit with forces")
+        errors.add("squeeze.depth_unit", cfg.squeeze.depth_unit,
+                   "applies to depths only; use squeeze.force_unit with forces")
     if cfg.coupling.enabled and not cfg.pull.enabled:
-        raise ctx.fail("coupling.enabled", True, "needs pull.enabled = true")
+        errors.add("coupling.enabled", True, "needs pull.enabled = true")
     law = LAWS.get(cfg.pull.slip_law)
     if cfg.pull.enabled:  # the slip law's own parameters ([pull] keys named as the law's)
         given = {k: getattr(cfg.pull, k) for k in LAW_PARAMS}
@@ -427,38 +429,40 @@ def _check_cross(cfg: RunConfig, data: dict[str, Any], ctx: Context) -> None:
             law.bind(cfg.pull.lam, **given)
         except LawParameterError as exc:
             key = f"pull.{exc.key}"
-            raise (ctx.fail(key, rule=exc.rule) if exc.value is None
-                   else ctx.fail(key, exc.value, exc.rule)) from None
+            if exc.value is None:
+                errors.add(key, rule=exc.rule)
+            else:
+                errors.add(key, exc.value, exc.rule)
     if cfg.coupling.enabled and not law.couples:
-        raise ctx.fail("pull.slip_law", cfg.pull.slip_law,
-                       "has no exact coupled model (its strength and f_z both vary, a "
-                       "bilinear constraint); needs coupling.enabled = false")
+        errors.add("pull.slip_law", cfg.pull.slip_law,
+                   "has no exact coupled model (its strength and f_z both vary, a "
+                   "bilinear constraint); needs coupling.enabled = false")
     if cfg.pull.enabled and not cfg.coupling.enabled:
         if not LAWS.get(cfg.pull.slip_law).pull_runs:
-            raise ctx.fail("pull.slip_law", cfg.pull.slip_law,
-                           "has no decoupled pull method; needs coupling.enabled = true")
+            errors.add("pull.slip_law", cfg.pull.slip_law,
+                       "has no decoupled pull method; needs coupling.enabled = true")
         laws = methods_for(cfg.pull.slip_law)
         if cfg.pull.method not in laws:
-            raise ctx.fail("pull.method", cfg.pull.method,
-                           f"slip_law = {cfg.pull.slip_law!r} needs one of {', '.join(laws)}")
+            errors.add("pull.method", cfg.pull.method,
+                       f"slip_law = {cfg.pull.slip_law!r} needs one of {', '.join(laws)}")
     if cfg.pull.precision == "single" and (
             cfg.coupling.enabled or not law.single
             or cfg.pull.method not in ("auto", "inverse")):
         single = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)
-        raise ctx.fail("pull.precision", "single", "is the decoupled inverse method of "
-                       f"slip_law {single} only (coupling.enabled = false, method 'auto' or "
-                       "'inverse')")
+        errors.add("pull.precision", "single", "is the decoupled inverse method of "
+                   f"slip_law {single} only (coupling.enabled = false, method 'auto' or "
+                   "'inverse')")
     es = cfg.elastic_surface
     tiled = [r for r in ("surface", "elastic_surface") if getattr(cfg, r) is not None
              and getattr(cfg, r).kind == "file" and getattr(cfg, r).tiles]
     if tiled and cfg.ensemble.first_sample != 0:
-        raise ctx.fail("ensemble.first_sample", cfg.ensemble.first_sample,
-                       f"must be 0 with {tiled[0]}.tiles (sample i is tile i)")
+        errors.add("ensemble.first_sample", cfg.ensemble.first_sample,
+                   f"must be 0 with {tiled[0]}.tiles (sample i is tile i)")
     if (es is not None and cfg.surface.tiles and es.tiles
             and cfg.surface.n_tiles != es.n_tiles):
-        raise ctx.fail("elastic_surface.tiles", es.tiles, f"must give as many tiles as "
-                       f"surface.tiles ({cfg.surface.tiles})")
+        errors.add("elastic_surface.tiles", es.tiles, f"must give as many tiles as "
+                   f"surface.tiles ({cfg.surface.tiles})")
     pull_fields = {n for n in cfg.output.fields if schema.needs_pull(n)}
     if pull_fields and not cfg.pull.enabled:
-        raise ctx.fail("output.fields", cfg.output.fields,
-                       f"{sorted(pull_fields)} need pull.enabled = true")
+        errors.add("output.fields", cfg.output.fields,
+                   f"{sorted(pull_fields)} need pull.enabled = true")

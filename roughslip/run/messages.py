@@ -51,6 +51,10 @@ class Errors:
             self.found.append(exc)
             return None
 
+    def add(self, key: str, value: Any = dataclasses.MISSING, rule: str = "") -> None:
+        """Keep the error of ``key`` (:meth:`Context.fail`)."""
+        self.found.append(self.ctx.fail(key, value, rule))
+
     def raise_any(self) -> None:
         """Raise the one error found as it is, several as one error with a line each."""
         if len(self.found) == 1:
