@@ -187,15 +187,15 @@ def _build(data: dict[str, Any], ctx: Context, base_dir: Path) -> RunConfig:
     errors = Errors(ctx)
     for k, v in data.items():
         if k not in known:
-            errors.found.append(ctx.fail(k, rule="unknown section or key" + _suggest(k, known)))
+            errors.add(k, rule="unknown section or key" + _suggest(k, known))
         elif k in SECTIONS and not isinstance(v, dict):
-            errors.found.append(ctx.fail(k, v, "must be a table ([" + k + "])"))
+            errors.add(k, v, "must be a table ([" + k + "])")
     title = data.get("title")
     if title is not None and not isinstance(title, str):
-        errors.found.append(ctx.fail("title", title, "must be a string"))
+        errors.add("title", title, "must be a string")
     for required in ("surface",):
         if required not in data:
-            errors.found.append(ctx.fail(required, rule="missing section [" + required + "]"))
+            errors.add(required, rule="missing section [" + required + "]")
     sections: dict[str, Any] = {}
     for name, cls in SECTIONS.items():
         if name in data and isinstance(data[name], dict):
@@ -266,24 +266,21 @@ _SPECIAL = {("squeeze", "depths"), ("squeeze", "forces")}
 def _build_section(name: str, cls: type, table: dict[str, Any], ctx: Context,
                    errors: Errors | None = None) -> Any:
     """The section's dataclass from its table. Every key is checked; with ``errors`` their
-    errors are collected there (and None returned if there were any), else the first is
-    raised."""
-    own = Errors(ctx)
+    errors are collected there (and None returned if there were any), else raised."""
+    found = errors if errors is not None else Errors(ctx)
+    before = len(found.found)
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs: dict[str, Any] = {}
     for k, v in table.items():
         k = RENAMED.get((name, k), k)
         if k in kwargs:
-            own.found.append(ctx.fail(f"{name}.{k}",
-                                      rule="given twice (once under its former name)"))
+            found.add(f"{name}.{k}", rule="given twice (once under its former name)")
             continue
-        own.check(_build_key, name, k, v, hints, fields, kwargs, ctx)
+        found.check(_build_key, name, k, v, hints, fields, kwargs, ctx)
     if errors is None:
-        if own.found:
-            raise own.found[0]
-    elif own.found:
-        errors.found.extend(own.found)
+        found.raise_any()
+    elif len(found.found) > before:
         return None
     return cls(**kwargs)
 
