@@ -19,17 +19,17 @@ two give bitwise the same iterates (tested). Extremes and counts are exact in an
 
 from __future__ import annotations
 
-import importlib.util
-import os
 from types import SimpleNamespace
 
 import numpy as np
 
+from roughslip.linalg import jit
+
 #: whether numba is installed (it is imported, and the passes compiled, at their first use:
 #: compiled once per installation, then loaded from numba's cache)
-HAVE_NUMBA = importlib.util.find_spec("numba") is not None
+HAVE_NUMBA = jit.HAVE_NUMBA
 #: whether the passes run compiled (numba installed and ``ROUGHSLIP_FUSED`` not ``0``)
-FUSED = HAVE_NUMBA and os.environ.get("ROUGHSLIP_FUSED", "1") != "0"
+FUSED = jit.ENABLED
 
 # ------------------------------------------------------------------------------------------------
 # numpy: the reference path
@@ -77,9 +77,7 @@ def _compiled() -> SimpleNamespace:
     global _COMPILED
     if _COMPILED is not None:
         return _COMPILED
-    import numba
-
-    _jit = numba.njit(cache=True, nogil=True, fastmath=False, boundscheck=False)
+    _jit = jit.njit()
 
     @_jit
     def _gap_nb(u, ubar, p, g, Sf, gs, off):

@@ -27,6 +27,7 @@ import numpy as np
 
 from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem
+from roughslip.elastic.tables import gather_pairs
 from roughslip.errors import MemoryLimitError, NumericalError
 from roughslip.linalg.cg import cg
 from roughslip.linalg.inverse import BYTES_PER_ORDER2, Tracked, UpdatableInverse
@@ -148,15 +149,15 @@ class DenseBlockSolver:
         return self.inverse.blas_seconds
 
     # -- assembly ------------------------------------------------------------------------------
-    def _block(self, ci: np.ndarray, cj: np.ndarray, comp: str) -> np.ndarray:
-        T, w, off = self.tables[comp]
-        iy, ix = np.divmod(ci, self.nx)
-        jy, jx = np.divmod(cj, self.nx)
-        lin_i, lin_j = iy * w + ix, jy * w + jx
-        return T[lin_i[:, None] - lin_j[None, :] + off]
+    def _lin(self, sites: np.ndarray, comp: str) -> np.ndarray:
+        """The index of each site in the pair table of ``comp``."""
+        w = self.tables[comp][1]
+        iy, ix = np.divmod(sites, self.nx)
+        return iy * w + ix
 
     def entries(self, ids_i: np.ndarray, ids_j: np.ndarray, order: str = "C") -> np.ndarray:
-        """Block entries between two lists of unknowns (u_a at i due to f_b at j)."""
+        """Block entries between two lists of unknowns (u_a at i due to f_b at j), gathered
+        from the kernels' pair tables (:func:`~roughslip.elastic.tables.gather_pairs`)."""
         ids_i, ids_j = np.asarray(ids_i, dtype=np.int64), np.asarray(ids_j, dtype=np.int64)
         out = np.empty((ids_i.size, ids_j.size), order=order)
         for a in (0, 1):  # 0: z, 1: x
@@ -167,11 +168,12 @@ class DenseBlockSolver:
                 if not ri.size or not cj.size:
                     continue
                 sj = ids_j[cj] >> 1
+                comp = "zx" if a != b else ("zz" if a == 0 else "xx")
+                T, _, off = self.tables[comp]
+                li, lj = self._lin(si, comp), self._lin(sj, comp)
                 if (a, b) == (1, 0):  # G_xz(i - j) = G_zx(j - i)
-                    blk = self._block(sj, si, "zx").T
-                else:
-                    blk = self._block(si, sj, "zx" if a != b else ("zz" if a == 0 else "xx"))
-                out[np.ix_(ri, cj)] = blk
+                    li, lj = -li, -lj
+                gather_pairs(T, li, lj, off, out, ri, cj)
         return out
 
     # -- the inverse ---------------------------------------------------------------------------

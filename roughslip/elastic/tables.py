@@ -12,6 +12,7 @@ import numpy as np
 
 from roughslip.elastic.boundaries import Boundary
 from roughslip.errors import InputError
+from roughslip.linalg import jit
 
 
 class _Elastic(Protocol):
@@ -126,3 +127,60 @@ class KernelTables:
         op = self.op
         return op.boundary.dense(component, op.shape, op.a, op.material.E, op.material.nu,
                                  lambda: op.spectrum(component))
+
+
+def gather_pairs(T: np.ndarray, li: np.ndarray, lj: np.ndarray, off: int, out: np.ndarray,
+                 rows: np.ndarray | None = None, cols: np.ndarray | None = None,
+                 compiled: bool | None = None) -> np.ndarray:
+    r"""Write a block of a pair table (:meth:`KernelTables.pair`) into ``out``:
+
+    .. math:: \mathrm{out}[r_a, c_b] = T[l^i_a - l^j_b + \mathrm{off}],
+
+    the kernel between the sites of table indices ``li`` (rows) and ``lj`` (columns), at the
+    rows ``rows`` and columns ``cols`` of ``out`` (all of them by default). ``T`` has the dtype
+    of ``out`` (a float32 block gathers from the table rounded once). The entries are copied,
+    so the compiled kernel and numpy give the same block bit for bit; the kernel writes
+    ``out`` in its memory order, numpy a column at a time (``compiled``: default
+    :data:`roughslip.linalg.jit.ENABLED`). Returns ``out``.
+    """
+    li = np.asarray(li, dtype=np.int64)
+    lj = np.asarray(lj, dtype=np.int64)
+    if li.size == 0 or lj.size == 0:
+        return out
+    rows = np.arange(li.size) if rows is None else np.asarray(rows, dtype=np.int64)
+    cols = np.arange(lj.size) if cols is None else np.asarray(cols, dtype=np.int64)
+    if compiled is None:
+        compiled = jit.ENABLED
+    if compiled:
+        _gather_kernel()(T, li, lj, int(off), out, rows, cols, bool(out.flags.c_contiguous))
+    else:
+        for b in range(lj.size):
+            out[rows, cols[b]] = T[li + (off - lj[b])]
+    return out
+
+
+_GATHER = None
+
+
+def _gather_kernel():
+    """The compiled gather (defined and compiled, or loaded from numba's cache, at first use):
+    by columns into a Fortran-ordered block, by rows into a C-ordered one."""
+    global _GATHER
+    if _GATHER is None:
+        @jit.njit()
+        def gather(T, li, lj, off, out, rows, cols, by_rows):
+            if by_rows:
+                for a in range(li.size):
+                    r = rows[a]
+                    base = li[a] + off
+                    for b in range(lj.size):
+                        out[r, cols[b]] = T[base - lj[b]]
+            else:
+                for b in range(lj.size):
+                    c = cols[b]
+                    base = off - lj[b]
+                    for a in range(li.size):
+                        out[rows[a], c] = T[li[a] + base]
+
+        _GATHER = gather
+    return _GATHER

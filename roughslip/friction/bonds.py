@@ -20,6 +20,7 @@ import numpy as np
 
 from roughslip.contact.squeeze import NormalResult
 from roughslip.elastic.operators import ElasticOperator
+from roughslip.elastic.tables import gather_pairs
 from roughslip.errors import MemoryLimitError, NumericalError
 from roughslip.friction.events import Curve, argext
 from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
@@ -201,8 +202,9 @@ class Bonds:
         if np.array_equal(i, j):
             return self.dense(i, order=order, dtype=dtype)
         T, _, off = self.op.tables.pair("xx")
-        return np.array(T[self._lin(i)[:, None] - self._lin(j)[None, :] + off], order=order,
-                        dtype=dtype)
+        out = np.empty((len(i), len(j)), order=order, dtype=dtype)
+        return gather_pairs(T.astype(out.dtype, copy=False), self._lin(i), self._lin(j), off,
+                            out)
 
     def _lin(self, positions: np.ndarray | None = None) -> np.ndarray:
         """The index of each bond's site in the pair table of :math:`G_{xx}`."""
@@ -220,23 +222,12 @@ class Bonds:
         return self.dense_into(A, positions)
 
     def dense_into(self, A: np.ndarray, positions: np.ndarray | None = None) -> np.ndarray:
-        """Fill the Fortran-ordered ``A`` with :math:`G_{xx}[S,S]`, one column at a time.
-
-        The operator's pair table gives one linear index per pair of sites (open or periodic);
-        gathering a column at a time keeps the index vector and the table in cache (six
-        times faster than panels of columns). A float32 ``A`` gathers from the table rounded
-        once to float32 (the same entries as rounding each gathered one).
-        """
+        """Fill ``A`` with :math:`G_{xx}[S,S]` from the operator's pair table
+        (:func:`~roughslip.elastic.tables.gather_pairs`). A float32 ``A`` gathers from the table
+        rounded once to float32 (the same entries as rounding each gathered one)."""
         T, _, off = self.op.tables.pair("xx")
-        if A.dtype != T.dtype:
-            T = T.astype(A.dtype)
         lin = self._lin(positions)
-        base = lin + off
-        idx = np.empty_like(lin)
-        for c in range(lin.size):
-            np.subtract(base, lin[c], out=idx)
-            np.take(T, idx, out=A[:, c])
-        return A
+        return gather_pairs(T.astype(A.dtype, copy=False), lin, lin, off, A)
 
 
 def select(phi: np.ndarray, cap: np.ndarray) -> tuple[int, float]:
