@@ -2,6 +2,7 @@
 
     python scripts/bench_coupled.py [--sizes 64 128] [--areas 0.05 0.175] [--methods auto cg]
                                     [--slip-law break|coulomb] [--histories bonded ...]
+    python scripts/bench_coupled.py --floor [--sizes 128] [--areas 0.05 0.175] [--repeat 3]
 
 Scenes: a self-affine surface (H = 0.8, rms height 1, seed 1, oversampled twice), nu = 0.25,
 lam = 0.2, open grid, at the depth where the frictionless squeeze has the given contact
@@ -13,22 +14,75 @@ and the shares of the coupled time spent before the pull starts (the squeeze his
 FFT calls and in dense linear algebra (BLAS/LAPACK: the dense solver's factorisation, products
 with its inverse and updates). ``--slip-law coulomb`` times both models under the Coulomb law.
 Threads: BLAS and FFT use ``--threads``.
+
+``--floor`` times instead what any exact coupled pull on the explicit inverse of the block
+must do once, against the decoupled pull (medians of ``--repeat``): assembling the order-2n
+block of every contact site, f_z and f_x, which is where the pull starts after the
+``frictionless`` and, with fewer bonds, the other histories, and inverting it (Cholesky and
+LAPACK's inverse from it).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import time
 
+import numpy as np
 from benchlib import depth_for_area  # the same scenes as the squeeze benchmark
 
 from roughslip import couple, pull
 from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import NormalSolver
+from roughslip.coupling.blocksolvers import DenseBlockSolver
 from roughslip.coupling.histories import HISTORIES
 from roughslip.elastic.operators import Grid, Material
+from roughslip.linalg import lapack64
+from roughslip.linalg.threads import blas_threads
 from roughslip.surfaces import sample_rng, self_affine
+
+
+def _median_seconds(fn, repeat: int) -> float:
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def floor(sizes: list[int], areas: list[float], threads: int, repeat: int) -> None:
+    """The ``--floor`` table (module docstring)."""
+    print(f"# cores: {os.cpu_count()}, threads {threads}; H = 0.8, nu = 0.25, lam = 0.2, "
+          f"open grid; medians of {repeat}")
+    print(f"{'N':>5} {'area':>6} {'sites':>6} {'unknowns':>8} {'pull s':>7} {'assemble s':>10} "
+          f"{'invert s':>9} {'GFlop/s':>8} {'invert/pull':>11} {'both/pull':>9}")
+    for n in sizes:
+        h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(1, 0), oversample=2)
+        problem = Problem(h, Grid((n, n)), Material(1.0, 0.25), threads=threads)
+        solver = NormalSolver(problem, tol=1e-12)
+        block = DenseBlockSolver(problem, threads=threads)
+        for area in areas:
+            depth = depth_for_area(solver, area, hi=float(h.max() - h.min()))
+            normal = solver.solve(depth=depth)
+            t_pull = _median_seconds(lambda normal=normal: pull(normal, lam=0.2), repeat)
+            sites = np.flatnonzero(normal.contact)
+            ids = np.concatenate([2 * sites, 2 * sites + 1])
+            t_asm, t_inv = [], []
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                A = block.entries(ids, ids, "F")
+                t1 = time.perf_counter()
+                with blas_threads(threads):
+                    lapack64.cholesky_inverse(A)
+                t_asm.append(t1 - t0)
+                t_inv.append(time.perf_counter() - t1)
+                del A
+            a, v = statistics.median(t_asm), statistics.median(t_inv)
+            print(f"{n:>5} {normal.contact_area:>6.3f} {sites.size:>6} {ids.size:>8} "
+                  f"{t_pull:>7.3f} {a:>10.3f} {v:>9.3f} {ids.size ** 3 / v / 1e9:>8.0f} "
+                  f"{v / t_pull:>11.2f} {(a + v) / t_pull:>9.2f}", flush=True)
 
 
 def main() -> None:
@@ -41,7 +95,13 @@ def main() -> None:
     ap.add_argument("--slip-law", choices=["break", "coulomb"], default="break")
     ap.add_argument("--histories", nargs="+", default=list(HISTORIES.names()),
                     choices=HISTORIES.names())
+    ap.add_argument("--floor", action="store_true",
+                    help="time the assembly and inversion of the order-2n block instead")
+    ap.add_argument("--repeat", type=int, default=3, help="runs per timing of --floor")
     args = ap.parse_args()
+    if args.floor:
+        floor(args.sizes, args.areas, args.threads, args.repeat)
+        return
     law = args.slip_law
     print(f"# cores: {os.cpu_count()}, threads {args.threads}; H = 0.8, nu = 0.25, lam = 0.2, "
           f"open grid, slip law {law}")
