@@ -88,6 +88,28 @@ def test_panel_rank_k_update_equals_dense(n, k, block):
     assert np.allclose(got[low], (c - 0.5 * u @ u.T)[low], rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.parametrize("library", [True, False])
+@pytest.mark.parametrize(("m", "cap", "k"), [(1, 1, 1), (37, 40, 5), (2100, 2110, 130)])
+def test_gemm_update_on_a_leading_block_in_place(m, cap, k, library, monkeypatch):
+    """The fold of the pending terms of an inverse that also grows: the leading m x m block of
+    a larger buffer gains alpha P Q^T, with the library's GEMM or numpy's panels, and nothing
+    outside that block changes."""
+    if library and not lapack64.available():
+        pytest.skip("needs the 64-bit-integer BLAS")
+    if not library:
+        monkeypatch.setattr(lapack64, "_load", lambda: None)
+    rng = np.random.default_rng(m)
+    c = np.asfortranarray(rng.standard_normal((cap, cap)))
+    p = np.asfortranarray(rng.standard_normal((cap, k + 3)))
+    q = np.asfortranarray(rng.standard_normal((cap, k + 3)))
+    got = c.copy(order="F")
+    lapack64.gemm_update(got, m, p, q, k, -0.5)
+    want = c.copy()
+    want[:m, :m] -= 0.5 * p[:m, :k] @ q[:m, :k].T
+    assert np.allclose(got, want, rtol=1e-12, atol=1e-12)
+    assert np.array_equal(got[m:], c[m:]) and np.array_equal(got[:, m:], c[:, m:])
+
+
 def test_symv_on_a_leading_block_in_place():
     a = spd(40, seed=3)
     x = np.random.default_rng(4).standard_normal(25)

@@ -366,10 +366,10 @@ class UpdatableInverse:
                 with blas_threads(self.threads):  # are never read
                     lapack64.syrk_update(M, V, -1.0)
             else:
-                Vs = V * self.s[: self.k]
+                Vs = np.empty(self.V.shape, order="F")  # the rows of V: the GEMM's layout
+                np.multiply(V, self.s[: self.k], out=Vs[:m, : self.k])
                 with blas_threads(self.threads):
-                    for j in range(0, m, 2048):  # column panels: no copy of M, small temporaries
-                        M[:, j:j + 2048] += Vs @ V[j:j + 2048].T
+                    lapack64.gemm_update(self.buf, m, Vs, self.V, self.k)
                 # dead columns are cleared (contiguous); dead rows only feed dead entries of
                 # solutions, which are never read
                 M[:, ~self.live] = 0.0

@@ -230,6 +230,23 @@ def syrk_panels(c: np.ndarray, u: np.ndarray, alpha: float = -1.0, block: int = 
         _gemm_nt(c, j0, n, j0, min(j0 + block, n), u, u, k, alpha)
 
 
+def gemm_update(c: np.ndarray, m: int, p: np.ndarray, q: np.ndarray, k: int,
+                alpha: float = 1.0) -> None:
+    """``C[:m, :m] += alpha P[:m, :k] Q[:m, :k]^T`` in place: one GEMM into ``c`` with the
+    64-bit library (no temporary of the product), else numpy by column panels.
+
+    ``c``, ``p`` and ``q`` are Fortran-ordered with as many rows as ``c``. With one block of
+    ``k`` in the library's GEMM (``k`` up to a few hundred), the entries are bitwise those of
+    adding the separately computed product.
+    """
+    if _lib(c.dtype) is not None:
+        _gemm_nt(c, 0, m, 0, m, p, q, k, alpha)
+        return
+    P, Q, M = p[:m, :k], q[:m, :k], c[:m, :m]
+    for j in range(0, m, 2048):  # column panels: no copy of M, small temporaries
+        M[:, j:j + 2048] += (alpha * P) @ Q[j:j + 2048].T
+
+
 def _gemm_nt(c: np.ndarray, r0: int, r1: int, j0: int, j1: int, p: np.ndarray, q: np.ndarray,
              k: int, alpha: float) -> None:
     """``C[r0:r1, j0:j1] += alpha P[r0:r1, :k] Q[j0:j1, :k]^T`` in place, by the 64-bit DGEMM.
