@@ -55,3 +55,31 @@ def test_coupled_block_is_the_closed_form_dense_block(compiled, monkeypatch):
         A = s.entries(ids_i, ids_j, order)
         np.testing.assert_allclose(A, full[np.ix_(where(ids_i), where(ids_j))], rtol=1e-12,
                                    atol=1e-14 * np.abs(full).max())
+
+
+@pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba is not installed")
+def test_compiled_event_table_equals_numpy():
+    """The event table's compiled scan against numpy: the same interval, kind and site on
+    random rows with flat entries, ties within the tolerance, zeros of both signs and violated
+    flat rows."""
+    from roughslip.friction.events import TIE, event_table
+    rng = np.random.default_rng(3)
+    for trial in range(300):
+        n = int(rng.integers(1, 60))
+        cons = []
+        for kind in ("lost", "gained", "slip"):
+            m = rng.random(n) < 0.7
+            a = rng.choice([0.0, -0.0, 1.0, 2.0, 1e-12, -1e-12]) + rng.random(n) * (trial % 3)
+            b = rng.standard_normal(n)
+            b[rng.random(n) < 0.2] = 0.0
+            b[rng.random(n) < 0.1] = -1e-14  # flat at this scale
+            if trial % 5 == 0:  # ties: equal roots at several entries
+                a[::3], b[::3] = 1.0, -2.0
+                a[1::3] *= 1 + TIE / 10
+            if trial % 7 == 0:
+                a[rng.integers(n)] = -1.0  # a violated entry (flat where b is)
+            cons.append((kind, m, a, b, float(rng.choice([1.0, 1e-3]))))
+        D, Dref, Dscale = 0.0, float(rng.choice([1.0, 0.1])), float(rng.choice([1.0, 1e-6]))
+        got = event_table(cons, D, Dref, Dscale, compiled=True)
+        want = event_table(cons, D, Dref, Dscale, compiled=False)
+        assert got[2:] == want[2:] and np.array(got[:2]).tobytes() == np.array(want[:2]).tobytes()

@@ -18,6 +18,7 @@ from typing import Protocol
 import numpy as np
 
 from roughslip.errors import NumericalError
+from roughslip.linalg import jit
 
 TIE = 1e-9
 #: a slipping bond sticks again when its slip rate (per unit pull) opposes its force by more
@@ -77,7 +78,7 @@ def argext(a: np.ndarray, mask: np.ndarray | None, how: str) -> int:
     return int(np.flatnonzero(close & inside)[0])
 
 
-def event_table(cons, D: float, Dref: float, Dscale: float
+def event_table(cons, D: float, Dref: float, Dscale: float, compiled: bool | None = None
                 ) -> tuple[float, float, str, int]:
     r"""The interval ``[lo, hi]`` of the drive on which every constraint row holds, and the
     event (kind, index) that ends it at ``hi``.
@@ -86,30 +87,86 @@ def event_table(cons, D: float, Dref: float, Dscale: float
     A row is flat when its change over ``Dref`` is below ``TIE x scale``; a violated flat row
     makes the state admissible nowhere (``lo = inf``, ``hi = -inf``). Ties at ``hi`` (within
     a relative ``TIE`` of ``max(|hi|, Dscale)``) go to the lowest index, then to the earlier
-    row kind.
+    row kind. Each row is scanned in one compiled loop, or by numpy (``compiled``: default
+    :data:`roughslip.linalg.jit.ENABLED`); both compare the same IEEE values in the same way.
     """
+    use = jit.ENABLED if compiled is None else compiled
+    scan = _compiled_scan() if use else _scan_np
     lo, hi, kind, site = -math.inf, math.inf, "", -1
     for name, mask, a, b, scale in cons:
-        m = mask.ravel()
-        a, b = a.ravel(), b.ravel()
-        tiny = TIE * scale
-        flat = m & (np.abs(b) * Dref <= tiny)
-        if np.any(flat & (a < -tiny)):
-            return math.inf, -math.inf, name, int(np.flatnonzero(flat & (a < -tiny))[0])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            root = -a / b
-        up = m & ~flat & (b < 0)
-        if up.any():
-            r = np.where(up, root, np.inf)
-            v = float(r.min())
+        bad, v, j, w = scan(mask.ravel(), a.ravel(), b.ravel(), TIE * scale, Dref, Dscale, TIE)
+        if bad >= 0:
+            return math.inf, -math.inf, name, int(bad)
+        if j >= 0:
             tol = TIE * max(abs(v), Dscale)
-            j = int(np.flatnonzero(up & (r <= v + tol))[0])
             if v < hi - tol or (abs(v - hi) <= tol and j < site):
-                hi, kind, site = v, name, j
-        down = m & ~flat & (b > 0)
-        if down.any():
-            lo = max(lo, float(np.where(down, root, -np.inf).max()))
+                hi, kind, site = v, name, int(j)
+        lo = max(lo, w)
     return lo, hi, kind, site
+
+
+def _scan_np(m: np.ndarray, a: np.ndarray, b: np.ndarray, tiny: float, Dref: float,
+             Dscale: float, tie: float) -> tuple[int, float, int, float]:
+    """One row of :func:`event_table`: the first violated flat entry (or -1); the smallest
+    root of the falling entries, the first entry at it (within the tie tolerance; -1 if none
+    falls); the largest root of the rising entries (-inf if none)."""
+    flat = m & (np.abs(b) * Dref <= tiny)
+    viol = flat & (a < -tiny)
+    if np.any(viol):
+        return int(np.flatnonzero(viol)[0]), math.inf, -1, -math.inf
+    with np.errstate(divide="ignore", invalid="ignore"):
+        root = -a / b
+    up = m & ~flat & (b < 0)
+    v, j = math.inf, -1
+    if up.any():
+        r = np.where(up, root, np.inf)
+        v = float(r.min())
+        tol = tie * max(abs(v), Dscale)
+        j = int(np.flatnonzero(up & (r <= v + tol))[0])
+    down = m & ~flat & (b > 0)
+    w = float(np.where(down, root, -np.inf).max()) if down.any() else -math.inf
+    return -1, v, j, w
+
+
+_SCAN = None
+
+
+def _compiled_scan():
+    """:func:`_scan_np` as one compiled pass and a second one from the first falling entry
+    (defined and compiled, or loaded from numba's cache, at first use)."""
+    global _SCAN
+    if _SCAN is None:
+        @jit.njit()
+        def scan(m, a, b, tiny, Dref, Dscale, tie):
+            v, w = np.inf, -np.inf
+            first = -1
+            for i in range(m.size):
+                if not m[i]:
+                    continue
+                bi = b[i]
+                if abs(bi) * Dref <= tiny:
+                    if a[i] < -tiny:
+                        return i, np.inf, -1, -np.inf
+                    continue
+                r = -a[i] / bi
+                if bi < 0.0:
+                    if first < 0:
+                        first = i
+                    if r < v:
+                        v = r
+                elif bi > 0.0:
+                    if r > w:
+                        w = r
+            if first < 0:
+                return -1, np.inf, -1, w
+            tol = tie * max(abs(v), Dscale)
+            for i in range(first, m.size):
+                if m[i] and b[i] < 0.0 and not abs(b[i]) * Dref <= tiny and -a[i] / b[i] <= v + tol:
+                    return -1, v, i, w
+            return -1, v, -1, w
+
+        _SCAN = scan
+    return _SCAN
 
 
 @dataclass
