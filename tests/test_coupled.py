@@ -359,6 +359,43 @@ def test_updated_inverse_tracks_solutions_through_set_changes(symv_min):
     assert d.inverse.factorisations == 1 and compactions > 0
 
 
+def test_kept_displacements_follow_the_removals():
+    """The displacements the dense solver returns for its kept solutions, moved along the
+    removed columns (one block product per removal for all right-hand sides), are those of
+    their forces to round-off, on and off the contact set (the gaps), through removals,
+    additions, compactions and the periodic fresh products."""
+    from roughslip.contact.problem import Problem
+    from roughslip.coupling.blocksolvers import DenseBlockSolver as _Dense
+    from roughslip.elastic.operators import Grid, Material
+
+    grid = Grid((12, 12))
+    problem = Problem(np.zeros(grid.shape), grid, Material(1.0, 0.25))
+    d = _Dense(problem, tol=1e-13)
+    d.inverse.block = 8
+    d.refresh_every = 5
+    rng = np.random.default_rng(4)
+    C = rng.random(grid.shape) < 0.7
+    S = C.copy()
+    rhs = [(rng.normal(size=grid.shape), rng.normal(size=grid.shape), k) for k in "01"]
+    ages = set()
+    for step in range(45):
+        d.prepare(C, S)
+        for (fz, fx, uz), (_, _, key) in zip(d.solve_many(rhs), rhs, strict=True):
+            want = d.displacements(fz, fx)
+            kept = d._fields[key]
+            ages.add(kept.age)
+            scale = np.abs(want[0]).max() + np.abs(want[1]).max()
+            assert np.abs(uz - want[0]).max() <= 1e-13 * scale
+            assert np.abs(kept.ux - want[1]).max() <= 1e-13 * scale
+        j = rng.choice(np.flatnonzero(S if S.any() else C))
+        S.flat[j] = False
+        if step % 9 == 8:  # a contact leaves, another enters
+            C.flat[j] = False
+            C.flat[rng.choice(np.flatnonzero(~C))] = True
+    assert {0, 1, 5} <= ages and max(ages) <= 5  # moved, and computed afresh after 5
+    assert d.inverse.factorisations == 1
+
+
 def test_a_slow_rate_is_flat_only_on_the_scale_of_the_pull_so_far():
     """Found at N = 128 (nu = 0.45, sample 13 of the study): off contact, g = g0 + D g1 with
     g0 = -1.6e-5 and g1 = 1.6e-4, at D = 0.5, long after a first event at 8.6e-6. Judged flat

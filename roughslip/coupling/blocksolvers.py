@@ -21,6 +21,7 @@ the FFT operator.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -107,7 +108,11 @@ class DenseBlockSolver:
       would be thrown away at the next pass.
 
     Every solution is certified against the FFT operator: the displacements of the forces,
-    which the event loop needs anyway for the gaps, give the residual on the unknowns; above
+    which the event loop needs anyway for the gaps, give the residual on the unknowns. When an
+    unknown leaves, every kept solution moves along the same column of the inverse, so one
+    block product of that column updates the displacements of all of them; they are computed
+    afresh after ``refresh_every`` such updates, after an addition, and for every solution
+    that is refined. Above
     ``tol`` (relative) it is refined by :math:`x \leftarrow x + M^{-1}_{\rm current} r`, up to
     ``refinements`` times (:meth:`UpdatableInverse.refine`), and the worst certified residual
     is reported. With ``reference=True`` every state is factorised from scratch and
@@ -116,6 +121,9 @@ class DenseBlockSolver:
 
     refinements = 3
     bulk_min = 2000
+    #: removals after which the displacements of a kept solution are computed afresh (the
+    #: updates add the round-off of one block product each)
+    refresh_every = 16
 
     def __init__(self, problem: Problem, *, reference: bool = False, tol: float = 1e-12,
                  fallback: bool = False, threads: int = 1, **_: object) -> None:
@@ -142,6 +150,8 @@ class DenseBlockSolver:
         self.inverse = UpdatableInverse(self.entries, 2 * self.ny * self.nx, room=self._room,
                                         threads=threads)
         self.dense = True  # False while the bulk passes or the fallback solve matrix-free
+        #: the displacements of the kept solutions, by right-hand side (:class:`_Fields`)
+        self._fields: dict[str, _Fields] = {}
 
     @property
     def blas_seconds(self) -> float:
@@ -228,12 +238,38 @@ class DenseBlockSolver:
                   or gone.size + new.size > max(4, int(inv.live.sum()) // 3))
         # stops at the first failed removal; an addition fails only on a non-positive Schur
         # complement (None: the memory did not allow it, and the note says so)
-        ok = ok and all(inv.remove(int(u)) for u in gone)
+        ok = ok and all(self._remove(int(u)) for u in gone)
         ok = ok and (not new.size or inv.add(new) is not False)
         if not ok:
             self._factor(np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1]))
         elif (~inv.live).sum() > 0.25 * inv.m:
             inv.compact(0)
+            for key, t in inv.tracked.items():  # the same forces on fewer rows
+                f = self._fields.get(key)
+                if f is not None and f.x is not None:
+                    f.x = t.x
+
+    def _remove(self, unknown: int) -> bool:
+        r"""Remove ``unknown`` from the inverse (False: its pivot was not positive) and move
+        the displacements of the kept solutions with it: each changes by
+        :math:`-(x_r/c_r)\,G c` for the column :math:`c` of the inverse, one block product
+        for all of them (class docstring)."""
+        inv = self.inverse
+        r = int(inv.row[unknown])
+        layout = self._layout()  # row r still live: the forces of the column include it
+        c = inv.column(r)
+        moving = [(f, float(t.x[r]) / float(c[r])) for key, t in inv.tracked.items()
+                  if (f := self._fields.get(key)) is not None and f.x is t.x]
+        if not inv.remove(unknown, column=c):
+            return False
+        if moving:
+            gz, gx = self._displacements(*self._to_fields(c, layout, (self.ny, self.nx)))
+            for f, a in moving:
+                if f.age >= self.refresh_every:
+                    f.x = None  # computed afresh at the next solve
+                    continue
+                f.uz, f.ux, f.age = f.uz - a * gz, f.ux - a * gx, f.age + 1
+        return True
 
     def residual(self) -> float:
         return self.worst
@@ -243,6 +279,7 @@ class DenseBlockSolver:
         was one to drop."""
         had = self.inverse.ready
         self.inverse.reset()
+        self._fields = {}
         return had
 
     def add_solves(self, n: int) -> None:
@@ -317,12 +354,18 @@ class DenseBlockSolver:
         out = []
         for (rz, rx, key), b, x in zip(rhs, bs, xs, strict=True):
             scale = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
-            last: list[np.ndarray] = []
+            last: list = []
+            kept = self._fields.get(key)
+            if kept is None or kept.x is None or kept.x is not x:
+                kept = None  # no displacements for this solution (new, or computed afresh)
 
-            def residual(x, b=b, rz=rz, last=last, scale=scale):
+            def residual(x, b=b, rz=rz, last=last, scale=scale, kept=kept):
                 fz, fx = self._to_fields(x, layout, rz.shape)
-                uz, ux = self._displacements(fz, fx)
-                last[:] = [fz, fx, uz]
+                if kept is not None and x is kept.x:  # the kept solution, not yet refined
+                    uz, ux, age = kept.uz, kept.ux, kept.age
+                else:
+                    (uz, ux), age = self._displacements(fz, fx), 0
+                last[:] = [fz, fx, uz, ux, age]
                 r = np.zeros(inv.m)
                 r[rows] = b[rows] - np.where(isx, ux.ravel()[sites], uz.ravel()[sites])
                 return r, float(np.linalg.norm(r)) / scale
@@ -331,7 +374,10 @@ class DenseBlockSolver:
                                    self.refinements)
             self.worst = max(self.worst, res)
             inv.tracked[key] = Tracked(b, x, _rhs_values(rz.copy(), rx.copy()))
-            out.append(tuple(last))
+            fz, fx, uz, ux, age = last
+            if not self.reference:
+                self._fields[key] = _Fields(x, uz, ux, age)
+            out.append((fz, fx, uz))
         return out
 
     def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -343,6 +389,18 @@ class DenseBlockSolver:
         layout = self._layout()
         x = self.inverse.apply(self._to_rows(rz, rx, layout))
         return self._to_fields(x, layout, rz.shape)
+
+
+@dataclass
+class _Fields:
+    """The displacements (u_z, u_x) of the forces of a kept solution ``x`` of the dense
+    solver's inverse (``x`` None: to be computed afresh), and the removals they were moved
+    through since they were computed."""
+
+    x: np.ndarray | None
+    uz: np.ndarray
+    ux: np.ndarray
+    age: int
 
 
 def _rhs_values(rz: np.ndarray, rx: np.ndarray):
