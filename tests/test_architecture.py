@@ -284,7 +284,9 @@ def test_a_previous_format_run_resumes_as_the_same_configuration(tmp_path):
 def test_a_coupled_run_of_the_version_before_squeeze_histories_resumes_and_reproduces(tmp_path):
     """A coupled run written before ``coupling.history`` existed (format 2): its configuration
     loads with the default history, ``bonded``, its digest is recognised, --resume finds
-    nothing to do, and a fresh run gives every stored number bitwise again."""
+    nothing to do, and a fresh run gives every stored number bitwise again, but for the
+    certified residuals: they measure the round-off of the solves (about 4e-16 here), which
+    the faster folds and products of later versions change, and stay below the tolerance."""
     import numpy as np
 
     from roughslip.run.config import load_config
@@ -311,4 +313,9 @@ def test_a_coupled_run_of_the_version_before_squeeze_histories_resumes_and_repro
         compared = [n for n in names if "seconds" not in n]
         assert len(compared) > 15
         for n in compared:
+            if n.rsplit("/", 1)[-1] == "residual":
+                x, y = a[n][()], b[n][()]
+                assert np.array_equal(np.isnan(x), np.isnan(y)), n
+                assert np.nanmax(y) <= 1e-12 and np.nanmax(x) <= 1e-12, n
+                continue
             assert np.array_equal(a[n][()], b[n][()], equal_nan=True), n

@@ -235,9 +235,9 @@ def gemm_update(c: np.ndarray, m: int, p: np.ndarray, q: np.ndarray, k: int,
     """``C[:m, :m] += alpha P[:m, :k] Q[:m, :k]^T`` in place: one GEMM into ``c`` with the
     64-bit library (no temporary of the product), else numpy by column panels.
 
-    ``c``, ``p`` and ``q`` are Fortran-ordered with as many rows as ``c``. With one block of
-    ``k`` in the library's GEMM (``k`` up to a few hundred), the entries are bitwise those of
-    adding the separately computed product.
+    ``c``, ``p`` and ``q`` are Fortran-ordered with as many rows as ``c``. The sum is rounded
+    as the library's GEMM accumulates it, which can differ in the last bits from adding the
+    separately computed product.
     """
     if _lib(c.dtype) is not None:
         _gemm_nt(c, 0, m, 0, m, p, q, k, alpha)
