@@ -83,3 +83,32 @@ def test_compiled_event_table_equals_numpy():
         got = event_table(cons, D, Dref, Dscale, compiled=True)
         want = event_table(cons, D, Dref, Dscale, compiled=False)
         assert got[2:] == want[2:] and np.array(got[:2]).tobytes() == np.array(want[:2]).tobytes()
+
+
+@pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba is not installed")
+@pytest.mark.parametrize("in_place", [True, False])
+def test_compiled_compaction_equals_numpy(in_place, monkeypatch):
+    """The compactions of an updated inverse, compiled and numpy, in place (the source columns
+    overwritten as the sweep goes) and into a larger buffer: the same matrices bit for bit,
+    the kept rows and columns of the source."""
+    from roughslip.linalg import inverse
+
+    rng = np.random.default_rng(8)
+    m, cap = 57, 64
+    keep = np.flatnonzero(rng.random(m) < 0.6)
+    k = keep.size
+    A = np.asfortranarray(rng.standard_normal((cap, cap)))
+    want = A[:m, :m][np.ix_(keep, keep)]
+    out = []
+    for compiled in (True, False):
+        monkeypatch.setattr(jit, "ENABLED", compiled)
+        src = A.copy(order="F")
+        dst = src if in_place else np.zeros((cap + 8, cap + 8), order="F")
+        inverse._compact_full(src, dst, keep)
+        assert np.array_equal(dst[:k, :k], want)
+        flat = A[:m, :m].copy(order="F").reshape(-1, order="F")
+        low = inverse._compact_lower(flat, m, keep)
+        assert np.array_equal(np.tril(low), np.tril(want))
+        out.append((dst[:k, :k].copy(), np.tril(low)))
+    assert out[0][0].tobytes() == out[1][0].tobytes()
+    assert out[0][1].tobytes() == out[1][1].tobytes()

@@ -53,12 +53,13 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 from scipy import linalg
 
 from roughslip.errors import NumericalError
-from roughslip.linalg import lapack64
+from roughslip.linalg import jit, lapack64
 from roughslip.linalg.threads import blas_threads
 
 #: peak memory per squared order (bytes): the inverse with up to 27 % spare rows
@@ -114,13 +115,61 @@ def _compact_lower(flat: np.ndarray, m: int, keep: np.ndarray) -> np.ndarray:
     a Fortran ``k x k`` matrix at the start of the same buffer (lower triangle).
 
     New column ``c`` starts at ``c k <= keep[c] m``, the start of its source column, and
-    ends before the next source column, so a forward sweep never overwrites unread data.
+    ends before the next source column, so a forward sweep never overwrites unread data
+    (element by element too: every later read lies beyond every earlier write). Compiled
+    when :data:`roughslip.linalg.jit.ENABLED`, else a column at a time; both copy the same
+    entries.
     """
     k = keep.size
-    for c in range(k):
-        col = flat[int(keep[c]) * m + keep[c:]]  # lower part of the source column (a copy)
-        flat[c * k + c: c * k + k] = col
+    if jit.ENABLED:
+        _compaction_kernels().lower(flat, m, keep.astype(np.int64))
+    else:
+        for c in range(k):
+            col = flat[int(keep[c]) * m + keep[c:]]  # lower part of the source column (a copy)
+            flat[c * k + c: c * k + k] = col
     return flat[: k * k].reshape((k, k), order="F")
+
+
+def _compact_full(src: np.ndarray, dst: np.ndarray, keep: np.ndarray) -> None:
+    """``dst[:k, :k] = src[keep][:, keep]`` for Fortran-ordered ``src`` and ``dst``, which may
+    be the same buffer: column ``j`` of the result overwrites source column ``j <= keep[j]``
+    after reading it (compiled, or a column at a time)."""
+    if jit.ENABLED:
+        _compaction_kernels().full(src, dst, keep.astype(np.int64))
+        return
+    k = keep.size
+    for j, col in enumerate(keep):
+        dst[:k, j] = src[keep, col]
+
+
+_COMPACTION = None
+
+
+def _compaction_kernels():
+    """The compiled compactions (defined and compiled, or loaded from numba's cache, at first
+    use): forward sweeps, element by element, in the order of the numpy versions' columns."""
+    global _COMPACTION
+    if _COMPACTION is None:
+        njit = jit.njit()
+
+        @njit
+        def lower(flat, m, keep):
+            k = keep.size
+            for c in range(k):
+                base = keep[c] * m
+                for i in range(c, k):
+                    flat[c * k + i] = flat[base + keep[i]]
+
+        @njit
+        def full(src, dst, keep):
+            k = keep.size
+            for j in range(k):
+                col = keep[j]
+                for i in range(k):
+                    dst[i, j] = src[keep[i], col]
+
+        _COMPACTION = SimpleNamespace(lower=lower, full=full)
+    return _COMPACTION
 
 
 def _nonsingular(pivots: np.ndarray, scale: np.ndarray) -> bool:
@@ -452,8 +501,7 @@ class UpdatableInverse:
         if k + extra > buf.shape[0]:
             cap = k + max(extra, k // 8 + 16)
             buf = np.zeros((cap, cap), order="F")
-        for j, src in enumerate(keep):
-            buf[:k, j] = self.buf[keep, src]
+        _compact_full(self.buf, buf, keep)
         self._adopt(buf, k, self.ids[keep])
         self.tracked = tracked
         return True
