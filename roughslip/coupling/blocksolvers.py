@@ -109,14 +109,14 @@ class DenseBlockSolver:
 
     Every solution is certified against the FFT operator: the displacements of the forces,
     which the event loop needs anyway for the gaps, give the residual on the unknowns. When an
-    unknown leaves, every kept solution moves along the same column of the inverse, so one
-    block product of that column updates the displacements of all of them; they are computed
-    afresh after ``refresh_every`` such updates, after an addition, and for every solution
-    that is refined. Above
-    ``tol`` (relative) it is refined by :math:`x \leftarrow x + M^{-1}_{\rm current} r`, up to
-    ``refinements`` times (:meth:`UpdatableInverse.refine`), and the worst certified residual
-    is reported. With ``reference=True`` every state is factorised from scratch and
-    displacements are dense sums (no FFT at all): the test reference.
+    unknown leaves, every kept solution moves along the same column of the inverse, so with two
+    or more of them one block product of that column updates all their displacements; they are
+    computed afresh after ``refresh_every`` such updates, after an addition, and for every
+    solution that is refined. Above ``tol`` (relative) a solution is refined by
+    :math:`x \leftarrow x + M^{-1}_{\rm current} r`, up to ``refinements`` times
+    (:meth:`UpdatableInverse.refine`), and the worst certified residual is reported. With
+    ``reference=True`` every state is factorised from scratch and displacements are dense
+    sums (no FFT at all): the test reference.
     """
 
     refinements = 3
@@ -262,7 +262,9 @@ class DenseBlockSolver:
                   if (f := self._fields.get(key)) is not None and f.x is t.x]
         if not inv.remove(unknown, column=c):
             return False
-        if moving:
+        if len(moving) == 1:  # one product either way: the fresh one, at the next solve
+            moving[0][0].x = None
+        elif moving:
             gz, gx = self._displacements(*self._to_fields(c, layout, (self.ny, self.nx)))
             for f, a in moving:
                 if f.age >= self.refresh_every:
