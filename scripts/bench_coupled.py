@@ -30,7 +30,7 @@ import statistics
 import time
 
 import numpy as np
-from benchlib import depth_for_area  # the same scenes as the squeeze benchmark
+from benchlib import depth_for_area, median_times  # the same scenes as the squeeze benchmark
 
 from roughslip import couple, pull
 from roughslip.contact.problem import Problem
@@ -41,15 +41,6 @@ from roughslip.elastic.operators import Grid, Material
 from roughslip.linalg import lapack64
 from roughslip.linalg.threads import blas_threads
 from roughslip.surfaces import sample_rng, self_affine
-
-
-def _median_seconds(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def floor(sizes: list[int], areas: list[float], threads: int, repeat: int) -> None:
@@ -66,7 +57,7 @@ def floor(sizes: list[int], areas: list[float], threads: int, repeat: int) -> No
         for area in areas:
             depth = depth_for_area(solver, area, hi=float(h.max() - h.min()))
             normal = solver.solve(depth=depth)
-            t_pull = _median_seconds(lambda normal=normal: pull(normal, lam=0.2), repeat)
+            t_pull = median_times([lambda normal=normal: pull(normal, lam=0.2)], repeat)[0]
             sites = np.flatnonzero(normal.contact)
             ids = np.concatenate([2 * sites, 2 * sites + 1])
             t_asm, t_inv = [], []

@@ -12,26 +12,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
-import time
 
 import numpy as np
 import scipy.fft
+from benchlib import median_times
 
 from roughslip.elastic.operators import ElasticOperator
-
-
-def median_times(fns, repeat: int) -> list[float]:
-    """Median run time of each function, measured interleaved so they see the same load."""
-    for fn in fns:
-        fn()  # warm-up (plans, caches)
-    ts: list[list[float]] = [[] for _ in fns]
-    for _ in range(repeat):
-        for fn, t in zip(fns, ts, strict=True):
-            t0 = time.perf_counter()
-            fn()
-            t.append(time.perf_counter() - t0)
-    return [statistics.median(t) for t in ts]
 
 
 def bare_pair(shape, backend: str, threads: int):

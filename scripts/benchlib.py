@@ -33,6 +33,19 @@ def floor_seconds(shape, repeat=9) -> float:
     return statistics.median(ts)
 
 
+def median_times(fns, repeat: int) -> list[float]:
+    """Median run time of each function, measured interleaved so they see the same load."""
+    for fn in fns:
+        fn()  # warm-up (plans, caches)
+    ts: list[list[float]] = [[] for _ in fns]
+    for _ in range(repeat):
+        for fn, t in zip(fns, ts, strict=True):
+            t0 = time.perf_counter()
+            fn()
+            t.append(time.perf_counter() - t0)
+    return [statistics.median(t) for t in ts]
+
+
 def depth_for_area(solver: NormalSolver, target: float, hi: float) -> float:
     """Depth whose contact fraction is close to ``target``: bisection with a solver of the
     same problem and method at a loose tolerance (``solver`` itself is not touched)."""

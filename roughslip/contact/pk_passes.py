@@ -19,6 +19,7 @@ two give bitwise the same iterates (tested). Extremes and counts are exact in an
 
 from __future__ import annotations
 
+import functools
 from types import SimpleNamespace
 
 import numpy as np
@@ -69,14 +70,9 @@ def _scale_np(p, u, s):
 # numba: the same operations, one loop each and without branches (the contact set is ragged,
 # so branches mispredict)
 # ------------------------------------------------------------------------------------------------
-_COMPILED: SimpleNamespace | None = None
-
-
+@functools.cache
 def _compiled() -> SimpleNamespace:
     """The numba kernels, defined and compiled (or loaded from the cache) at the first call."""
-    global _COMPILED
-    if _COMPILED is not None:
-        return _COMPILED
     _jit = jit.njit()
 
     @_jit
@@ -155,9 +151,8 @@ def _compiled() -> SimpleNamespace:
             p[i] = p[i] * s
             u[i] = u[i] * s
 
-    _COMPILED = SimpleNamespace(gap=_gap_nb, shift_gap=_shift_gap_nb, direction=_direction_nb,
-                                step=_step_nb, collect=_collect_nb, scale=_scale_nb)
-    return _COMPILED
+    return SimpleNamespace(gap=_gap_nb, shift_gap=_shift_gap_nb, direction=_direction_nb,
+                           step=_step_nb, collect=_collect_nb, scale=_scale_nb)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -243,11 +243,11 @@ class DenseBlockSolver:
         if not ok:
             self._factor(np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1]))
         elif (~inv.live).sum() > 0.25 * inv.m:
+            kept = [(key, f) for key, t in inv.tracked.items()
+                    if (f := self._fields.get(key)) is not None and f.x is t.x]
             inv.compact(0)
-            for key, t in inv.tracked.items():  # the same forces on fewer rows
-                f = self._fields.get(key)
-                if f is not None and f.x is not None:
-                    f.x = t.x
+            for key, f in kept:  # the same forces on fewer rows
+                f.x = inv.tracked[key].x
 
     def _remove(self, unknown: int) -> bool:
         r"""Remove ``unknown`` from the inverse (False: its pivot was not positive) and move
@@ -256,16 +256,18 @@ class DenseBlockSolver:
         for all of them (class docstring)."""
         inv = self.inverse
         r = int(inv.row[unknown])
-        layout = self._layout()  # row r still live: the forces of the column include it
         c = inv.column(r)
         moving = [(f, float(t.x[r]) / float(c[r])) for key, t in inv.tracked.items()
                   if (f := self._fields.get(key)) is not None and f.x is t.x]
+        forces = None
+        if len(moving) > 1:  # the column's forces, on the rows before the removal (r included)
+            forces = self._to_fields(c, self._layout(), (self.ny, self.nx))
         if not inv.remove(unknown, column=c):
             return False
         if len(moving) == 1:  # one product either way: the fresh one, at the next solve
             moving[0][0].x = None
         elif moving:
-            gz, gx = self._displacements(*self._to_fields(c, layout, (self.ny, self.nx)))
+            gz, gx = self._displacements(*forces)
             for f, a in moving:
                 if f.age >= self.refresh_every:
                     f.x = None  # computed afresh at the next solve

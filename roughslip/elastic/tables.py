@@ -5,6 +5,7 @@ kernels) on first use, and cached."""
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Protocol
 
@@ -159,28 +160,23 @@ def gather_pairs(T: np.ndarray, li: np.ndarray, lj: np.ndarray, off: int, out: n
     return out
 
 
-_GATHER = None
-
-
+@functools.cache
 def _gather_kernel():
     """The compiled gather (defined and compiled, or loaded from numba's cache, at first use):
     by columns into a Fortran-ordered block, by rows into a C-ordered one."""
-    global _GATHER
-    if _GATHER is None:
-        @jit.njit()
-        def gather(T, li, lj, off, out, rows, cols, by_rows):
-            if by_rows:
-                for a in range(li.size):
-                    r = rows[a]
-                    base = li[a] + off
-                    for b in range(lj.size):
-                        out[r, cols[b]] = T[base - lj[b]]
-            else:
+    @jit.njit()
+    def gather(T, li, lj, off, out, rows, cols, by_rows):
+        if by_rows:
+            for a in range(li.size):
+                r = rows[a]
+                base = li[a] + off
                 for b in range(lj.size):
-                    c = cols[b]
-                    base = off - lj[b]
-                    for a in range(li.size):
-                        out[rows[a], c] = T[li[a] + base]
+                    out[r, cols[b]] = T[base - lj[b]]
+        else:
+            for b in range(lj.size):
+                c = cols[b]
+                base = off - lj[b]
+                for a in range(li.size):
+                    out[rows[a], c] = T[li[a] + base]
 
-        _GATHER = gather
-    return _GATHER
+    return gather

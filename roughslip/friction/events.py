@@ -10,6 +10,7 @@ values within a relative ``TIE`` of the extreme, the lowest flat index.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -128,45 +129,41 @@ def _scan_np(m: np.ndarray, a: np.ndarray, b: np.ndarray, tiny: float, Dref: flo
     return -1, v, j, w
 
 
-_SCAN = None
-
-
+@functools.cache
 def _compiled_scan():
     """:func:`_scan_np` as one compiled pass and a second one from the first falling entry
     (defined and compiled, or loaded from numba's cache, at first use)."""
-    global _SCAN
-    if _SCAN is None:
-        @jit.njit()
-        def scan(m, a, b, tiny, Dref, Dscale, tie):
-            v, w = np.inf, -np.inf
-            first = -1
-            for i in range(m.size):
-                if not m[i]:
-                    continue
-                bi = b[i]
-                if abs(bi) * Dref <= tiny:
-                    if a[i] < -tiny:
-                        return i, np.inf, -1, -np.inf
-                    continue
-                r = -a[i] / bi
-                if bi < 0.0:
-                    if first < 0:
-                        first = i
-                    if r < v:
-                        v = r
-                elif bi > 0.0:
-                    if r > w:
-                        w = r
-            if first < 0:
-                return -1, np.inf, -1, w
-            tol = tie * max(abs(v), Dscale)
-            for i in range(first, m.size):
-                if m[i] and b[i] < 0.0 and not abs(b[i]) * Dref <= tiny and -a[i] / b[i] <= v + tol:
-                    return -1, v, i, w
-            return -1, v, -1, w
+    @jit.njit()
+    def scan(m, a, b, tiny, Dref, Dscale, tie):
+        v, w = np.inf, -np.inf
+        first = -1
+        for i in range(m.size):
+            if not m[i]:
+                continue
+            bi = b[i]
+            if abs(bi) * Dref <= tiny:
+                if a[i] < -tiny:
+                    return i, np.inf, -1, -np.inf
+                continue
+            r = -a[i] / bi
+            if bi < 0.0:
+                if first < 0:
+                    first = i
+                if r < v:
+                    v = r
+            elif bi > 0.0:
+                if r > w:
+                    w = r
+        if first < 0:
+            return -1, np.inf, -1, w
+        tol = tie * max(abs(v), Dscale)
+        for i in range(first, m.size):
+            falling = m[i] and b[i] < 0.0 and not abs(b[i]) * Dref <= tiny
+            if falling and -a[i] / b[i] <= v + tol:
+                return -1, v, i, w
+        return -1, v, -1, w
 
-        _SCAN = scan
-    return _SCAN
+    return scan
 
 
 @dataclass

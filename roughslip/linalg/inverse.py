@@ -49,6 +49,7 @@ refinement (:meth:`UpdatableInverse.refine` corrects with the current inverse).
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -142,34 +143,29 @@ def _compact_full(src: np.ndarray, dst: np.ndarray, keep: np.ndarray) -> None:
         dst[:k, j] = src[keep, col]
 
 
-_COMPACTION = None
-
-
-def _compaction_kernels():
+@functools.cache
+def _compaction_kernels() -> SimpleNamespace:
     """The compiled compactions (defined and compiled, or loaded from numba's cache, at first
     use): forward sweeps, element by element, in the order of the numpy versions' columns."""
-    global _COMPACTION
-    if _COMPACTION is None:
-        njit = jit.njit()
+    njit = jit.njit()
 
-        @njit
-        def lower(flat, m, keep):
-            k = keep.size
-            for c in range(k):
-                base = keep[c] * m
-                for i in range(c, k):
-                    flat[c * k + i] = flat[base + keep[i]]
+    @njit
+    def lower(flat, m, keep):
+        k = keep.size
+        for c in range(k):
+            base = keep[c] * m
+            for i in range(c, k):
+                flat[c * k + i] = flat[base + keep[i]]
 
-        @njit
-        def full(src, dst, keep):
-            k = keep.size
-            for j in range(k):
-                col = keep[j]
-                for i in range(k):
-                    dst[i, j] = src[keep[i], col]
+    @njit
+    def full(src, dst, keep):
+        k = keep.size
+        for j in range(k):
+            col = keep[j]
+            for i in range(k):
+                dst[i, j] = src[keep[i], col]
 
-        _COMPACTION = SimpleNamespace(lower=lower, full=full)
-    return _COMPACTION
+    return SimpleNamespace(lower=lower, full=full)
 
 
 def _nonsingular(pivots: np.ndarray, scale: np.ndarray) -> bool:

@@ -242,9 +242,9 @@ def gemm_update(c: np.ndarray, m: int, p: np.ndarray, q: np.ndarray, k: int,
     if _lib(c.dtype) is not None:
         _gemm_nt(c, 0, m, 0, m, p, q, k, alpha)
         return
-    P, Q, M = p[:m, :k], q[:m, :k], c[:m, :m]
+    P, Q, M = alpha * p[:m, :k], q[:m, :k], c[:m, :m]
     for j in range(0, m, 2048):  # column panels: no copy of M, small temporaries
-        M[:, j:j + 2048] += (alpha * P) @ Q[j:j + 2048].T
+        M[:, j:j + 2048] += P @ Q[j:j + 2048].T
 
 
 def _gemm_nt(c: np.ndarray, r0: int, r1: int, j0: int, j1: int, p: np.ndarray, q: np.ndarray,
