@@ -112,3 +112,47 @@ def test_compiled_compaction_equals_numpy(in_place, monkeypatch):
         out.append((dst[:k, :k].copy(), np.tril(low)))
     assert out[0][0].tobytes() == out[1][0].tobytes()
     assert out[0][1].tobytes() == out[1][1].tobytes()
+
+
+@pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba is not installed")
+def test_compiled_break_candidates_equal_numpy():
+    """The single-precision pull's candidate scan, compiled and numpy: the same leading row,
+    ratio, bound and candidates on random rows with exact ties, ties within TIE, dead rows
+    (infinite cap), zero forces and bounds wide enough to admit every row."""
+    from roughslip.friction.breaking_single import _candidates
+    from roughslip.friction.events import TIE
+    rng = np.random.default_rng(11)
+    seen_many = seen_tie = 0
+    for trial in range(400):
+        n = int(rng.integers(1, 80))
+        phi = rng.standard_normal(n) * rng.choice([1.0, 1e-3])
+        cap = rng.random(n) + 0.1
+        cap[rng.random(n) < 0.2] = np.inf  # dead rows
+        phi[rng.random(n) < 0.1] = 0.0
+        if trial % 4 == 0 and n > 3:  # exact ties and ties inside the band
+            lead = int(np.argmax(np.abs(phi) / cap))
+            for k in rng.choice(n, 3, replace=False):
+                if np.isfinite(cap[k]):
+                    phi[k] = abs(phi[lead]) * cap[k] / cap[lead] * (1 + rng.choice(
+                        [0.0, TIE / 3, -TIE / 3, 3 * TIE]))
+        d = rng.random(n) * 2
+        nu = float(rng.random() + 0.5)
+        Rb = float(rng.choice([0.0, 1e-12, 1e-6, 1e-2, 10.0]))
+        spread = float(np.sqrt(nu * d.max()) * Rb / cap[np.isfinite(cap)].min()
+                       if np.isfinite(cap).any() else 0.0)
+        got = _candidates(phi, cap, d, nu, Rb, spread, compiled=True)
+        want = _candidates(phi, cap, d, nu, Rb, spread, compiled=False)
+        if want is None:
+            assert got is None
+            continue
+        assert got[0] == want[0]
+        assert np.array([got[1], got[2]]).tobytes() == np.array([want[1], want[2]]).tobytes()
+        assert np.array_equal(got[3], want[3]) and got[3].dtype == np.int64
+        seen_many += want[3].size > 1
+        seen_tie += int(np.sum(np.abs(np.abs(phi) / cap - want[1]) <= TIE * want[1])) > 1
+    assert seen_many > 50 and seen_tie > 20  # the cases that matter were exercised
+    # a non-finite ratio (an infinite or NaN force) is refused by both
+    for v in (np.inf, np.nan):
+        for compiled in (True, False):
+            assert _candidates(np.array([1.0, v, 1.0]), np.ones(3), np.ones(3), 1.0, 0.0, 0.0,
+                               compiled=compiled) is None

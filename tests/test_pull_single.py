@@ -135,6 +135,23 @@ def test_per_row_bound_holds_against_the_dense_inverse():
     assert checked >= 40
 
 
+def test_lanczos_estimate_of_nu_against_the_dense_eigenvalue():
+    """The Lanczos estimate of the largest eigenvalue of the stored inverse (the bound's
+    nu before its safety factor) lies just below the largest eigenvalue of the exact
+    inverse, 1 / lambda_min(G_SS), well within NU_SAFETY."""
+    from roughslip.friction.bonds import bond_inverse
+    from roughslip.friction.breaking_single import NU_SAFETY, _largest_eigenvalue
+
+    normal = squeeze(self_affine((64, 64), hurst=0.8, rms_height=1.0, rng=sample_rng(4, 0)),
+                     depth=4.5, tol=1e-13)
+    b = Bonds(normal, 0.2)
+    assert b.n > 500  # the Lanczos path, not the dense one
+    inv = bond_inverse(b, 16, 1, dtype=np.float32)
+    est = _largest_eigenvalue(inv, b.sites[inv.ids[: inv.m]], b.shape[1])
+    true = 1.0 / np.linalg.eigvalsh(b.dense())[0]
+    assert true / NU_SAFETY < 0.99 * true <= est <= (1 + 1e-5) * true
+
+
 def _scenes():
     """22 scenes: rough (open and periodic, several seeds, depths, sizes and nu), symmetric
     spheres (exact ties, broken by the lowest flat index) and spheres with their symmetry

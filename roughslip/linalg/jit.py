@@ -22,7 +22,9 @@ ENABLED = HAVE_NUMBA and os.environ.get("ROUGHSLIP_FUSED", "1") != "0"
 
 def njit() -> Callable[[Any], Any]:
     """numba's ``njit`` with the package's options: cached, no GIL, no fast-math (IEEE
-    operations in source order), no bounds checks."""
+    operations in source order), no bounds checks, and numpy's error model (a division by
+    zero gives the IEEE infinity or NaN, as in the numpy twins, instead of raising)."""
     import numba
 
-    return numba.njit(cache=True, nogil=True, fastmath=False, boundscheck=False)
+    return numba.njit(cache=True, nogil=True, fastmath=False, boundscheck=False,
+                      error_model="numpy")
