@@ -121,6 +121,12 @@ class DenseBlockSolver:
 
     refinements = 3
     bulk_min = 2000
+    #: pending rank-one terms before a fold (BLAS-3) into the stored inverse: every column of
+    #: the current inverse is a pass over them, and the folds cost the same flops in any block,
+    #: so a smaller block reads less per event (measured at N = 128 against 512: the
+    #: ``frictionless``, ``bonded`` and ``indent`` pulls at 17.5 % contact 10 %, 11 % and 3 %
+    #: faster, none slower; docs/benchmarks.md)
+    block = 128
     #: removals after which the displacements of a kept solution are computed afresh (the
     #: updates add the round-off of one block product each)
     refresh_every = 16
@@ -148,7 +154,7 @@ class DenseBlockSolver:
         self.bulk: MatrixFreeBlockSolver | None = None
         #: the updated inverse of the block (unknowns ``2 i``: f_z, ``2 i + 1``: f_x)
         self.inverse = UpdatableInverse(self.entries, 2 * self.ny * self.nx, room=self._room,
-                                        threads=threads)
+                                        threads=threads, block=self.block)
         self.dense = True  # False while the bulk passes or the fallback solve matrix-free
         #: the displacements of the kept solutions, by right-hand side (:class:`_Fields`)
         self._fields: dict[str, _Fields] = {}
