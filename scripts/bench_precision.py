@@ -6,7 +6,9 @@ The scene is bench_pull.py's (rough, H = 0.8, open, nu = 0.3, lambda = 0.2, tol 
 Each run is a fresh process, alternating the precisions, so that its peak resident memory
 is its own: ``peak`` is the process's, ``pull`` the rise of the peak over the resident set
 just before the pull. Prints the medians, whether the break sequences are identical, the
-friction forces' relative difference and the single-precision path's counters.
+friction forces' relative difference and the single-precision path's counters, then every
+run's seconds and the time ratio of each alternating pair (single over the double run just
+before it), whose spread shows how far the machine's scatter moves the ratio.
 """
 
 from __future__ import annotations
@@ -85,6 +87,11 @@ def main() -> None:
     print(f"ratios single/double: time {med['single']['sec'] / med['double']['sec']:.3f}, "
           f"peak {med['single']['peak'] / med['double']['peak']:.3f}, "
           f"pull {med['single']['pull'] / med['double']['pull']:.3f}")
+    secs = {p: [r["sec"] for r in rs] for p, rs in runs.items()}
+    paired = [t / u for t, u in zip(secs["single"], secs["double"], strict=True)]
+    print("seconds (each run): " + "; ".join(f"{p} " + " ".join(f"{t:.2f}" for t in ts)
+                                             for p, ts in secs.items()))
+    print("time ratios of the alternating pairs: " + " ".join(f"{r:.3f}" for r in paired))
     print(f"same break sequence: {same}; friction relative difference "
           f"{(s['friction'] - d['friction']) / d['friction']:.1e}; converged "
           f"{d['converged']} / {s['converged']}")
