@@ -8,7 +8,9 @@ Scenes: a self-affine surface (H = 0.8, rms height 1, seed 1, oversampled twice)
 lam = 0.2, open grid, at the depth where the frictionless squeeze has the given contact
 fraction. For each: the decoupled exact pull (``auto``) and the coupled model with each
 ``--methods`` solver and each squeeze history (``--histories``, default all), their seconds,
-the states before the pull and the pull's events, the ratio coupled / decoupled pull (``ratio``)
+the states before the pull and the pull's events, the ratio coupled / decoupled pull (``ratio``;
+the decoupled pull's time is the median of ``--repeat`` runs after one to warm up, a short run
+whose single timings scatter by a third)
 and coupled / decoupled squeeze and pull (``ratio2``: the coupled time includes its squeeze),
 and the shares of the coupled time spent before the pull starts (the squeeze history), inside
 FFT calls and in dense linear algebra (BLAS/LAPACK: the dense solver's factorisation, products
@@ -88,7 +90,8 @@ def main() -> None:
                     choices=HISTORIES.names())
     ap.add_argument("--floor", action="store_true",
                     help="time the assembly and inversion of the order-2n block instead")
-    ap.add_argument("--repeat", type=int, default=3, help="runs per timing of --floor")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="runs per timing of --floor and of the decoupled pull")
     args = ap.parse_args()
     if args.floor:
         floor(args.sizes, args.areas, args.threads, args.repeat)
@@ -109,9 +112,8 @@ def main() -> None:
             normal = NormalSolver(problem, tol=1e-8).solve(depth=depth)  # a run's squeeze
             t_sq = time.perf_counter() - t0
             normal = solver.solve(depth=depth)
-            t0 = time.perf_counter()
-            dec = pull(normal, lam=0.2, slip_law=law)
-            t_dec = time.perf_counter() - t0
+            t_dec = median_times([lambda normal=normal: pull(normal, lam=0.2, slip_law=law)],
+                                 args.repeat)[0]
             for method in args.methods:
                 for history in args.histories:
                     op = problem.operator("zz", "zx", "xx")
@@ -129,7 +131,6 @@ def main() -> None:
                           f"{100 * c.blas_seconds / t_c:>4.0f}%"
                           + ("" if c.converged else f"  NOT CONVERGED: {c.message}"),
                           flush=True)
-            del dec
 
 
 if __name__ == "__main__":

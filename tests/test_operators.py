@@ -235,3 +235,51 @@ def test_solvers_on_one_operator_share_its_work_buffers_and_plans():
         r = NormalSolver(pb, tol=1e-10).solve(depth=depth)
     assert (len(op.fft._plans), len(op._work_buffers)) == (plans, buffers)
     assert r.fz.tobytes() == first.fz.tobytes() and r.iterations == first.iterations
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize(("boundary", "kind"), SETUPS)
+def test_block_product_with_a_zero_field_transforms_one(backend, boundary, kind):
+    """With f_z = 0 or f_x = 0 the block product transforms the other field only: the same
+    numbers as the single products of its components (the same transforms), against the dense
+    block too, and one forward transform fewer."""
+    shape = (9, 8)
+    rng = np.random.default_rng(4)
+    op = ElasticOperator(shape, material=Material(1.0, 0.25), boundary=boundary,
+                         periodic_kernel=kind, components=("zz", "zx", "xx"), fft=backend)
+    d = op.tables.dense
+    f, zero = rng.standard_normal(shape), np.zeros(shape)
+    for fz, fx, cz, cx in ((zero, f, "zx", "xx"), (f, zero, "zz", "xz")):
+        count = op.fft.count
+        uz, ux = (u.copy() for u in op.apply_block(fz, fx))
+        assert op.fft.count - count == 3  # one forward, two backward
+        assert np.array_equal(uz, op.apply(cz, f)) and np.array_equal(ux, op.apply(cx, f))
+        ref_z = d("zz") @ fz.ravel() + d("zx") @ fx.ravel()
+        ref_x = d("xz") @ fz.ravel() + d("xx") @ fx.ravel()
+        for u, ref in ((uz, ref_z), (ux, ref_x)):
+            assert np.max(np.abs(u.ravel() - ref)) <= 1e-12 * np.max(np.abs(ref))
+    count = op.fft.count
+    op.apply_block(f, f)
+    assert op.fft.count - count == 4
+
+
+def test_plans_are_found_again_for_the_same_arrays_and_for_fresh_views():
+    """A transform of the same arrays reuses its plan without reading their addresses, a
+    fresh view of a planned buffer finds the plan by address, and the plans looked up by
+    identity stay few however many fresh views come."""
+    from roughslip.elastic.fft import RealFFT2
+
+    fft = RealFFT2((16, 16), backend="pyfftw", rows=8)
+    src, dst = fft.real_buffer(), fft.spectrum_buffer()
+    rng = np.random.default_rng(1)
+    src[:8] = rng.standard_normal((8, 16))
+    want = np.fft.rfft2(src)
+    fft.forward(src, dst)
+    assert np.allclose(dst, want, atol=1e-12)
+    plans = len(fft._plans)
+    for _ in range(100):
+        s, t = src[:], dst[:]  # new objects, the same memory
+        t[...] = 0.0
+        fft.forward(s, t)
+        assert np.allclose(dst, want, atol=1e-12)
+    assert len(fft._plans) == plans and len(fft._memo) <= 64

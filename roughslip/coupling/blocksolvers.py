@@ -158,6 +158,10 @@ class DenseBlockSolver:
         self.dense = True  # False while the bulk passes or the fallback solve matrix-free
         #: the displacements of the kept solutions, by right-hand side (:class:`_Fields`)
         self._fields: dict[str, _Fields] = {}
+        #: the last :meth:`_layout` and the version of the rows it was derived from
+        self._layout_of: tuple[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        #: that layout's rows and sites split into f_z and f_x
+        self._split_of: tuple[tuple, tuple[np.ndarray, ...]] | None = None
 
     @property
     def blas_seconds(self) -> float:
@@ -297,11 +301,14 @@ class DenseBlockSolver:
 
     # -- solutions -----------------------------------------------------------------------------
     def _layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The live rows, the site of each, and whether it holds f_x (else f_z)."""
+        """The live rows, the site of each, and whether it holds f_x (else f_z); kept until
+        the rows change (:attr:`UpdatableInverse.version`)."""
         inv = self.inverse
-        rows = np.flatnonzero(inv.live)
-        ids = inv.ids[rows]
-        return rows, ids >> 1, (ids & 1).astype(bool)
+        if self._layout_of is None or self._layout_of[0] != inv.version:
+            rows = np.flatnonzero(inv.live)
+            ids = inv.ids[rows]
+            self._layout_of = (inv.version, (rows, ids >> 1, (ids & 1).astype(bool)))
+        return self._layout_of[1]
 
     def _to_rows(self, rz: np.ndarray, rx: np.ndarray, layout) -> np.ndarray:
         """The right-hand side on the rows (zero on dead rows)."""
@@ -314,9 +321,15 @@ class DenseBlockSolver:
                    ) -> tuple[np.ndarray, np.ndarray]:
         """The solution on the rows as force fields (f_z, f_x)."""
         rows, sites, isx = layout
+        if self._layout_of is not None and layout is self._layout_of[1]:  # kept with it
+            if self._split_of is None or self._split_of[0] is not layout:
+                self._split_of = (layout, (sites[~isx], rows[~isx], sites[isx], rows[isx]))
+            zs, zr, xs, xr = self._split_of[1]
+        else:
+            zs, zr, xs, xr = sites[~isx], rows[~isx], sites[isx], rows[isx]
         fz, fx = np.zeros(shape), np.zeros(shape)
-        fz.ravel()[sites[~isx]] = x[rows[~isx]]
-        fx.ravel()[sites[isx]] = x[rows[isx]]
+        fz.ravel()[zs] = x[zr]
+        fx.ravel()[xs] = x[xr]
         return fz, fx
 
     def _displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

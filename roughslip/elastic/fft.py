@@ -111,6 +111,9 @@ class RealFFT2:
             raise InputError(f"rows = {rows!r}: must be in 1..{self.shape[0]}")
         self.pruned = self.rows < self.shape[0]
         self._plans: dict[tuple[str, int, int], Any] = {}
+        #: the plans by the identity of the arrays (holding them, so that no other object
+        #: takes their ids while the entry lives)
+        self._memo: dict[tuple[str, int, int], tuple[Any, np.ndarray, np.ndarray]] = {}
         #: Number of forward and backward transforms executed (for profiling).
         self.count = 0
 
@@ -136,6 +139,10 @@ class RealFFT2:
 
     # -- transforms ---------------------------------------------------------------------------
     def _plan(self, kind: str, src: np.ndarray, dst: np.ndarray):
+        # the plan of the same array objects as last time, without reading their addresses
+        memo = self._memo.get((kind, id(src), id(dst)))
+        if memo is not None and memo[1] is src and memo[2] is dst:
+            return memo[0]
         key = (kind, src.ctypes.data, dst.ctypes.data)
         plan = self._plans.get(key)
         if plan is None:
@@ -155,6 +162,9 @@ class RealFFT2:
                                 threads=self.threads)
             # keep the arrays alive with the plan so that their addresses are not reused
             plan = self._plans[key] = (fftw, src, dst)
+        if len(self._memo) >= 64:  # views made afresh for each call would only pile up
+            self._memo.clear()
+        self._memo[(kind, id(src), id(dst))] = (plan[0], src, dst)
         return plan[0]
 
     def forward(self, src: np.ndarray, dst: np.ndarray) -> np.ndarray:

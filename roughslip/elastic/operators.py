@@ -404,7 +404,9 @@ class ElasticOperator:
         :math:`u_x = G_{xz}f_z + G_{xx}f_x` ([Report2003] eq. 3.5, corrected: erratum T14
         (docs/theory/errata.rst#erratum-t14)).
 
-        Two forward and two backward FFTs.
+        Two forward and two backward FFTs; one forward FFT when one of the force fields is zero
+        (the tangential forces of a frictionless state, the slip forces alone of the Coulomb
+        law's correction): its spectrum is zero, and the terms it would add are exact zeros.
         """
         self._check_field(fz, "fz")
         self._check_field(fx, "fx")
@@ -415,15 +417,26 @@ class ElasticOperator:
             self._work = (self.fft.spectrum_buffer(), self.fft.spectrum_buffer())
         sz, sx = self._spec
         w, w2 = self._work
-        self._load(fz, sz)
-        self._load(fx, sx)
-        # u_x = -kzx * sz + kxx * sx into w; then u_z = kzz * sz + kzx * sx in place of sz.
-        np.multiply(sx, kxx, out=w)
-        np.multiply(sz, kzx, out=w2)
-        np.subtract(w, w2, out=w)
-        np.multiply(sx, kzx, out=sx)
-        np.multiply(sz, kzz, out=sz)
-        np.add(sz, sx, out=sz)
+        zero_z, zero_x = not fz.any(), not fx.any()
+        if zero_z and not zero_x:  # u_z = kzx * sx, u_x = kxx * sx
+            self._load(fx, sx)
+            np.multiply(sx, kxx, out=w)
+            np.multiply(sx, kzx, out=sz)
+        elif zero_x and not zero_z:  # u_z = kzz * sz, u_x = -kzx * sz
+            self._load(fz, sz)
+            np.multiply(sz, kzx, out=w)
+            np.negative(w, out=w)
+            np.multiply(sz, kzz, out=sz)
+        else:
+            self._load(fz, sz)
+            self._load(fx, sx)
+            # u_x = -kzx * sz + kxx * sx into w; then u_z = kzz * sz + kzx * sx in place of sz.
+            np.multiply(sx, kxx, out=w)
+            np.multiply(sz, kzx, out=w2)
+            np.subtract(w, w2, out=w)
+            np.multiply(sx, kzx, out=sx)
+            np.multiply(sz, kzz, out=sz)
+            np.add(sz, sx, out=sz)
         self.applications += 2
         uz = self._unload(sz, out_z)
         ux = self._unload(w, out_x)

@@ -249,6 +249,9 @@ class UpdatableInverse:
         self.live = np.empty(0, dtype=bool)  # rows still in the set
         #: tracked solutions by name (:class:`Tracked`, on the rows)
         self.tracked: dict[str, Tracked] = {}
+        #: counts every change of the rows (their unknowns or which are live), so that a
+        #: layout derived from them can be kept until the next change
+        self.version = 0
 
     # -- state ---------------------------------------------------------------------------------
     @property
@@ -267,6 +270,7 @@ class UpdatableInverse:
         self.ids = np.empty(0, dtype=np.int64)
         self.live = np.empty(0, dtype=bool)
         self.tracked = {}
+        self.version += 1
 
     def _adopt(self, buf: np.ndarray, m: int, ids: np.ndarray) -> None:
         """Take ``buf[:m, :m]`` as the inverse on the unknowns ``ids`` (nothing pending)."""
@@ -277,6 +281,7 @@ class UpdatableInverse:
         self.ids = np.asarray(ids, dtype=np.int64)
         self.row[self.ids] = np.arange(m)
         self.live = np.ones(m, dtype=bool)
+        self.version += 1
         if not (self.lower and self.V.shape[0] >= m):  # lower: the pending columns shrink too
             self.V = np.zeros((buf.shape[0], self.block), order="F")
         self.k = 0
@@ -438,6 +443,7 @@ class UpdatableInverse:
             t.x[r] = 0.0
             t.b[r] = 0.0
         self.live[r] = False
+        self.version += 1
         self.row[self.ids[r]] = -1
         self._push((c * (1.0 / math.sqrt(abs(cr))))[:, None], -1.0 if cr > 0 else 1.0)
         return True
@@ -552,4 +558,5 @@ class UpdatableInverse:
         self.ids = np.concatenate([self.ids, new])
         self.row[new] = np.arange(m, m + k2)
         self.live = np.concatenate([self.live, np.ones(k2, dtype=bool)])
+        self.version += 1
         return True
