@@ -150,7 +150,9 @@ def test_compiled_break_candidates_equal_numpy():
         assert np.array_equal(got[3], want[3]) and got[3].dtype == np.int64
         seen_many += want[3].size > 1
         seen_tie += int(np.sum(np.abs(np.abs(phi) / cap - want[1]) <= TIE * want[1])) > 1
-    assert seen_many > 50 and seen_tie > 20  # the cases that matter were exercised
+    # the cases that matter were exercised: several candidates in at least a quarter of the
+    # 400 trials, and a tie kept in at least a quarter of the 100 trials that build ties
+    assert seen_many >= 400 // 4 and seen_tie >= 100 // 4
     # a non-finite ratio (an infinite or NaN force) is refused by both
     for v in (np.inf, np.nan):
         for compiled in (True, False):

@@ -148,8 +148,13 @@ def test_lanczos_estimate_of_nu_against_the_dense_eigenvalue():
     assert b.n > 500  # the Lanczos path, not the dense one
     inv = bond_inverse(b, 16, 1, dtype=np.float32)
     est = _largest_eigenvalue(inv, b.sites[inv.ids[: inv.m]], b.shape[1])
-    true = 1.0 / np.linalg.eigvalsh(b.dense())[0]
-    assert true / NU_SAFETY < 0.99 * true <= est <= (1 + 1e-5) * true
+    w = np.linalg.eigvalsh(b.dense())
+    true, kappa = 1.0 / w[0], w[-1] / w[0]
+    # below: ARPACK's tolerance (1e-2) on the Ritz value; above: a Ritz value never exceeds
+    # the eigenvalue of the stored matrix, which carries the float32 inverse's relative error,
+    # at most a few kappa eps_32
+    eps32 = float(np.finfo(np.float32).eps)
+    assert true / NU_SAFETY < (1 - 1e-2) * true <= est <= (1 + 4 * kappa * eps32) * true
 
 
 def _scenes():

@@ -158,10 +158,9 @@ class DenseBlockSolver:
         self.dense = True  # False while the bulk passes or the fallback solve matrix-free
         #: the displacements of the kept solutions, by right-hand side (:class:`_Fields`)
         self._fields: dict[str, _Fields] = {}
-        #: the last :meth:`_layout` and the version of the rows it was derived from
-        self._layout_of: tuple[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
-        #: that layout's rows and sites split into f_z and f_x
-        self._split_of: tuple[tuple, tuple[np.ndarray, ...]] | None = None
+        #: the version of the rows, the last :meth:`_layout` derived from them, and its sites
+        #: and rows split into f_z and f_x
+        self._layout_of: tuple[int, tuple[np.ndarray, ...], tuple[np.ndarray, ...]] | None = None
 
     @property
     def blas_seconds(self) -> float:
@@ -307,7 +306,9 @@ class DenseBlockSolver:
         if self._layout_of is None or self._layout_of[0] != inv.version:
             rows = np.flatnonzero(inv.live)
             ids = inv.ids[rows]
-            self._layout_of = (inv.version, (rows, ids >> 1, (ids & 1).astype(bool)))
+            sites, isx = ids >> 1, (ids & 1).astype(bool)
+            split = (sites[~isx], rows[~isx], sites[isx], rows[isx])
+            self._layout_of = (inv.version, (rows, sites, isx), split)
         return self._layout_of[1]
 
     def _to_rows(self, rz: np.ndarray, rx: np.ndarray, layout) -> np.ndarray:
@@ -321,10 +322,8 @@ class DenseBlockSolver:
                    ) -> tuple[np.ndarray, np.ndarray]:
         """The solution on the rows as force fields (f_z, f_x)."""
         rows, sites, isx = layout
-        if self._layout_of is not None and layout is self._layout_of[1]:  # kept with it
-            if self._split_of is None or self._split_of[0] is not layout:
-                self._split_of = (layout, (sites[~isx], rows[~isx], sites[isx], rows[isx]))
-            zs, zr, xs, xr = self._split_of[1]
+        if self._layout_of is not None and layout is self._layout_of[1]:
+            zs, zr, xs, xr = self._layout_of[2]  # the split kept with the current layout
         else:
             zs, zr, xs, xr = sites[~isx], rows[~isx], sites[isx], rows[isx]
         fz, fx = np.zeros(shape), np.zeros(shape)

@@ -25,6 +25,9 @@ _PYFFTW_ERROR: str | None = None
 _WARNED = False
 
 BACKENDS = ("auto", "pyfftw", "scipy")
+#: plans remembered by the identity of their arrays (beyond, the memo starts afresh: views
+#: made anew for every call would only pile up)
+MEMO_LIMIT = 64
 
 
 def _import_pyfftw():
@@ -162,7 +165,7 @@ class RealFFT2:
                                 threads=self.threads)
             # keep the arrays alive with the plan so that their addresses are not reused
             plan = self._plans[key] = (fftw, src, dst)
-        if len(self._memo) >= 64:  # views made afresh for each call would only pile up
+        if len(self._memo) >= MEMO_LIMIT:
             self._memo.clear()
         self._memo[(kind, id(src), id(dst))] = (plan[0], src, dst)
         return plan[0]
