@@ -3,6 +3,7 @@
     python scripts/bench_coupled.py [--sizes 64 128] [--areas 0.05 0.175] [--methods auto cg]
                                     [--slip-law break|coulomb] [--histories bonded ...]
     python scripts/bench_coupled.py --floor [--sizes 128] [--areas 0.05 0.175] [--repeat 3]
+    python scripts/bench_coupled.py --gap-bound [--sizes 128] [--areas 0.05 0.175] [--near 0 128]
 
 Scenes: a self-affine surface (H = 0.8, rms height 1, seed 1, oversampled twice), nu = 0.25,
 lam = 0.2, open grid, at the depth where the frictionless squeeze has the given contact
@@ -22,11 +23,24 @@ must do once, against the decoupled pull (medians of ``--repeat``): assembling t
 block of every contact site, f_z and f_x, which is where the pull starts after the
 ``frictionless`` and, with fewer bonds, the other histories, and inverting it (Cholesky and
 LAPACK's inverse from it).
+
+``--gap-bound`` measures instead what a bound on the gaps would save the ``frictionless`` pull
+(break law): each of its states needs the gaps of every site out of contact, one block product
+over the whole grid. The forces are taken at every state of the pull, before and after each
+change of the sets (``points``). From the state of the last product on, the gap of a site ``i``
+out of contact changes by at most ``R_i |df|``: ``R_i`` is the norm of its row of the block
+(``u_z`` at ``i`` due to ``f_z`` and ``f_x`` at the contact sites), ``df`` the change of the
+contact forces since that product. The ``--near K`` sites nearest to closing (smallest
+``gap_i / R_i``) would be followed exactly by their rows; every other site is safe while
+``|df|`` stays below the smallest ``gap_i / R_i`` among them. ``states`` counts the states the
+pull solves (one block product each now); each ``K=`` column counts the points at which the
+test fails or the contact set has changed, where a product would still be needed.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import statistics
 import time
@@ -39,6 +53,7 @@ from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import NormalSolver
 from roughslip.coupling.blocksolvers import DenseBlockSolver
 from roughslip.coupling.histories import HISTORIES
+from roughslip.coupling.state import ContactState
 from roughslip.elastic.operators import Grid, Material
 from roughslip.linalg import lapack64
 from roughslip.linalg.threads import blas_threads
@@ -78,6 +93,86 @@ def floor(sizes: list[int], areas: list[float], threads: int, repeat: int) -> No
                   f"{v / t_pull:>11.2f} {(a + v) / t_pull:>9.2f}", flush=True)
 
 
+def gap_bound(sizes: list[int], areas: list[float], threads: int, near: list[int]) -> None:
+    """The ``--gap-bound`` table (module docstring)."""
+    print(f"# cores: {os.cpu_count()}, threads {threads}; H = 0.8, nu = 0.25, lam = 0.2, "
+          "open grid, slip law break, history frictionless")
+    print(f"{'N':>5} {'area':>6} {'sites':>6} {'events':>7} {'states':>7} "
+          + " ".join(f"{'K=' + str(k):>7}" for k in near) + "  (block products needed)")
+    for n in sizes:
+        h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(1, 0), oversample=2)
+        problem = Problem(h, Grid((n, n)), Material(1.0, 0.25), threads=threads)
+        solver = NormalSolver(problem, tol=1e-12)
+        block = DenseBlockSolver(problem, threads=threads)
+        for area in areas:
+            depth = depth_for_area(solver, area, hi=float(h.max() - h.min()))
+            states = _pull_states(problem, depth)
+            c = states.result
+            rows = {}  # contact set -> R_i of the sites out of contact
+            needed = []
+            for k in near:
+                products = 0
+                ref = None
+                for fz, fx, gap, C in states.points:
+                    if ref is not None and np.array_equal(C, ref[3]):
+                        on = ref[4]
+                        df = np.concatenate([(fz - ref[0]).ravel()[on],
+                                             (fx - ref[1]).ravel()[on]])
+                        if np.linalg.norm(df) < ref[5]:
+                            continue
+                    products += 1  # a product here: the new reference state
+                    on, off = np.flatnonzero(C.ravel()), np.flatnonzero(~C.ravel())
+                    key = C.tobytes()
+                    if key not in rows:
+                        G = block.entries(2 * off, np.concatenate([2 * on, 2 * on + 1]), "C")
+                        rows[key] = np.sqrt(np.einsum("ij,ij->i", G, G))
+                        del G
+                    ratio = np.sort(gap.ravel()[off] / rows[key])
+                    ref = (fz, fx, gap, C, on, ratio[k] if k < ratio.size else math.inf)
+                needed.append(products)
+            print(f"{n:>5} {area:>6.3f} {int(c.contact0.sum()):>6} {len(c.events):>7} "
+                  f"{len(states.points) // 2:>7} " + " ".join(f"{x:>7}" for x in needed),
+                  flush=True)
+
+
+class _States:
+    """The forces, gaps and contact set at every state of a coupled pull."""
+
+    def __init__(self) -> None:
+        self.points: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        self.result = None
+
+
+def _pull_states(problem: Problem, depth: float) -> _States:
+    """Run the ``frictionless`` coupled pull and keep its state before and after every change
+    of the sets (the pull's state methods wrapped for the run)."""
+    out = _States()
+    apply, solve = ContactState.apply, ContactState.solve
+
+    def keep(st: ContactState, D: float) -> None:
+        fz, fx, gap = st.at(D)
+        out.points.append((fz.copy(), fx.copy(), gap.copy(), st.C.copy()))
+
+    def applied(st, kind, j, D=0.0):
+        st._kept_at = D if st.pulling else None
+        if st._kept_at is not None:
+            keep(st, D)
+        return apply(st, kind, j, D)
+
+    def solved(st, bulk=False):
+        solve(st, bulk)
+        if getattr(st, "_kept_at", None) is not None:
+            keep(st, st._kept_at)
+            st._kept_at = None
+
+    ContactState.apply, ContactState.solve = applied, solved
+    try:
+        out.result = couple(problem, depth=depth, lam=0.2, history="frictionless")
+    finally:
+        ContactState.apply, ContactState.solve = apply, solve
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawTextHelpFormatter)
@@ -90,11 +185,18 @@ def main() -> None:
                     choices=HISTORIES.names())
     ap.add_argument("--floor", action="store_true",
                     help="time the assembly and inversion of the order-2n block instead")
+    ap.add_argument("--gap-bound", action="store_true",
+                    help="count the whole-grid products a bound on the gaps would leave")
+    ap.add_argument("--near", type=int, nargs="+", default=[0, 32, 128, 512],
+                    help="sites followed exactly by --gap-bound")
     ap.add_argument("--repeat", type=int, default=3,
                     help="runs per timing of --floor and of the decoupled pull")
     args = ap.parse_args()
     if args.floor:
         floor(args.sizes, args.areas, args.threads, args.repeat)
+        return
+    if args.gap_bound:
+        gap_bound(args.sizes, args.areas, args.threads, args.near)
         return
     law = args.slip_law
     print(f"# cores: {os.cpu_count()}, threads {args.threads}; H = 0.8, nu = 0.25, lam = 0.2, "
