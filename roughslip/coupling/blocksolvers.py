@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
@@ -158,9 +158,8 @@ class DenseBlockSolver:
         self.dense = True  # False while the bulk passes or the fallback solve matrix-free
         #: the displacements of the kept solutions, by right-hand side (:class:`_Fields`)
         self._fields: dict[str, _Fields] = {}
-        #: the version of the rows, the last :meth:`_layout` derived from them, and its sites
-        #: and rows split into f_z and f_x
-        self._layout_of: tuple[int, tuple[np.ndarray, ...], tuple[np.ndarray, ...]] | None = None
+        #: the version of the rows and the last :meth:`_layout` derived from them
+        self._layout_of: tuple[int, _Layout] | None = None
 
     @property
     def blas_seconds(self) -> float:
@@ -299,36 +298,30 @@ class DenseBlockSolver:
         self.solves += n
 
     # -- solutions -----------------------------------------------------------------------------
-    def _layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The live rows, the site of each, and whether it holds f_x (else f_z); kept until
-        the rows change (:attr:`UpdatableInverse.version`)."""
+    def _layout(self) -> _Layout:
+        """The live rows, the site of each, whether it holds f_x (else f_z), and the sites and
+        rows of each kind; kept until the rows change (:attr:`UpdatableInverse.version`)."""
         inv = self.inverse
         if self._layout_of is None or self._layout_of[0] != inv.version:
             rows = np.flatnonzero(inv.live)
             ids = inv.ids[rows]
             sites, isx = ids >> 1, (ids & 1).astype(bool)
-            split = (sites[~isx], rows[~isx], sites[isx], rows[isx])
-            self._layout_of = (inv.version, (rows, sites, isx), split)
+            self._layout_of = (inv.version, _Layout(rows, sites, isx, sites[~isx], rows[~isx],
+                                                    sites[isx], rows[isx]))
         return self._layout_of[1]
 
-    def _to_rows(self, rz: np.ndarray, rx: np.ndarray, layout) -> np.ndarray:
+    def _to_rows(self, rz: np.ndarray, rx: np.ndarray, layout: _Layout) -> np.ndarray:
         """The right-hand side on the rows (zero on dead rows)."""
-        rows, sites, isx = layout
         b = np.zeros(self.inverse.m)
-        b[rows] = np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
+        b[layout.rows] = np.where(layout.isx, rx.ravel()[layout.sites], rz.ravel()[layout.sites])
         return b
 
-    def _to_fields(self, x: np.ndarray, layout, shape: tuple[int, ...]
+    def _to_fields(self, x: np.ndarray, layout: _Layout, shape: tuple[int, ...]
                    ) -> tuple[np.ndarray, np.ndarray]:
         """The solution on the rows as force fields (f_z, f_x)."""
-        rows, sites, isx = layout
-        if self._layout_of is not None and layout is self._layout_of[1]:
-            zs, zr, xs, xr = self._layout_of[2]  # the split kept with the current layout
-        else:
-            zs, zr, xs, xr = sites[~isx], rows[~isx], sites[isx], rows[isx]
         fz, fx = np.zeros(shape), np.zeros(shape)
-        fz.ravel()[zs] = x[zr]
-        fx.ravel()[xs] = x[xr]
+        fz.ravel()[layout.z_sites] = x[layout.z_rows]
+        fx.ravel()[layout.x_sites] = x[layout.x_rows]
         return fz, fx
 
     def _displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -358,7 +351,7 @@ class DenseBlockSolver:
             return out
         inv = self.inverse
         layout = self._layout()
-        rows, sites, isx = layout
+        rows, sites, isx = layout.rows, layout.sites, layout.isx
         bs, xs, todo = [], [], []
         for k, (rz, rx, key) in enumerate(rhs):
             b = self._to_rows(rz, rx, layout)
@@ -411,6 +404,19 @@ class DenseBlockSolver:
         layout = self._layout()
         x = self.inverse.apply(self._to_rows(rz, rx, layout))
         return self._to_fields(x, layout, rz.shape)
+
+
+class _Layout(NamedTuple):
+    """The dense solver's live rows: the site of each and whether it holds f_x (else f_z),
+    and the sites and rows of each kind."""
+
+    rows: np.ndarray
+    sites: np.ndarray
+    isx: np.ndarray
+    z_sites: np.ndarray
+    z_rows: np.ndarray
+    x_sites: np.ndarray
+    x_rows: np.ndarray
 
 
 @dataclass
