@@ -25,22 +25,22 @@ block of every contact site, f_z and f_x, which is where the pull starts after t
 LAPACK's inverse from it).
 
 ``--gap-bound`` measures instead what a bound on the gaps would save the ``frictionless`` pull
-(break law): each of its states needs the gaps of every site out of contact, one block product
-over the whole grid. The forces are taken at every state of the pull, before and after each
-change of the sets (``points``). From the state of the last product on, the gap of a site ``i``
-out of contact changes by at most ``R_i |df|``: ``R_i`` is the norm of its row of the block
-(``u_z`` at ``i`` due to ``f_z`` and ``f_x`` at the contact sites), ``df`` the change of the
-contact forces since that product. The ``--near K`` sites nearest to closing (smallest
-``gap_i / R_i``) would be followed exactly by their rows; every other site is safe while
-``|df|`` stays below the smallest ``gap_i / R_i`` among them. ``states`` counts the states the
-pull solves (one block product each now); each ``K=`` column counts the points at which the
-test fails or the contact set has changed, where a product would still be needed.
+(break law). Today each state it solves takes one block product over the whole grid, for the
+gaps of every site out of contact and their rates, which are affine in D_x until the next
+event. With a bound, a product would make its state the reference. A later state would be
+compared with the reference's forces continued along their rate: over the state's stretch of
+D_x, the gap of a site ``i`` out of contact differs from the reference's continued gap by at
+most ``R_i |df|``. Here ``R_i`` is the norm of its row of the block (``u_z`` at ``i`` due to
+``f_z`` and ``f_x`` at the contact sites), and ``df`` is the difference of the contact forces
+from the continued ones. The ``--near K`` sites nearest to closing at the reference (smallest
+``gap_i / R_i``) would be followed exactly by their rows. A state needs a product of its own
+when the bound lets a gap of another site close at either end of its stretch, or when the
+contact set has changed. The table counts those products against the states.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import statistics
 import time
@@ -60,37 +60,44 @@ from roughslip.linalg.threads import blas_threads
 from roughslip.surfaces import sample_rng, self_affine
 
 
+def _scenes(sizes: list[int], areas: list[float], threads: int):
+    """The scenes of the module docstring: ``(problem, frictionless solver, area, depth)`` for
+    each size and contact fraction."""
+    for n in sizes:
+        h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(1, 0), oversample=2)
+        problem = Problem(h, Grid((n, n)), Material(1.0, 0.25), threads=threads)
+        solver = NormalSolver(problem, tol=1e-12)
+        for area in areas:
+            yield problem, solver, area, depth_for_area(solver, area, hi=float(h.max() - h.min()))
+
+
 def floor(sizes: list[int], areas: list[float], threads: int, repeat: int) -> None:
     """The ``--floor`` table (module docstring)."""
     print(f"# cores: {os.cpu_count()}, threads {threads}; H = 0.8, nu = 0.25, lam = 0.2, "
           f"open grid; medians of {repeat}")
     print(f"{'N':>5} {'area':>6} {'sites':>6} {'unknowns':>8} {'pull s':>7} {'assemble s':>10} "
           f"{'invert s':>9} {'GFlop/s':>8} {'invert/pull':>11} {'both/pull':>9}")
-    for n in sizes:
-        h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(1, 0), oversample=2)
-        problem = Problem(h, Grid((n, n)), Material(1.0, 0.25), threads=threads)
-        solver = NormalSolver(problem, tol=1e-12)
+    for problem, solver, _, depth in _scenes(sizes, areas, threads):
         block = DenseBlockSolver(problem, threads=threads)
-        for area in areas:
-            depth = depth_for_area(solver, area, hi=float(h.max() - h.min()))
-            normal = solver.solve(depth=depth)
-            t_pull = median_times([lambda normal=normal: pull(normal, lam=0.2)], repeat)[0]
-            sites = np.flatnonzero(normal.contact)
-            ids = np.concatenate([2 * sites, 2 * sites + 1])
-            t_asm, t_inv = [], []
-            for _ in range(repeat):
-                t0 = time.perf_counter()
-                A = block.entries(ids, ids, "F")
-                t1 = time.perf_counter()
-                with blas_threads(threads):
-                    lapack64.cholesky_inverse(A)
-                t_asm.append(t1 - t0)
-                t_inv.append(time.perf_counter() - t1)
-                del A
-            a, v = statistics.median(t_asm), statistics.median(t_inv)
-            print(f"{n:>5} {normal.contact_area:>6.3f} {sites.size:>6} {ids.size:>8} "
-                  f"{t_pull:>7.3f} {a:>10.3f} {v:>9.3f} {ids.size ** 3 / v / 1e9:>8.0f} "
-                  f"{v / t_pull:>11.2f} {(a + v) / t_pull:>9.2f}", flush=True)
+        normal = solver.solve(depth=depth)
+        t_pull = median_times([lambda normal=normal: pull(normal, lam=0.2)], repeat)[0]
+        sites = np.flatnonzero(normal.contact)
+        ids = np.concatenate([2 * sites, 2 * sites + 1])
+        t_asm, t_inv = [], []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            A = block.entries(ids, ids, "F")
+            t1 = time.perf_counter()
+            with blas_threads(threads):
+                lapack64.cholesky_inverse(A)
+            t_asm.append(t1 - t0)
+            t_inv.append(time.perf_counter() - t1)
+            del A
+        a, v = statistics.median(t_asm), statistics.median(t_inv)
+        print(f"{problem.shape[0]:>5} {normal.contact_area:>6.3f} {sites.size:>6} "
+              f"{ids.size:>8} {t_pull:>7.3f} {a:>10.3f} {v:>9.3f} "
+              f"{ids.size ** 3 / v / 1e9:>8.0f} {v / t_pull:>11.2f} {(a + v) / t_pull:>9.2f}",
+              flush=True)
 
 
 def gap_bound(sizes: list[int], areas: list[float], threads: int, near: list[int]) -> None:
@@ -99,78 +106,83 @@ def gap_bound(sizes: list[int], areas: list[float], threads: int, near: list[int
           "open grid, slip law break, history frictionless")
     print(f"{'N':>5} {'area':>6} {'sites':>6} {'events':>7} {'states':>7} "
           + " ".join(f"{'K=' + str(k):>7}" for k in near) + "  (block products needed)")
-    for n in sizes:
-        h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(1, 0), oversample=2)
-        problem = Problem(h, Grid((n, n)), Material(1.0, 0.25), threads=threads)
-        solver = NormalSolver(problem, tol=1e-12)
-        block = DenseBlockSolver(problem, threads=threads)
-        for area in areas:
-            depth = depth_for_area(solver, area, hi=float(h.max() - h.min()))
-            states = _pull_states(problem, depth)
-            c = states.result
-            rows = {}  # contact set -> R_i of the sites out of contact
-            needed = []
-            for k in near:
-                products = 0
-                ref = None
-                for fz, fx, gap, C in states.points:
-                    if ref is not None and np.array_equal(C, ref[3]):
-                        on = ref[4]
-                        df = np.concatenate([(fz - ref[0]).ravel()[on],
-                                             (fx - ref[1]).ravel()[on]])
-                        if np.linalg.norm(df) < ref[5]:
-                            continue
-                    products += 1  # a product here: the new reference state
-                    on, off = np.flatnonzero(C.ravel()), np.flatnonzero(~C.ravel())
-                    key = C.tobytes()
-                    if key not in rows:
-                        G = block.entries(2 * off, np.concatenate([2 * on, 2 * on + 1]), "C")
-                        rows[key] = np.sqrt(np.einsum("ij,ij->i", G, G))
-                        del G
-                    ratio = np.sort(gap.ravel()[off] / rows[key])
-                    ref = (fz, fx, gap, C, on, ratio[k] if k < ratio.size else math.inf)
-                needed.append(products)
-            print(f"{n:>5} {area:>6.3f} {int(c.contact0.sum()):>6} {len(c.events):>7} "
-                  f"{len(states.points) // 2:>7} " + " ".join(f"{x:>7}" for x in needed),
-                  flush=True)
+    for problem, _, area, depth in _scenes(sizes, areas, threads):
+        result, states = _pull_states(problem, depth)
+        norms = _RowNorms(DenseBlockSolver(problem, threads=threads))
+        needed = [_products_needed(states, norms, k) for k in near]
+        print(f"{problem.shape[0]:>5} {area:>6.3f} {int(result.contact0.sum()):>6} "
+              f"{len(result.events):>7} {len(states):>7} "
+              + " ".join(f"{x:>7}" for x in needed), flush=True)
 
 
-class _States:
-    """The forces, gaps and contact set at every state of a coupled pull."""
+class _RowNorms:
+    """``R_i`` of every site out of contact, by contact set (computed once per set)."""
 
-    def __init__(self) -> None:
-        self.points: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
-        self.result = None
+    def __init__(self, block: DenseBlockSolver) -> None:
+        self.block, self.known = block, {}
+
+    def __call__(self, C: np.ndarray) -> np.ndarray:
+        key = C.tobytes()
+        if key not in self.known:
+            on, off = np.flatnonzero(C), np.flatnonzero(~C)
+            G = self.block.entries(2 * off, np.concatenate([2 * on, 2 * on + 1]), "C")
+            self.known[key] = np.sqrt(np.einsum("ij,ij->i", G, G))
+        return self.known[key]
 
 
-def _pull_states(problem: Problem, depth: float) -> _States:
-    """Run the ``frictionless`` coupled pull and keep its state before and after every change
-    of the sets (the pull's state methods wrapped for the run)."""
-    out = _States()
+def _products_needed(states: list[tuple], row_norms: _RowNorms, near: int) -> int:
+    """The block products a pull through ``states`` would need with the gap bound and the
+    ``near`` sites nearest to closing followed exactly (module docstring)."""
+    products, ref = 0, None
+    for k, (D, f, rate, gap, gap_rate, C) in enumerate(states):
+        ends = (D,) if k + 1 == len(states) else (D, states[k + 1][0])  # the state's piece
+        if ref is not None and np.array_equal(C, ref[5]) and all(
+                _safe(ref, e, f + (e - D) * rate) for e in ends):
+            continue
+        products += 1  # a product here: this state becomes the reference
+        off = np.flatnonzero(~C)
+        R = row_norms(C)
+        far = np.sort(np.argsort(gap[off] / R, kind="stable")[near:])
+        on = np.flatnonzero(C)
+        ref = (D, f, rate, gap, gap_rate, C, np.concatenate([on, on + C.size]), off[far], R[far])
+    return products
+
+
+def _safe(ref: tuple, D: float, f: np.ndarray) -> bool:
+    """Whether the bound keeps every far site out of contact at ``D`` with the forces ``f``:
+    the reference's gaps continued along its rate, less ``R_i`` times the change of the
+    contact forces from the reference's continued along its rate."""
+    D0, f0, rate0, gap0, gap_rate0, _, on, far, R = ref
+    df = f[on] - (f0[on] + (D - D0) * rate0[on])
+    return bool(np.all(gap0[far] + (D - D0) * gap_rate0[far] > R * np.linalg.norm(df)))
+
+
+def _pull_states(problem: Problem, depth: float) -> tuple[object, list[tuple]]:
+    """Run the ``frictionless`` coupled pull and keep every state it solves, as ``(D_x, f,
+    rate of f, gap, rate of the gap, contact set)`` (flat; ``f`` is f_z then f_x), the pull's
+    state methods wrapped for the run."""
+    states: list[tuple] = []
     apply, solve = ContactState.apply, ContactState.solve
-
-    def keep(st: ContactState, D: float) -> None:
-        fz, fx, gap = st.at(D)
-        out.points.append((fz.copy(), fx.copy(), gap.copy(), st.C.copy()))
 
     def applied(st, kind, j, D=0.0):
         st._kept_at = D if st.pulling else None
-        if st._kept_at is not None:
-            keep(st, D)
         return apply(st, kind, j, D)
 
     def solved(st, bulk=False):
         solve(st, bulk)
-        if getattr(st, "_kept_at", None) is not None:
-            keep(st, st._kept_at)
+        D = getattr(st, "_kept_at", None)
+        if D is not None:
+            states.append((D, np.concatenate([st.f0[0].ravel(), st.f0[1].ravel()]),
+                           np.concatenate([st.f1[0].ravel(), st.f1[1].ravel()]),
+                           st.g0.ravel().copy(), st.g1.ravel().copy(), st.C.ravel().copy()))
             st._kept_at = None
 
     ContactState.apply, ContactState.solve = applied, solved
     try:
-        out.result = couple(problem, depth=depth, lam=0.2, history="frictionless")
+        result = couple(problem, depth=depth, lam=0.2, history="frictionless")
     finally:
         ContactState.apply, ContactState.solve = apply, solve
-    return out
+    return result, states
 
 
 def main() -> None:
@@ -204,35 +216,31 @@ def main() -> None:
     print(f"{'N':>5} {'area':>6} {'sites':>6} {'squeeze s':>10} {'pull s':>7} {'method':>8} "
           f"{'history':>13} {'coupled s':>10} {'states':>7} {'events':>7} {'solves':>7} "
           f"{'ratio':>6} {'ratio2':>6} {'sq%':>5} {'fft%':>5} {'blas%':>5}")
-    for n in args.sizes:
-        h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(1, 0), oversample=2)
-        problem = Problem(h, Grid((n, n)), Material(1.0, 0.25), threads=args.threads)
-        solver = NormalSolver(problem, tol=1e-12)
-        for area in args.areas:
-            depth = depth_for_area(solver, area, hi=float(h.max() - h.min()))
-            t0 = time.perf_counter()
-            normal = NormalSolver(problem, tol=1e-8).solve(depth=depth)  # a run's squeeze
-            t_sq = time.perf_counter() - t0
-            normal = solver.solve(depth=depth)
-            t_dec = median_times([lambda normal=normal: pull(normal, lam=0.2, slip_law=law)],
-                                 args.repeat)[0]
-            for method in args.methods:
-                for history in args.histories:
-                    op = problem.operator("zz", "zx", "xx")
-                    fft0 = op.fft_seconds + op.with_threads(1).fft_seconds
-                    t0 = time.perf_counter()
-                    c = couple(problem, depth=depth, lam=0.2, method=method, slip_law=law,
-                               history=history)
-                    t_c = time.perf_counter() - t0
-                    fft = op.fft_seconds + op.with_threads(1).fft_seconds - fft0
-                    print(f"{n:>5} {normal.contact_area:>6.3f} {normal.n_contact:>6} "
-                          f"{t_sq:>10.2f} {t_dec:>7.2f} {c.method:>8} {history:>13} "
-                          f"{t_c:>10.2f} {c.squeeze_states:>7} {len(c.events):>7} "
-                          f"{c.solves:>7} {t_c / t_dec:>6.1f} {t_c / (t_dec + t_sq):>6.1f} "
-                          f"{100 * c.squeeze_seconds / t_c:>4.0f}% {100 * fft / t_c:>4.0f}% "
-                          f"{100 * c.blas_seconds / t_c:>4.0f}%"
-                          + ("" if c.converged else f"  NOT CONVERGED: {c.message}"),
-                          flush=True)
+    for problem, solver, _, depth in _scenes(args.sizes, args.areas, args.threads):
+        n = problem.shape[0]
+        t0 = time.perf_counter()
+        normal = NormalSolver(problem, tol=1e-8).solve(depth=depth)  # a run's squeeze
+        t_sq = time.perf_counter() - t0
+        normal = solver.solve(depth=depth)
+        t_dec = median_times([lambda normal=normal: pull(normal, lam=0.2, slip_law=law)],
+                             args.repeat)[0]
+        for method in args.methods:
+            for history in args.histories:
+                op = problem.operator("zz", "zx", "xx")
+                fft0 = op.fft_seconds + op.with_threads(1).fft_seconds
+                t0 = time.perf_counter()
+                c = couple(problem, depth=depth, lam=0.2, method=method, slip_law=law,
+                           history=history)
+                t_c = time.perf_counter() - t0
+                fft = op.fft_seconds + op.with_threads(1).fft_seconds - fft0
+                print(f"{n:>5} {normal.contact_area:>6.3f} {normal.n_contact:>6} "
+                      f"{t_sq:>10.2f} {t_dec:>7.2f} {c.method:>8} {history:>13} "
+                      f"{t_c:>10.2f} {c.squeeze_states:>7} {len(c.events):>7} "
+                      f"{c.solves:>7} {t_c / t_dec:>6.1f} {t_c / (t_dec + t_sq):>6.1f} "
+                      f"{100 * c.squeeze_seconds / t_c:>4.0f}% {100 * fft / t_c:>4.0f}% "
+                      f"{100 * c.blas_seconds / t_c:>4.0f}%"
+                      + ("" if c.converged else f"  NOT CONVERGED: {c.message}"),
+                      flush=True)
 
 
 if __name__ == "__main__":
