@@ -396,6 +396,58 @@ def test_kept_displacements_follow_the_removals():
     assert d.inverse.factorisations == 1
 
 
+def test_the_slip_block_follows_the_events_and_matches_a_dense_solve():
+    """The dense solver's block of slip responses K^-1 H_P (one column per slip site, kept
+    through removals, additions and compactions, columns added and dropped as sites start
+    and stop slipping) is that of a dense solve with the assembled block K of the current
+    sets and the columns H of the slip sites, to round-off, on and off its memoised state;
+    a column is computed, by a product with the inverse, only when its site starts to slip."""
+    from roughslip.contact.problem import Problem
+    from roughslip.coupling.blocksolvers import DenseBlockSolver as _Dense
+    from roughslip.elastic.operators import Grid, Material
+
+    grid = Grid((12, 12))
+    problem = Problem(np.zeros(grid.shape), grid, Material(1.0, 0.25))
+    d = _Dense(problem, tol=1e-13)
+    d.inverse.block = 8
+    rng = np.random.default_rng(11)
+    C = rng.random(grid.shape) < 0.7
+    S = C.copy()
+    compactions, applied, prev = 0, [], np.zeros(grid.shape, dtype=bool)
+    apply = d.inverse.apply
+    d.inverse.apply = lambda B: applied.append(B.shape[1] if B.ndim == 2 else 1) or apply(B)
+    for step in range(40):
+        m = d.inverse.m if d.inverse.ready else 0
+        d.prepare(C, S)
+        compactions += 0 < d.inverse.m < m
+        P = C & ~S
+        if P.any():
+            applied.clear()
+            E, fields = d.slip_response(np.flatnonzero(P))
+            assert d.slip_response(np.flatnonzero(P))[0] is E  # the same state: memoised
+            assert sum(applied) == (P & ~prev).sum()  # a product for the new slip sites only
+            prev = P
+            ids = np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1])
+            K = d.entries(ids, ids)
+            Z = np.linalg.solve(K, d.entries(ids, 2 * np.flatnonzero(P) + 1))
+            zrows = np.arange(int(C.sum()))[P[C]]  # the f_z rows of the slip sites
+            assert np.abs(E - Z[zrows]).max() <= 1e-12 * np.abs(Z).max()
+            v = rng.normal(size=int(P.sum()))
+            fz, fx = fields(v)
+            want = Z @ v
+            assert np.abs(fz[C] - want[: int(C.sum())]).max() <= 1e-12 * np.abs(want).max()
+            assert np.abs(fx[S] - want[int(C.sum()):]).max() <= 1e-12 * np.abs(want).max()
+            assert not fz[~C].any() and not fx[~S].any()
+        j = rng.choice(np.flatnonzero(S))  # a bond starts to slip
+        S.flat[j] = False
+        if step % 6 == 5:  # a slip site sticks again, a contact leaves, another enters
+            S.flat[rng.choice(np.flatnonzero(C & ~S))] = True
+            k = rng.choice(np.flatnonzero(C & ~S))
+            C.flat[k] = False
+            C.flat[rng.choice(np.flatnonzero(~C))] = True
+    assert d.inverse.factorisations == 1 and compactions > 0
+
+
 def test_a_slow_rate_is_flat_only_on_the_scale_of_the_pull_so_far():
     """Found at N = 128 (nu = 0.45, sample 13 of the study): off contact, g = g0 + D g1 with
     g0 = -1.6e-5 and g1 = 1.6e-4, at D = 0.5, long after a first event at 8.6e-6. Judged flat
@@ -477,8 +529,9 @@ def _coulomb_admissible(res, lam):
 @pytest.mark.parametrize("nu", [0.0, 0.3])
 def test_coulomb_law_agrees_between_the_solvers_and_the_direct_reference(nu):
     """Slipping bonds carry f_x = +-lam f_z, which makes the block system non-symmetric: the
-    updated inverse solves it by GMRES on the slip forces, matrix-free CG's solver by GMRES
-    on the whole system, the reference directly (LU of the assembled system, dense sums).
+    updated inverse solves it by GMRES on the slip forces (with the block of slip responses
+    it keeps current), matrix-free CG's solver by GMRES on the whole system, the reference
+    directly (LU of the assembled system, dense sums).
     Same events, forces to 1e-8; every state admissible; when the last bond slips, every
     bonded site carries lam f_z."""
     h = rough(14, seed=5)

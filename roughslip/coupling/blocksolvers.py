@@ -21,6 +21,7 @@ the FFT operator.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
@@ -160,6 +161,14 @@ class DenseBlockSolver:
         self._fields: dict[str, _Fields] = {}
         #: the version of the rows and the last :meth:`_layout` derived from them
         self._layout_of: tuple[int, _Layout] | None = None
+        #: the site of each column of the tracked slip block (:meth:`slip_response`)
+        self._slip_sites = np.empty(0, dtype=np.int64)
+        #: calls of :meth:`solve_inner` by key since its last certified solve
+        self._inner_age: dict[str, int] = {}
+        #: the buffer of the slip block's columns (:meth:`_slip_columns`)
+        self._slip_buf: np.ndarray | None = None
+        #: the last answer of :meth:`slip_response`, for the same state's other solves
+        self._slip_memo: tuple | None = None
 
     @property
     def blas_seconds(self) -> float:
@@ -292,6 +301,7 @@ class DenseBlockSolver:
         had = self.inverse.ready
         self.inverse.reset()
         self._fields = {}
+        self._inner_age = {}
         return had
 
     def add_solves(self, n: int) -> None:
@@ -398,12 +408,121 @@ class DenseBlockSolver:
     def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self._displacements(fz, fx)
 
+    def solve_inner(self, rz: np.ndarray, rx: np.ndarray, key: str
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """(f_z, f_x) for the right-hand side ``(rz, rx)``, kept as a tracked solution under
+        ``key`` like :meth:`solve_many`'s, but certified only every :attr:`refresh_every`
+        calls: the inner solution of a solve that certifies its own result as a whole (the
+        Coulomb law's, :meth:`~roughslip.coupling.state.ContactState.solve_many`). Between
+        certifications it costs no FFT product: its displacements are not kept or moved."""
+        age = self._inner_age.get(key, self.refresh_every)
+        if age >= self.refresh_every:
+            self._inner_age[key] = 1
+            fz, fx, _ = self.solve(rz, rx, key)
+            return fz, fx
+        self._inner_age[key] = age + 1
+        self._fields.pop(key, None)
+        self.solves += 1
+        inv, layout = self.inverse, self._layout()
+        b = self._to_rows(rz, rx, layout)
+        hit = inv.tracked.get(key)
+        if hit is not None and np.array_equal(hit.b, b):
+            x = hit.x
+        else:
+            x = inv.apply(b)
+            inv.tracked[key] = Tracked(b, x, _rhs_values(rz.copy(), rx.copy()))
+        return self._to_fields(x, layout, rz.shape)
+
     def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(f_z, f_x) = the current inverse times the right-hand side, uncertified (the inner
         products of the Coulomb solves, whose result is certified as a whole)."""
         layout = self._layout()
         x = self.inverse.apply(self._to_rows(rz, rx, layout))
         return self._to_fields(x, layout, rz.shape)
+
+    def slip_response(self, sites: np.ndarray
+                      ) -> tuple[np.ndarray, Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]]:
+        r"""The response of the block to tangential forces on the slip sites ``sites`` (flat
+        indices of contact sites with no :math:`f_x` unknown), for the Coulomb law's solves.
+
+        With :math:`H_j` the displacements on the unknowns of a unit :math:`f_x` at site
+        :math:`j` and :math:`K^{-1}` the current inverse, the block
+        :math:`Z = K^{-1} [H_j]_{j \in P}` is kept as a tracked solution with one column per
+        site (:class:`~roughslip.linalg.inverse.Tracked`): a removal moves it by one rank-one
+        update, a bordering and a compaction carry it along, so a site's column costs one
+        product with the inverse when it starts to slip and :math:`O(m)` per event after
+        that. Columns of sites that leave ``sites`` are dropped; a new factorisation drops
+        the block, which is then built again by one product with the inverse.
+
+        Returns the :math:`|P| \times |P|` matrix :math:`E_P^T Z` (the :math:`f_z` rows of the
+        sites, columns in the order of ``sites``) and ``fields(v)``: the force fields
+        :math:`(f_z, f_x)` of :math:`Z v`. Uncertified: the Coulomb solves certify their
+        result as a whole (:meth:`~roughslip.coupling.state.ContactState.solve_many`).
+        """
+        inv = self.inverse
+        sites = np.asarray(sites, dtype=np.int64)
+        t = inv.tracked.get(_SLIP)
+        memo = self._slip_memo
+        if (memo is not None and t is not None and memo[0] == (inv.version, inv.shifts)
+                and memo[1] is t.x and np.array_equal(memo[2], sites)):
+            return memo[3], memo[4]  # the same state: its other right-hand sides
+        have = self._slip_sites if t is not None else np.empty(0, dtype=np.int64)
+        Z = t.x if t is not None else np.zeros((inv.m, 0), order="F")
+        keep = np.isin(have, sites)
+        if not keep.all():
+            have = have[keep]
+            Z = self._slip_columns(Z, have.size, np.flatnonzero(keep))
+        new = np.setdiff1d(sites, have)
+        if new.size:
+            layout = self._layout()
+            B = np.zeros((inv.m, new.size), order="F")
+            B[layout.rows] = self.entries(inv.ids[layout.rows], 2 * new + 1)
+            X = inv.apply(B)
+            X[~inv.live] = 0.0
+            q = have.size
+            Z = self._slip_columns(Z, q + new.size)
+            Z[:, q:] = X
+            have = np.concatenate([have, new])
+        inv.tracked[_SLIP] = Tracked(None, Z, self._slip_values(have))
+        self._slip_sites = have
+        order = np.argsort(have, kind="stable")
+        cols = order[np.searchsorted(have[order], sites)]
+        layout = self._layout()
+        shape = (self.ny, self.nx)
+
+        def fields(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            w = np.zeros(Z.shape[1])
+            w[cols] = v
+            return self._to_fields(Z @ w, layout, shape)
+
+        E = Z[:, cols][inv.row[2 * sites]]  # columns first: contiguous in Z's layout
+        self._slip_memo = ((inv.version, inv.shifts), Z, sites.copy(), E, fields)
+        return E, fields
+
+    def _slip_columns(self, Z: np.ndarray, q: int, keep: np.ndarray | None = None
+                      ) -> np.ndarray:
+        """The slip block with ``q`` columns, the first ones those of ``Z`` (``keep``: only
+        those columns, in order): a view of a Fortran-ordered buffer with spare columns, so
+        that a new column is written in place; a new buffer when ``Z`` is not its start
+        (after a bordering or a compaction) or when it is full."""
+        buf = self._slip_buf
+        if keep is not None:
+            Z = Z[:, keep]  # a copy: safe to write back into the buffer
+        elif buf is not None and Z.base is buf and q <= buf.shape[1]:
+            return buf[:, :q]  # the columns are in place
+        if buf is None or buf.shape[0] != Z.shape[0] or q > buf.shape[1]:
+            buf = np.empty((Z.shape[0], max(q + q // 2, 64)), order="F")
+            self._slip_buf = buf
+        buf[:, : Z.shape[1]] = Z
+        return buf[:, :q]
+
+    def _slip_values(self, sites: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+        """The slip block's right-hand sides on unknowns added later (:meth:`slip_response`)."""
+        return lambda ids: self.entries(ids, 2 * sites + 1)
+
+
+#: the name of the dense solver's tracked block of slip responses
+_SLIP = "slip response"
 
 
 class _Layout(NamedTuple):

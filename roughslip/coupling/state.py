@@ -49,6 +49,8 @@ class ContactState:
         self.sigma = np.zeros(base.shape)
         self.worst = 0.0  # worst relative residual of the solves with slip forces
         self.u1x: np.ndarray | None = None  # rate of u_x in D_x, with slipping bonds
+        #: u_x of each right-hand side's certified solution with slip forces, by key
+        self._ux: dict[str, np.ndarray] = {}
         self.gmres_iterations = 0
         #: the last forces (f_z, f_x) with slip by right-hand side: GMRES's starting points
         self._warm: dict[str, tuple[np.ndarray, np.ndarray]] = {}
@@ -107,7 +109,16 @@ class ContactState:
         self._solve_forces(bulk)
         self.u1x = None
         if self.slope and self.slipping.any():
-            self.u1x = self.solver.displacements(*self.f1)[1]
+            self.u1x = self._rate_ux()
+
+    def _rate_ux(self) -> np.ndarray:
+        """The rate of :math:`u_x` in D, from the displacements that certified the solves
+        with slip forces (:meth:`_solve_many`) as the rate :attr:`f1` combines them."""
+        ux = self._ux
+        u1 = ux["1"] if "1" in ux else self.zero  # no rate solve: an empty stick set
+        if self.drive == "x" and self.force is not None:
+            return u1 + self.d1 * ux["d"]
+        return u1
 
     def _solve_forces(self, bulk: bool) -> None:
         s = self.solver
@@ -157,14 +168,19 @@ class ContactState:
         solution is :math:`y = y_0 - K^{-1}H w t` with :math:`y_0 = K^{-1} r` and
         :math:`t = f_z(P)` the solution of the :math:`|P|`-sized system
         :math:`(I + E_P^T K^{-1} H w)\,t = E_P^T y_0` (:math:`w = \sigma\lambda`), solved by
-        GMRES warm-started from the last state's slip forces: each iteration one FFT product
-        and one solve with :math:`K`, and the iteration matrix is of the order of
-        :math:`\lambda` times the coupling :math:`G_{zx}/G_{zz}`, so a few iterations suffice.
+        GMRES warm-started from the last state's slip forces. The iteration matrix is of the
+        order of :math:`\lambda` times the coupling :math:`G_{zx}/G_{zz}`, so a few iterations
+        suffice. With the dense solver, :math:`K^{-1}H` is a block the solver keeps current
+        through the events, a column per slip site
+        (:meth:`~roughslip.coupling.blocksolvers.DenseBlockSolver.slip_response`), so an
+        iteration is a product with the :math:`|P| \times |P|` matrix
+        :math:`E_P^T K^{-1} H w`; matrix-free, GMRES runs on the whole system instead.
         Every solution is certified against the FFT operator on the full system and refined
         when its residual is above tol. The dense reference solves the non-symmetric system
         directly instead.
         """
         P = self.slipping
+        self._ux = {}
         if not P.any():
             return self.solver.solve_many(rhs)
         w = self.law.carried(self.lam, self.sigma[P])
@@ -179,7 +195,7 @@ class ContactState:
 
             def residual(f, rz=rz, rx=rx, scale=scale, last=last):
                 uz, ux = self.solver.displacements(*f)
-                last[:] = [uz]
+                last[:] = [uz, ux]
                 ez, ex = np.where(self.C, rz - uz, 0.0), np.where(self.S, rx - ux, 0.0)
                 res = float(np.linalg.norm(np.concatenate([ez[self.C], ex[self.S]]))) / scale
                 return (ez, ex), res
@@ -190,6 +206,7 @@ class ContactState:
 
             (fz, fx), res, _ = refine(solve(rz, rx, key, P, w), residual, correct, self.tol, 2)
             self.worst = max(self.worst, res)
+            self._ux[key] = last[1]  # the certification's u_x of (fz, fx), for the rate
             out.append((fz, fx, last[0]))
         return out
 
@@ -197,19 +214,19 @@ class ContactState:
                     w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The forces with the slip law on P for one right-hand side (:meth:`_solve_many`)."""
         s = self.solver
-        fz0, fx0, _ = s.solve(rz, rx, key)
+        fz0, fx0 = s.solve_inner(rz, rx, key)
+        E, fields = s.slip_response(np.flatnonzero(P))
+        T = E * w  # E_P^T K^{-1} H w
 
         def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            fxs = np.zeros(self.base.shape)
-            fxs[P] = w * t
-            return s.apply_inverse(*s.displacements(self.zero, fxs))
+            return fields(w * t)
 
         n = int(P.sum())
         b = fz0[P]
 
         def matvec(t: np.ndarray) -> np.ndarray:
             self.gmres_iterations += 1
-            return t + correction(np.ravel(t))[0][P]
+            return t + T @ np.ravel(t)
 
         A = LinearOperator((n, n), matvec=matvec, dtype=float)
         prev = self._warm.get(key)
@@ -275,7 +292,8 @@ class ContactState:
             fz.ravel()[sites[~isx]] = Y[~isx, k]
             fx.ravel()[sites[isx]] = Y[isx, k]
             fx[P] = w * fz[P]
-            out.append((fz, fx, s.displacements(fz, fx)[0]))
+            uz, self._ux[rhs[k][2]] = s.displacements(fz, fx)
+            out.append((fz, fx, uz))
         return out
 
     def depth_at(self, D: float) -> float:

@@ -168,6 +168,23 @@ def _compaction_kernels() -> SimpleNamespace:
     return SimpleNamespace(lower=lower, full=full)
 
 
+def _rank_one(x: np.ndarray, c: np.ndarray, a: np.ndarray | float) -> None:
+    """``x -= c a^T`` in place: a tracked vector (``a`` a scalar), or a tracked block of
+    columns (``a`` one value per column; BLAS's rank-one update where the block is
+    Fortran-ordered, which the block's owner keeps)."""
+    if x.ndim == 1:
+        x -= c * a
+    elif x.flags.f_contiguous and x.dtype == np.float64:
+        linalg.blas.dger(-1.0, c, np.ascontiguousarray(a), a=x, overwrite_a=True)
+    else:
+        x -= np.multiply.outer(c, a)
+
+
+def _keep_order(old: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """``new`` in the memory order of ``old`` (a tracked block stays Fortran-ordered)."""
+    return np.asfortranarray(new) if old.ndim == 2 and old.flags.f_contiguous else new
+
+
 def _nonsingular(pivots: np.ndarray, scale: np.ndarray) -> bool:
     """Whether every pivot is finite and above ``len(scale) x eps x max|scale|``."""
     if not (np.all(np.isfinite(pivots)) and np.all(np.isfinite(scale))):
@@ -180,10 +197,12 @@ def _nonsingular(pivots: np.ndarray, scale: np.ndarray) -> bool:
 class Tracked:
     """A solution kept current through the updates: ``x = A_SS^{-1} b`` on the rows.
 
-    ``values(ids)`` gives the right-hand side for unknowns that are added later.
+    ``b`` and ``x`` are vectors, or matrices with one column per right-hand side (rows
+    first); ``b`` may be None where nobody compares right-hand sides. ``values(ids)`` gives
+    the right-hand side for unknowns that are added later.
     """
 
-    b: np.ndarray
+    b: np.ndarray | None
     x: np.ndarray
     values: Callable[[np.ndarray], np.ndarray]
 
@@ -252,6 +271,9 @@ class UpdatableInverse:
         #: counts every change of the rows (their unknowns or which are live), so that a
         #: layout derived from them can be kept until the next change
         self.version = 0
+        #: counts the changes of the inverse that keep its rows (:meth:`shift`): with
+        #: :attr:`version`, what a product derived from the inverse must be kept against
+        self.shifts = 0
 
     # -- state ---------------------------------------------------------------------------------
     @property
@@ -439,9 +461,10 @@ class UpdatableInverse:
             return False
         self.pivot = cr
         for t in self.tracked.values():
-            t.x -= c * (t.x[r] / cr)
+            _rank_one(t.x, c, t.x[r] / cr)
             t.x[r] = 0.0
-            t.b[r] = 0.0
+            if t.b is not None:
+                t.b[r] = 0.0
         self.live[r] = False
         self.version += 1
         self.row[self.ids[r]] = -1
@@ -473,9 +496,10 @@ class UpdatableInverse:
                                                                                   abs(dc))):
             return None
         self.pivot = den
+        self.shifts += 1
         g = delta / den
         for t in self.tracked.values():
-            t.x -= c * (g * t.x[r])
+            _rank_one(t.x, c, g * t.x[r])
         self._push((c * math.sqrt(abs(g)))[:, None], -1.0 if g > 0 else 1.0)
         return c / den
 
@@ -493,7 +517,8 @@ class UpdatableInverse:
         if k + extra > self.buf.shape[0] and not self.room(k + extra):
             return False
         self.flush()
-        tracked = {key: Tracked(t.b[keep], t.x[keep], t.values)
+        tracked = {key: Tracked(None if t.b is None else t.b[keep],
+                                _keep_order(t.x, t.x[keep]), t.values)
                    for key, t in self.tracked.items()}
         if self.lower:
             self._adopt(_compact_lower(self._flat, self.m, keep), k, self.ids[keep])
@@ -552,8 +577,13 @@ class UpdatableInverse:
         for t in self.tracked.values():  # border the tracked solutions
             bn = t.values(new)
             z = Si @ (bn - B.T @ t.x)
-            t.b = np.concatenate([t.b, bn])
-            t.x = np.concatenate([t.x - MB @ z, z])
+            if t.b is not None:
+                t.b = np.concatenate([t.b, bn])
+            x = np.empty((m + k2, *t.x.shape[1:]),
+                         order="F" if t.x.ndim == 2 and t.x.flags.f_contiguous else "C")
+            np.subtract(t.x, MB @ z, out=x[:m])
+            x[m:] = z
+            t.x = x
         self.m = m + k2
         self.ids = np.concatenate([self.ids, new])
         self.row[new] = np.arange(m, m + k2)
