@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import squeeze
 from roughslip.coupling.coupled import squeeze_pull_coupled
 from roughslip.coupling.histories import HISTORIES
@@ -413,7 +414,7 @@ def test_the_slip_block_follows_the_events_and_matches_a_dense_solve():
     rng = np.random.default_rng(11)
     C = rng.random(grid.shape) < 0.7
     S = C.copy()
-    compactions, applied, prev = 0, [], np.zeros(grid.shape, dtype=bool)
+    compactions, applied, prev_P = 0, [], np.zeros(grid.shape, dtype=bool)
     apply = d.inverse.apply
     d.inverse.apply = lambda B: applied.append(B.shape[1] if B.ndim == 2 else 1) or apply(B)
     for step in range(40):
@@ -425,8 +426,8 @@ def test_the_slip_block_follows_the_events_and_matches_a_dense_solve():
             applied.clear()
             E, fields = d.slip_response(np.flatnonzero(P))
             assert d.slip_response(np.flatnonzero(P))[0] is E  # the same state: memoised
-            assert sum(applied) == (P & ~prev).sum()  # a product for the new slip sites only
-            prev = P
+            # one product with the inverse for each site new to P, none for the others
+            assert sum(applied) == (P & ~prev_P).sum()
             ids = np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1])
             K = d.entries(ids, ids)
             Z = np.linalg.solve(K, d.entries(ids, 2 * np.flatnonzero(P) + 1))
@@ -438,6 +439,7 @@ def test_the_slip_block_follows_the_events_and_matches_a_dense_solve():
             assert np.abs(fz[C] - want[: int(C.sum())]).max() <= 1e-12 * np.abs(want).max()
             assert np.abs(fx[S] - want[int(C.sum()):]).max() <= 1e-12 * np.abs(want).max()
             assert not fz[~C].any() and not fx[~S].any()
+        prev_P = P
         j = rng.choice(np.flatnonzero(S))  # a bond starts to slip
         S.flat[j] = False
         if step % 6 == 5:  # a slip site sticks again, a contact leaves, another enters
@@ -557,6 +559,26 @@ def test_coulomb_law_agrees_between_the_solvers_and_the_direct_reference(nu):
     # a slipping bond keeps its friction: the Coulomb pull force exceeds the break law's
     brk = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu)
     assert ref.friction_force > brk.friction_force
+
+
+def test_coulomb_law_without_room_for_the_slip_block(monkeypatch):
+    """When the block of slip responses does not fit in memory (with two copies of it), the
+    dense solver goes without it from then on, and the Coulomb pull takes an FFT product and a
+    product with the inverse per iteration instead: the same events, the forces to round-off."""
+    from roughslip.coupling import blocksolvers
+
+    h = rough(14, seed=5)
+    kw = dict(depth=2.5, lam=0.25, nu=0.25, slip_law="coulomb", method="dense")
+    with_block = squeeze_pull_coupled(h, **kw)
+    d = blocksolvers.DenseBlockSolver(Problem.from_arrays(h, nu=0.25))
+    monkeypatch.setattr(blocksolvers, "available_bytes", lambda: 1000)
+    assert d._slip_columns(np.zeros((10, 0), order="F"), 5) is None  # 3 x 8 x 10 x 64 bytes
+    monkeypatch.setattr(blocksolvers, "available_bytes", lambda: 1 << 40)
+    monkeypatch.setattr(blocksolvers.DenseBlockSolver, "slip_response", lambda self, sites: None)
+    without = squeeze_pull_coupled(h, **kw)
+    assert without.converged and with_block.converged
+    _assert_same_path(without, with_block)
+    assert without.friction_force == pytest.approx(with_block.friction_force, rel=1e-10)
 
 
 def test_coulomb_law_under_load_control_and_with_bonded_gains():

@@ -114,6 +114,22 @@ def test_compiled_compaction_equals_numpy(in_place, monkeypatch):
     assert out[0][1].tobytes() == out[1][1].tobytes()
 
 
+def test_compiled_submatrix_equals_numpy(monkeypatch):
+    """The gather of a submatrix (rows and columns in any order, repeated, from a Fortran
+    block with more columns than it gathers), compiled and numpy: the same entries."""
+    from roughslip.linalg import inverse
+
+    rng = np.random.default_rng(9)
+    A = np.asfortranarray(rng.standard_normal((41, 30)))
+    rows, cols = rng.integers(0, 41, 17), rng.permutation(30)[:12]
+    got = []
+    for compiled in (True, False):
+        monkeypatch.setattr(jit, "ENABLED", compiled)
+        got.append(inverse.submatrix(A, rows, cols))
+        assert np.array_equal(got[-1], A[np.ix_(rows, cols)])
+    assert got[0].tobytes() == got[1].tobytes()
+
+
 @pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba is not installed")
 def test_compiled_break_candidates_equal_numpy():
     """The single-precision pull's candidate scan, compiled and numpy: the same leading row,

@@ -32,7 +32,7 @@ from roughslip.contact.problem import Problem
 from roughslip.elastic.tables import gather_pairs
 from roughslip.errors import MemoryLimitError, NumericalError
 from roughslip.linalg.cg import cg
-from roughslip.linalg.inverse import BYTES_PER_ORDER2, Tracked, UpdatableInverse
+from roughslip.linalg.inverse import BYTES_PER_ORDER2, Tracked, UpdatableInverse, submatrix
 from roughslip.linalg.memory import available_bytes
 
 # ------------------------------------------------------------------------------------------------
@@ -161,10 +161,14 @@ class DenseBlockSolver:
         self._fields: dict[str, _Fields] = {}
         #: the version of the rows and the last :meth:`_layout` derived from them
         self._layout_of: tuple[int, _Layout] | None = None
-        #: the site of each column of the tracked slip block (:meth:`slip_response`)
+        #: the site of each column of the tracked slip block, and whether it is live
+        #: (:meth:`slip_response`)
         self._slip_sites = np.empty(0, dtype=np.int64)
+        self._slip_live = np.empty(0, dtype=bool)
         #: calls of :meth:`solve_inner` by key since its last certified solve
         self._inner_age: dict[str, int] = {}
+        #: whether the slip block fits in memory (False once it did not)
+        self._slip_room = True
         #: the buffer of the slip block's columns (:meth:`_slip_columns`)
         self._slip_buf: np.ndarray | None = None
         #: the last answer of :meth:`slip_response`, for the same state's other solves
@@ -441,7 +445,8 @@ class DenseBlockSolver:
         return self._to_fields(x, layout, rz.shape)
 
     def slip_response(self, sites: np.ndarray
-                      ) -> tuple[np.ndarray, Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]]:
+                      ) -> tuple[np.ndarray, Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+                                 ] | None:
         r"""The response of the block to tangential forces on the slip sites ``sites`` (flat
         indices of contact sites with no :math:`f_x` unknown), for the Coulomb law's solves.
 
@@ -451,14 +456,18 @@ class DenseBlockSolver:
         site (:class:`~roughslip.linalg.inverse.Tracked`): a removal moves it by one rank-one
         update, a bordering and a compaction carry it along, so a site's column costs one
         product with the inverse when it starts to slip and :math:`O(m)` per event after
-        that. Columns of sites that leave ``sites`` are dropped; a new factorisation drops
-        the block, which is then built again by one product with the inverse.
+        that. Columns of sites that leave ``sites`` are marked dead and dropped when they are
+        a quarter of the block; a new factorisation drops the block, which is then built
+        again by one product with the inverse.
 
         Returns the :math:`|P| \times |P|` matrix :math:`E_P^T Z` (the :math:`f_z` rows of the
         sites, columns in the order of ``sites``) and ``fields(v)``: the force fields
-        :math:`(f_z, f_x)` of :math:`Z v`. Uncertified: the Coulomb solves certify their
+        :math:`(f_z, f_x)` of :math:`Z v`; None when the block does not fit in memory (with
+        two copies of it, for a bordering or a compaction). Uncertified: the Coulomb solves certify their
         result as a whole (:meth:`~roughslip.coupling.state.ContactState.solve_many`).
         """
+        if not self._slip_room:
+            return None
         inv = self.inverse
         sites = np.asarray(sites, dtype=np.int64)
         t = inv.tracked.get(_SLIP)
@@ -466,27 +475,39 @@ class DenseBlockSolver:
         if (memo is not None and t is not None and memo[0] == (inv.version, inv.shifts)
                 and memo[1] is t.x and np.array_equal(memo[2], sites)):
             return memo[3], memo[4]  # the same state: its other right-hand sides
-        have = self._slip_sites if t is not None else np.empty(0, dtype=np.int64)
-        Z = t.x if t is not None else np.zeros((inv.m, 0), order="F")
-        keep = np.isin(have, sites)
-        if not keep.all():
-            have = have[keep]
-            Z = self._slip_columns(Z, have.size, np.flatnonzero(keep))
-        new = np.setdiff1d(sites, have)
+        if t is None:
+            self._slip_sites = np.empty(0, dtype=np.int64)
+            self._slip_live = np.empty(0, dtype=bool)
+            t = Tracked(None, np.zeros((inv.m, 0), order="F"), self._slip_values())
+        have, live = self._slip_sites, self._slip_live  # the site of each column
+        live &= np.isin(have, sites)
+        new = np.setdiff1d(sites, have[live])
+        Z = t.x
+        if 4 * int((~live).sum()) > live.size:  # drop the dead columns
+            keep = np.flatnonzero(live)
+            Z, have, live = self._slip_columns(Z, keep.size, keep), have[keep], live[keep]
+        q = have.size
+        if new.size and Z is not None:
+            Z = self._slip_columns(Z, q + new.size)
+        if Z is None:  # no room: the caller goes without the block from now on
+            inv.tracked.pop(_SLIP, None)
+            self._slip_buf = self._slip_memo = None
+            self._slip_room = False
+            return None
         if new.size:
             layout = self._layout()
             B = np.zeros((inv.m, new.size), order="F")
             B[layout.rows] = self.entries(inv.ids[layout.rows], 2 * new + 1)
-            X = inv.apply(B)
-            X[~inv.live] = 0.0
-            q = have.size
-            Z = self._slip_columns(Z, q + new.size)
-            Z[:, q:] = X
+            Z[:, q:] = inv.apply(B)
+            Z[~inv.live, q:] = 0.0
             have = np.concatenate([have, new])
-        inv.tracked[_SLIP] = Tracked(None, Z, self._slip_values(have))
-        self._slip_sites = have
-        order = np.argsort(have, kind="stable")
-        cols = order[np.searchsorted(have[order], sites)]
+            live = np.concatenate([live, np.ones(new.size, dtype=bool)])
+        t.x = Z
+        inv.tracked[_SLIP] = t
+        self._slip_sites, self._slip_live = have, live
+        held = np.flatnonzero(live)
+        order = np.argsort(have[held], kind="stable")
+        cols = held[order[np.searchsorted(have[held][order], sites)]]
         layout = self._layout()
         shape = (self.ny, self.nx)
 
@@ -495,30 +516,36 @@ class DenseBlockSolver:
             w[cols] = v
             return self._to_fields(Z @ w, layout, shape)
 
-        E = Z[:, cols][inv.row[2 * sites]]  # columns first: contiguous in Z's layout
+        E = submatrix(Z, inv.row[2 * sites], cols)
         self._slip_memo = ((inv.version, inv.shifts), Z, sites.copy(), E, fields)
         return E, fields
 
     def _slip_columns(self, Z: np.ndarray, q: int, keep: np.ndarray | None = None
-                      ) -> np.ndarray:
+                      ) -> np.ndarray | None:
         """The slip block with ``q`` columns, the first ones those of ``Z`` (``keep``: only
         those columns, in order): a view of a Fortran-ordered buffer with spare columns, so
         that a new column is written in place; a new buffer when ``Z`` is not its start
-        (after a bordering or a compaction) or when it is full."""
+        (after a bordering or a compaction) or when it is full. None when a new buffer would
+        not fit in memory with two copies of it."""
         buf = self._slip_buf
         if keep is not None:
             Z = Z[:, keep]  # a copy: safe to write back into the buffer
         elif buf is not None and Z.base is buf and q <= buf.shape[1]:
             return buf[:, :q]  # the columns are in place
         if buf is None or buf.shape[0] != Z.shape[0] or q > buf.shape[1]:
-            buf = np.empty((Z.shape[0], max(q + q // 2, 64)), order="F")
+            cap = max(q + q // 2, 64)
+            # the buffer, and the copies a bordering or a compaction makes of the block
+            if 3 * 8 * Z.shape[0] * cap > available_bytes():
+                return None
+            buf = np.empty((Z.shape[0], cap), order="F")
             self._slip_buf = buf
         buf[:, : Z.shape[1]] = Z
         return buf[:, :q]
 
-    def _slip_values(self, sites: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-        """The slip block's right-hand sides on unknowns added later (:meth:`slip_response`)."""
-        return lambda ids: self.entries(ids, 2 * sites + 1)
+    def _slip_values(self) -> Callable[[np.ndarray], np.ndarray]:
+        """The slip block's right-hand sides on unknowns added later (:meth:`slip_response`;
+        dead columns are bordered too, as their sites give them)."""
+        return lambda ids: self.entries(ids, 2 * self._slip_sites + 1)
 
 
 #: the name of the dense solver's tracked block of slip responses

@@ -215,18 +215,32 @@ class ContactState:
         """The forces with the slip law on P for one right-hand side (:meth:`_solve_many`)."""
         s = self.solver
         fz0, fx0 = s.solve_inner(rz, rx, key)
-        E, fields = s.slip_response(np.flatnonzero(P))
-        T = E * w  # E_P^T K^{-1} H w
+        block = s.slip_response(np.flatnonzero(P))
+        if block is not None:
+            E, fields = block
+            T = E * w  # E_P^T K^{-1} H w
 
-        def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return fields(w * t)
+            def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                return fields(w * t)
+
+            def product(t: np.ndarray) -> np.ndarray:
+                return T @ t
+        else:  # no room for the block: an FFT product and a product with the inverse
+
+            def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                fxs = np.zeros(self.base.shape)
+                fxs[P] = w * t
+                return s.apply_inverse(*s.displacements(self.zero, fxs))
+
+            def product(t: np.ndarray) -> np.ndarray:
+                return correction(t)[0][P]
 
         n = int(P.sum())
         b = fz0[P]
 
         def matvec(t: np.ndarray) -> np.ndarray:
             self.gmres_iterations += 1
-            return t + T @ np.ravel(t)
+            return t + product(np.ravel(t))
 
         A = LinearOperator((n, n), matvec=matvec, dtype=float)
         prev = self._warm.get(key)

@@ -146,7 +146,8 @@ def _compact_full(src: np.ndarray, dst: np.ndarray, keep: np.ndarray) -> None:
 @functools.cache
 def _compaction_kernels() -> SimpleNamespace:
     """The compiled compactions (defined and compiled, or loaded from numba's cache, at first
-    use): forward sweeps, element by element, in the order of the numpy versions' columns."""
+    use): forward sweeps, element by element, in the order of the numpy versions' columns;
+    and the gather of a submatrix (:func:`submatrix`)."""
     njit = jit.njit()
 
     @njit
@@ -165,7 +166,26 @@ def _compaction_kernels() -> SimpleNamespace:
             for i in range(k):
                 dst[i, j] = src[keep[i], col]
 
-    return SimpleNamespace(lower=lower, full=full)
+    @njit
+    def gather(src, rows, cols, out):
+        for j in range(cols.size):
+            col = cols[j]
+            for i in range(rows.size):
+                out[i, j] = src[rows[i], col]
+
+    return SimpleNamespace(lower=lower, full=full, gather=gather)
+
+
+def submatrix(A: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``A[rows][:, cols]`` (Fortran-ordered), reading only those entries (compiled when
+    :data:`roughslip.linalg.jit.ENABLED`, else numpy's gather of the columns, then the
+    rows; both copy the same entries)."""
+    rows, cols = np.asarray(rows, dtype=np.int64), np.asarray(cols, dtype=np.int64)
+    if jit.ENABLED:
+        out = np.empty((rows.size, cols.size), order="F")
+        _compaction_kernels().gather(A, rows, cols, out)
+        return out
+    return np.asfortranarray(A[:, cols][rows])
 
 
 def _rank_one(x: np.ndarray, c: np.ndarray, a: np.ndarray | float) -> None:

@@ -2,8 +2,8 @@
 (:mod:`roughslip.contact.pk_passes`), the gathers of the dense blocks
 (:func:`roughslip.elastic.tables.gather_pairs`), the scans of the event tables
 (:func:`roughslip.friction.events.event_table`), the candidate scans of the single-precision
-pull (:mod:`roughslip.friction.breaking_single`) and the compactions of an updated inverse
-(:mod:`roughslip.linalg.inverse`).
+pull (:mod:`roughslip.friction.breaking_single`), and the compactions and submatrix gathers
+of an updated inverse (:mod:`roughslip.linalg.inverse`).
 
 Each kernel has a numpy twin that performs the same operations, so both give bitwise the same
 numbers (tested). The kernels are compiled at their first use, once per installation, then
