@@ -463,8 +463,9 @@ class DenseBlockSolver:
         Returns the :math:`|P| \times |P|` matrix :math:`E_P^T Z` (the :math:`f_z` rows of the
         sites, columns in the order of ``sites``) and ``fields(v)``: the force fields
         :math:`(f_z, f_x)` of :math:`Z v`; None when the block does not fit in memory (with
-        two copies of it, for a bordering or a compaction). Uncertified: the Coulomb solves certify their
-        result as a whole (:meth:`~roughslip.coupling.state.ContactState.solve_many`).
+        two copies of it, for a bordering or a compaction). Uncertified: the Coulomb solves
+        certify their result as a whole
+        (:class:`~roughslip.coupling.state.ContactState`).
         """
         if not self._slip_room:
             return None
