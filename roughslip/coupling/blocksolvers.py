@@ -417,7 +417,7 @@ class DenseBlockSolver:
         """(f_z, f_x) for the right-hand side ``(rz, rx)``, kept as a tracked solution under
         ``key`` like :meth:`solve_many`'s, but certified only every :attr:`refresh_every`
         calls: the inner solution of a solve that certifies its own result as a whole (the
-        Coulomb law's, :meth:`~roughslip.coupling.state.ContactState.solve_many`). Between
+        Coulomb law's, :class:`~roughslip.coupling.state.ContactState`). Between
         certifications it costs no FFT product: its displacements are not kept or moved."""
         age = self._inner_age.get(key, self.refresh_every)
         if age >= self.refresh_every:
