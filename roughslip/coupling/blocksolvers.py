@@ -90,6 +90,9 @@ class BlockSolver(Protocol):
 #: the coupled block solvers, by name (``method`` of :func:`couple`)
 SOLVERS: Registry[type] = Registry("coupled solver")
 
+#: the name of the dense solver's tracked block of slip responses
+_SLIP = "slip response"
+
 
 @SOLVERS.register("dense", "the reduced block's inverse, updated at every event")
 class DenseBlockSolver:
@@ -131,6 +134,9 @@ class DenseBlockSolver:
     #: removals after which the displacements of a kept solution are computed afresh (the
     #: updates add the round-off of one block product each)
     refresh_every = 16
+    #: calls of :meth:`solve_inner` for a right-hand side between certified solves of it (its
+    #: tracked solution takes the round-off of one update per removal meanwhile)
+    inner_every = 16
 
     def __init__(self, problem: Problem, *, reference: bool = False, tol: float = 1e-12,
                  fallback: bool = False, threads: int = 1, **_: object) -> None:
@@ -366,20 +372,7 @@ class DenseBlockSolver:
         inv = self.inverse
         layout = self._layout()
         rows, sites, isx = layout.rows, layout.sites, layout.isx
-        bs, xs, todo = [], [], []
-        for k, (rz, rx, key) in enumerate(rhs):
-            b = self._to_rows(rz, rx, layout)
-            hit = inv.tracked.get(key)
-            if hit is not None and np.array_equal(hit.b, b):
-                xs.append(hit.x)
-            else:
-                xs.append(None)
-                todo.append(k)
-            bs.append(b)
-        if todo:
-            X = inv.apply(np.column_stack([bs[k] for k in todo]))
-            for j, k in enumerate(todo):
-                xs[k] = np.ascontiguousarray(X[:, j])
+        bs, xs = self._solutions(rhs, layout)
         out = []
         for (rz, rx, key), b, x in zip(rhs, bs, xs, strict=True):
             scale = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
@@ -415,27 +408,46 @@ class DenseBlockSolver:
     def solve_inner(self, rz: np.ndarray, rx: np.ndarray, key: str
                     ) -> tuple[np.ndarray, np.ndarray]:
         """(f_z, f_x) for the right-hand side ``(rz, rx)``, kept as a tracked solution under
-        ``key`` like :meth:`solve_many`'s, but certified only every :attr:`refresh_every`
+        ``key`` like :meth:`solve_many`'s, but certified only every :attr:`inner_every`
         calls: the inner solution of a solve that certifies its own result as a whole (the
         Coulomb law's, :class:`~roughslip.coupling.state.ContactState`). Between
         certifications it costs no FFT product: its displacements are not kept or moved."""
-        age = self._inner_age.get(key, self.refresh_every)
-        if age >= self.refresh_every:
+        age = self._inner_age.get(key, self.inner_every)
+        if age >= self.inner_every:
             self._inner_age[key] = 1
             fz, fx, _ = self.solve(rz, rx, key)
             return fz, fx
         self._inner_age[key] = age + 1
         self._fields.pop(key, None)
         self.solves += 1
-        inv, layout = self.inverse, self._layout()
-        b = self._to_rows(rz, rx, layout)
-        hit = inv.tracked.get(key)
-        if hit is not None and np.array_equal(hit.b, b):
-            x = hit.x
-        else:
-            x = inv.apply(b)
-            inv.tracked[key] = Tracked(b, x, _rhs_values(rz.copy(), rx.copy()))
+        layout = self._layout()
+        (b,), (x,) = self._solutions([(rz, rx, key)], layout)
+        hit = self.inverse.tracked.get(key)
+        if hit is None or hit.x is not x:  # a new solution: tracked from now on
+            self.inverse.tracked[key] = Tracked(b, x, _rhs_values(rz.copy(), rx.copy()))
         return self._to_fields(x, layout, rz.shape)
+
+    def _solutions(self, rhs: list[tuple[np.ndarray, np.ndarray, str]], layout: _Layout
+                   ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """The right-hand sides on the rows, and for each the tracked solution when its
+        right-hand side is unchanged, else the product with the inverse (one product for all
+        the new ones: the inverse is read from memory once)."""
+        inv = self.inverse
+        bs, xs, todo = [], [], []
+        for k, (rz, rx, key) in enumerate(rhs):
+            b = self._to_rows(rz, rx, layout)
+            hit = inv.tracked.get(key)
+            if hit is not None and np.array_equal(hit.b, b):
+                xs.append(hit.x)
+            else:
+                xs.append(None)
+                todo.append(k)
+            bs.append(b)
+        if todo:
+            X = inv.apply(np.column_stack([bs[k] for k in todo]))
+            for j, k in enumerate(todo):
+                xs[k] = np.ascontiguousarray(X[:, j])
+        return bs, xs
 
     def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(f_z, f_x) = the current inverse times the right-hand side, uncertified (the inner
@@ -474,8 +486,8 @@ class DenseBlockSolver:
         t = inv.tracked.get(_SLIP)
         memo = self._slip_memo
         if (memo is not None and t is not None and memo[0] == (inv.version, inv.shifts)
-                and memo[1] is t.x and np.array_equal(memo[2], sites)):
-            return memo[3], memo[4]  # the same state: its other right-hand sides
+                and np.array_equal(memo[1], sites)):
+            return memo[2]  # the same state: its other right-hand sides
         if t is None:
             self._slip_sites = np.empty(0, dtype=np.int64)
             self._slip_live = np.empty(0, dtype=bool)
@@ -495,8 +507,8 @@ class DenseBlockSolver:
             self._slip_buf = self._slip_memo = None
             self._slip_room = False
             return None
+        layout = self._layout()
         if new.size:
-            layout = self._layout()
             B = np.zeros((inv.m, new.size), order="F")
             B[layout.rows] = self.entries(inv.ids[layout.rows], 2 * new + 1)
             Z[:, q:] = inv.apply(B)
@@ -509,7 +521,6 @@ class DenseBlockSolver:
         held = np.flatnonzero(live)
         order = np.argsort(have[held], kind="stable")
         cols = held[order[np.searchsorted(have[held][order], sites)]]
-        layout = self._layout()
         shape = (self.ny, self.nx)
 
         def fields(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -518,7 +529,7 @@ class DenseBlockSolver:
             return self._to_fields(Z @ w, layout, shape)
 
         E = submatrix(Z, inv.row[2 * sites], cols)
-        self._slip_memo = ((inv.version, inv.shifts), Z, sites.copy(), E, fields)
+        self._slip_memo = ((inv.version, inv.shifts), sites.copy(), (E, fields))
         return E, fields
 
     def _slip_columns(self, Z: np.ndarray, q: int, keep: np.ndarray | None = None
@@ -547,10 +558,6 @@ class DenseBlockSolver:
         """The slip block's right-hand sides on unknowns added later (:meth:`slip_response`;
         dead columns are bordered too, as their sites give them)."""
         return lambda ids: self.entries(ids, 2 * self._slip_sites + 1)
-
-
-#: the name of the dense solver's tracked block of slip responses
-_SLIP = "slip response"
 
 
 class _Layout(NamedTuple):
