@@ -304,6 +304,7 @@ def bursts_cmd(files, min_tail, as_json, plot_path):
     sample, fits = burst_report(list(files), min_tail=min_tail)
     if as_json:
         click.echo(json.dumps({"files": sample.files, "pulls": sample.pulls,
+                               "left_out": sample.left_out,
                                "fits": [f.as_dict() for f in fits]}, indent=1))
     else:
         click.echo(format_table(sample, fits))

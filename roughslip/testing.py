@@ -1,4 +1,5 @@
-"""Helpers for testing runs: bitwise comparison of run files, processes, topography writers.
+"""Helpers for testing runs: bitwise comparison of run files, processes, topography writers,
+and the dense block operator of a problem.
 
 :func:`differences` compares two run files dataset by dataset, the wall-clock timings
 excepted.
@@ -23,6 +24,22 @@ import numpy as np
 
 #: datasets that measure the machine rather than the model: excluded from comparisons
 TIMINGS = ("seconds", "pull_seconds")
+
+
+def dense_block(problem) -> np.ndarray:
+    """The full (z, x) block operator of a :class:`~roughslip.contact.problem.Problem` as a
+    dense matrix, column by column from FFT products of unit forces (not from the kernel
+    tables the solvers assemble from), symmetrised. Unknowns: f_z at site i is row i, f_x at
+    site i is row n + i."""
+    op = problem.operator("zz", "zx", "xx")
+    n, shape = problem.base.size, problem.shape
+    A = np.empty((2 * n, 2 * n))
+    for j in range(2 * n):
+        f = np.zeros(2 * n)
+        f[j] = 1.0
+        uz, ux = op.apply_block(f[:n].reshape(shape), f[n:].reshape(shape))
+        A[:, j] = np.concatenate([uz.ravel(), ux.ravel()])
+    return 0.5 * (A + A.T)
 
 
 def session_processes(sid: int) -> list[int]:

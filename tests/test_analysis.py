@@ -7,6 +7,7 @@ import math
 import time
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -65,7 +66,8 @@ def test_range_selection():
     [
         ([[1.0]], [[2.0]], "fewer than 2 usable points.*only 1 depth"),
         ([[1.0, 2.0, 3.0]], [[0.0, 0.0, 0.0]], "zero or negative"),
-        ([[1.0, np.nan]], [[1.0, 2.0]], "NaN or inf"),
+        ([[1.0, np.nan]], [[1.0, 2.0]], "fewer than 2 usable points.*1 entry left out"),
+        ([[1.0, np.inf]], [[1.0, 2.0]], "contains inf"),
         ([[1.0, 1.0, 1.0]], [[1.0, 2.0, 3.0]], "all x values are equal"),
         ([[1.0, 2.0]], [[1.0, 2.0, 3.0]], "different shapes"),
     ],
@@ -75,8 +77,10 @@ def test_degenerate_input_is_a_clear_error(x, y, match):
         fit_power_law(np.array(x), np.array(y))
 
 
-def _fake_run(path, hurst: float, alpha: float, n_samples=6, seed=0):
-    """A run file with synthetic scalars (the store's real layout)."""
+def _fake_run(path, hurst: float, alpha: float, n_samples=6, seed=0, unconverged=(),
+              garbage=0.0):
+    """A run file with synthetic scalars (the store's real layout); the pulls at the
+    (sample, depth index) pairs ``unconverged`` did not converge and hold ``garbage``."""
     cfg = load_config(data={
         "grid": {"n": 8}, "pull": {"enabled": True},
         "surface": {"kind": "self-affine", "hurst": hurst, "rms_height": 1.0},
@@ -88,10 +92,14 @@ def _fake_run(path, hurst: float, alpha: float, n_samples=6, seed=0):
     d = np.array(cfg.targets)
     for s in range(n_samples):
         fn = 3.0 * d**1.4 * (1 + 0.05 * rng.standard_normal())
+        ff, ok = 0.2 * fn**alpha, np.ones(5, np.uint8)
+        for bad_s, bad_k in unconverged:
+            if bad_s == s:
+                ff[bad_k], ok[bad_k] = garbage, 0
         sc = {"depth_length": d, "normal_force": fn, "contact_area": 0.1 * fn**0.9,
-              "friction_force": 0.2 * fn**alpha, "iterations": np.ones(5, np.int64),
+              "friction_force": ff, "iterations": np.ones(5, np.int64),
               "residual": np.zeros(5), "converged": np.ones(5, np.uint8),
-              "seconds": np.zeros(5)}
+              "seconds": np.zeros(5), "pull_converged": ok}
         w.write_sample(SampleResult(s, sc, [{} for _ in d], {"rigid_surface": np.zeros((8, 8))}))
     w.finish()
 
@@ -115,6 +123,31 @@ def test_fit_files_reports_the_varied_keys(tmp_path):
     assert r.exit_code == 0 and "0.9000" in r.output
     r = CliRunner().invoke(cli, ["fit", str(tmp_path / "H0.6.h5"), "--y", "heat"])
     assert r.exit_code == 2 and "unknown quantity" in r.output
+
+
+def test_an_unconverged_pull_enters_no_mean_and_no_fit(tmp_path):
+    """A pull that did not converge is not a result: the fit, inspect and the plot leave its
+    (F_n, F_friction) pair out, whatever value it holds, and say how many they left out."""
+    bad = [(2, 3)]
+    fits = []
+    for garbage in (1e-6, 1e6):
+        path = tmp_path / f"g{garbage:g}.h5"
+        _fake_run(path, 0.8, 1.3, unconverged=bad, garbage=garbage)
+        fits.append(fit_files([path])[0].fit)
+    assert fits[0] == fits[1] and fits[0].excluded == 1
+    _fake_run(tmp_path / "all.h5", 0.8, 1.3)
+    full = fit_files([tmp_path / "all.h5"])[0].fit
+    assert full.excluded == 0 and fits[0].alpha != full.alpha  # depth 3 is over 5 samples
+    r = CliRunner().invoke(cli, ["fit", str(path), "--plot", str(tmp_path / "fit.png")])
+    assert r.exit_code == 0 and "left out" in r.output, r.output
+    assert (tmp_path / "fit.png").stat().st_size > 0
+    r = CliRunner().invoke(cli, ["inspect", str(path)])
+    assert r.exit_code == 0 and "pulls not converged: 1 of 30 (left out" in r.output, r.output
+    with h5py.File(path) as f:
+        ff, fn = f["friction_force"][()], f["normal_force"][()]
+    keep = np.arange(6) != 2
+    row = next(line for line in r.output.splitlines() if line.strip().startswith("0.8 "))
+    assert f"{ff[keep, 3].mean():.6g}" in row and f"{fn[:, 3].mean():.6g}" in row
 
 
 def test_fit_cli_errors(tmp_path):

@@ -12,6 +12,7 @@ from roughslip.contact.squeeze import squeeze
 from roughslip.coupling.coupled import squeeze_pull_coupled
 from roughslip.coupling.histories import HISTORIES
 from roughslip.errors import InputError
+from roughslip.friction.events import VISITS, Snapshot, digest, follow_events
 from roughslip.friction.pull import pull
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
 
@@ -777,3 +778,62 @@ def test_the_coupled_squeeze_under_load_honours_the_squeeze_method():
     assert np.array_equal(act.contact0, pk.contact0)
     with pytest.raises(InputError, match="method = 'nope': unknown squeeze method"):
         couple(p, force=6.0, lam=0.2, squeeze_method="nope")
+
+
+class _Flipper:
+    """An event state that a rule sends back and forth between two discrete states at one
+    drive: lost at D, gained again at D, as a degenerate site was before its rule."""
+
+    def __init__(self) -> None:
+        self.C = np.ones((2, 2), bool)
+        self.S = self.C.copy()
+        self.Dscale, self.pulling, self.discontinuous = 1.0, False, False
+
+    def interval(self, D):
+        kind = "lost" if self.C[0, 0] else "gained"
+        return D, D, kind, 0  # due at once, whatever the state
+
+    def violation(self, D):
+        return None
+
+    def reversal(self):
+        return None
+
+    def holds(self):
+        return True
+
+    def apply(self, kind, j, D=0.0):
+        self.C.ravel()[j] = self.S.ravel()[j] = kind == "gained"
+
+    def solve(self):
+        pass
+
+    def at(self, D):
+        z = np.zeros((2, 2))
+        return z, z, z
+
+    def totals(self, D):
+        return 0.0, 0.0
+
+    def snapshot(self, D):
+        return Snapshot.of(self, D)
+
+    def dx_at(self, D):
+        return D
+
+    def depth_at(self, D):
+        return 0.0
+
+    def signature(self):
+        return digest(self.C, self.S)
+
+
+def test_the_event_loop_stops_when_a_state_comes_back_at_one_drive():
+    """A state that comes back at one drive ends the path as a cycle on its VISITS-th visit
+    (a second visit may differ by continuous data), naming the event and the site, instead
+    of running to the event limit."""
+    path = follow_events(_Flipper(), limit=1000, record_states=False)
+    kinds = [e.kind for e in path.events]
+    assert kinds == ["start"] + ["lost", "gained"] * (VISITS - 1)
+    assert path.message.startswith("the events cycle") and "'gained' event at site 0" in (
+        path.message)

@@ -322,6 +322,8 @@ class BurstSample:
     files: list[str]
     #: the length unit of the first run (``units.length``), None for bare numbers
     length_unit: str | None = None
+    #: pulls left out because they did not converge (their curves stop short)
+    left_out: int = 0
 
 
 def collect_bursts(paths: list[str | Path]) -> BurstSample:
@@ -329,8 +331,9 @@ def collect_bursts(paths: list[str | Path]) -> BurstSample:
 
     ``before``: bursts whose record comes before the peak break; ``after``: the burst at the
     peak and those that follow. Needs runs of the decoupled break law with ``pull_curve`` in
-    ``output.fields``.
+    ``output.fields``. A pull that did not converge is left out (:attr:`BurstSample.left_out`).
     """
+    from roughslip.analysis.fit import unconverged_pulls
     from roughslip.analysis.summary import length_unit
     from roughslip.run.store import open_file, read_run
 
@@ -357,9 +360,13 @@ def collect_bursts(paths: list[str | Path]) -> BurstSample:
             raise InputError(f"{path}: bursts need an exact pull method (this run has "
                              "pull.method = 'batch', which breaks several bonds per step)")
         exhausted = pull.get("method") == "literal" or not pull.get("early_stop", True)
+        bad = unconverged_pulls(run)
         with open_file(path) as f:
-            for s in run.sample_index[run.complete]:
+            for row, s in enumerate(run.sample_index[run.complete]):
                 for k in range(len(run.axis)):
+                    if bad[row, k]:
+                        out.left_out += 1
+                        continue
                     g = f[f"samples/s{int(s):06d}/d{k:03d}"]
                     c = (landing_curve(g["dx_lim"][()], g["fx_lim"][()],
                                        g["broken_site"][()]) if lands else
@@ -408,7 +415,8 @@ def fit_bursts(sample: BurstSample, min_tail: int = 50) -> list[BurstFit]:
 
 def format_table(sample: BurstSample, fits: list[BurstFit]) -> str:
     """A plain-text table of the fits."""
-    lines = [f"# {sample.pulls} pulls from {len(sample.files)} file(s); power laws "
+    left = (f" ({sample.left_out} unconverged pull(s) left out)" if sample.left_out else "")
+    lines = [f"# {sample.pulls} pulls from {len(sample.files)} file(s){left}; power laws "
              "p(x) ~ x^-alpha by maximum likelihood, x_min by KS distance (Clauset et al. 2009)",
              f"{'phase':>7} {'bursts':>7} {'quantity':>8} {'alpha':>7} {'+-':>6} "
              f"{'x_min':>10} {'x_max':>10} {'n_tail':>7} {'KS':>6}"]

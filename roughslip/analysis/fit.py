@@ -1,7 +1,9 @@
 r"""Power-law fits :math:`y = c\,x^\alpha` over ensemble means (docs/guide/quickstart.rst).
 
-The means over samples at each depth are fitted in log-log by least squares. Two
-uncertainties are reported: the regression standard error of :math:`\alpha` (scatter of the
+The means over samples at each depth are fitted in log-log by least squares. A pull that did
+not converge is left out of the means (:func:`pair`): its friction force, and the other
+quantity at the same sample and depth, are not a result (docs/theory/coupled.rst#unconverged).
+Two uncertainties are reported: the regression standard error of :math:`\alpha` (scatter of the
 means about the line) and the standard deviation of :math:`\alpha` over bootstrap resamples of
 the samples (sampling error of the ensemble), with a 95 % percentile interval. The bootstrap is
 seeded, so a fit is reproducible.
@@ -22,6 +24,8 @@ from roughslip.run.store import RunData, read_run
 
 QUANTITIES = ("depth", "depth_length", "normal_force", "contact_area", "friction_force",
               "friction_normal_force")
+#: the quantities a pull computes: not a result where the pull did not converge
+PULLED = ("friction_force", "friction_normal_force")
 
 
 @dataclass(frozen=True)
@@ -37,6 +41,8 @@ class PowerLawFit:
     n_points: int
     n_samples: int
     x_range: tuple[float, float]
+    #: entries (sample, depth) left out of the means: pulls that did not converge
+    excluded: int = 0
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -69,7 +75,8 @@ def fit_power_law(x: np.ndarray, y: np.ndarray, *, xmin: float | None = None,
     Parameters
     ----------
     x, y : array_like, shape (n_samples, n_points)
-        Per-sample values at each depth (or 1-D: one sample).
+        Per-sample values at each depth (or 1-D: one sample). NaN marks an entry left out
+        (:func:`pair`), in both arrays; the means at a depth are over the others.
     xmin, xmax : float, optional
         Use only depths whose mean ``x`` lies in this range.
     n_boot : int
@@ -88,12 +95,15 @@ def fit_power_law(x: np.ndarray, y: np.ndarray, *, xmin: float | None = None,
     if x.shape != y.shape:
         raise InputError(f"{names[0]} and {names[1]} have different shapes {x.shape}, {y.shape}")
     for arr, nm in ((x, names[0]), (y, names[1])):
-        if not np.all(np.isfinite(arr)):
-            raise InputError(f"{nm} contains NaN or inf (incomplete samples must be excluded)")
+        if np.any(np.isinf(arr)):
+            raise InputError(f"{nm} contains inf")
+    out = np.isnan(x) | np.isnan(y)
+    if out.any():
+        x, y = np.where(out, np.nan, x), np.where(out, np.nan, y)
     ns, nd = x.shape
     if ns == 0 or nd == 0:
         raise InputError("no data to fit")
-    xm, ym = x.mean(axis=0), y.mean(axis=0)
+    xm, ym = means(x), means(y)
     use = (xm > 0) & (ym > 0)
     if xmin is not None:
         use &= xm >= xmin
@@ -108,6 +118,9 @@ def fit_power_law(x: np.ndarray, y: np.ndarray, *, xmin: float | None = None,
                        f"mean {names[0]} or {names[1]}")
         if xmin is not None or xmax is not None:
             why.append(f"range [{xmin}, {xmax}]")
+        if out.any():
+            k = int(out.sum())
+            why.append(f"{k} {'entry' if k == 1 else 'entries'} left out (unconverged pulls)")
         raise InputError(f"fewer than 2 usable points for a power law of {names[1]} on "
                          f"{names[0]} ({'; '.join(why) or 'no positive means'})")
     lx, ly = np.log(xm[use]), np.log(ym[use])
@@ -117,7 +130,7 @@ def fit_power_law(x: np.ndarray, y: np.ndarray, *, xmin: float | None = None,
         rng = np.random.default_rng(seed)
         for _ in range(n_boot):
             idx = rng.integers(0, ns, ns)
-            bx, by = x[idx].mean(axis=0)[use], y[idx].mean(axis=0)[use]
+            bx, by = means(x[idx])[use], means(y[idx])[use]
             if np.all(bx > 0) and np.all(by > 0) and np.ptp(np.log(bx)) > 0:
                 boot.append(_ols(np.log(bx), np.log(by))[0])
     if boot:
@@ -129,7 +142,42 @@ def fit_power_law(x: np.ndarray, y: np.ndarray, *, xmin: float | None = None,
     return PowerLawFit(alpha=alpha, prefactor=math.exp(icpt), alpha_stderr=se,
                        alpha_bootstrap_std=bstd, alpha_ci95=ci, r2=r2,
                        n_points=int(use.sum()), n_samples=ns,
-                       x_range=(float(xm[use].min()), float(xm[use].max())))
+                       x_range=(float(xm[use].min()), float(xm[use].max())),
+                       excluded=int(out.sum()))
+
+
+def means(v: np.ndarray) -> np.ndarray:
+    """The mean over samples (axis 0) at each depth, of the entries that are not NaN (NaN
+    where none is)."""
+    if not np.isnan(v).any():
+        return v.mean(axis=0)
+    n = (~np.isnan(v)).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, np.nansum(v, axis=0) / n, np.nan)
+
+
+def unconverged_pulls(run: RunData) -> np.ndarray:
+    """The (complete sample, depth) entries whose pull did not converge (all False for a run
+    without a pull, or for a file that does not record it)."""
+    sel = run.complete
+    shape = (int(sel.sum()), len(run.axis))
+    if "pull_converged" not in run.scalars:
+        return np.zeros(shape, bool)
+    return np.asarray(run.scalars["pull_converged"][sel], dtype=float) == 0
+
+
+def pair(run: RunData, x: str, y: str) -> tuple[np.ndarray, np.ndarray, int]:
+    """The per-sample values of ``x`` and ``y`` (:func:`quantity`), NaN in both where a pull
+    that did not converge would enter either (a quantity of :data:`PULLED`), and how many
+    entries that leaves out."""
+    xv = np.asarray(quantity(run, x), dtype=float)
+    yv = np.asarray(quantity(run, y), dtype=float)
+    if x not in PULLED and y not in PULLED:
+        return xv, yv, 0
+    out = unconverged_pulls(run)
+    if not out.any():
+        return xv, yv, 0
+    return np.where(out, np.nan, xv), np.where(out, np.nan, yv), int(out.sum())
 
 
 def quantity(run: RunData, name: str) -> np.ndarray:
@@ -188,8 +236,8 @@ def fit_files(paths: list[str | Path], x: str = "normal_force", y: str = "fricti
         if r.n_complete == 0:
             raise InputError(f"{r.path}: has no complete samples")
         try:
-            res = fit_power_law(quantity(r, x), quantity(r, y), xmin=xmin, xmax=xmax,
-                                n_boot=n_boot, names=(x, y))
+            xv, yv, _ = pair(r, x, y)
+            res = fit_power_law(xv, yv, xmin=xmin, xmax=xmax, n_boot=n_boot, names=(x, y))
         except InputError as exc:
             raise InputError(f"{r.path}: {exc}") from None
         varied = {k: flat.get(k) for k in varied_keys}
@@ -204,7 +252,9 @@ def format_table(fits: list[FileFit], x: str, y: str) -> str:
     keys: list[str] = []
     for f in fits:
         keys += [k for k in f.varied if k not in keys]
-    head = ["file", *keys, "alpha", "+-boot", "+-reg", "95% CI", "R2", "points", "samples"]
+    left = any(f.fit.excluded for f in fits)  # a column only when a pull is left out
+    head = ["file", *keys, "alpha", "+-boot", "+-reg", "95% CI", "R2", "points", "samples",
+            *(["left out"] if left else [])]
     rows = []
     for f in fits:
         p = f.fit
@@ -216,8 +266,11 @@ def format_table(fits: list[FileFit], x: str, y: str) -> str:
               if math.isfinite(p.alpha_ci95[0]) else "n/a")
         rows.append([Path(f.path).name, *(str(f.varied.get(k, "")) for k in keys),
                      num(p.alpha), num(p.alpha_bootstrap_std), num(p.alpha_stderr), ci,
-                     f"{p.r2:.4f}", str(p.n_points), str(p.n_samples)])
+                     f"{p.r2:.4f}", str(p.n_points), str(p.n_samples),
+                     *([str(p.excluded)] if left else [])])
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     line = "  ".join(h.rjust(w) for h, w in zip(head, widths, strict=True))
     body = ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
-    return f"# {y} = c {x}^alpha\n" + "\n".join([line, *body])
+    note = ("\n# left out: (sample, depth) entries whose pull did not converge; the means at "
+            "those depths are over the other samples") if left else ""
+    return f"# {y} = c {x}^alpha\n" + "\n".join([line, *body]) + note

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from roughslip.analysis.fit import fit_power_law, quantity
-from roughslip.analysis.summary import axis_unit, length_unit, pixel_size
+from roughslip.analysis.fit import fit_power_law, pair, quantity
+from roughslip.analysis.summary import axis_unit, length_unit, mean_sem, pixel_size
 from roughslip.errors import InputError, io_failure
 from roughslip.friction.laws import LAWS
 from roughslip.run.store import read_run
@@ -133,17 +133,19 @@ def _loglog_png(plt, stem: Path, suffix: str, x, y, xlabel: str, ylabel: str,
 
 
 def _loglog_with_fit(ax, x, y, xlabel, ylabel, title):
-    xm, ym = x.mean(axis=0), y.mean(axis=0)
-    if x.shape[0] > 1:
-        ye = y.std(axis=0, ddof=1) / np.sqrt(x.shape[0])
-    else:
-        ye = np.zeros_like(ym)
+    """Per-sample points, ensemble means with their standard errors and the power-law fit;
+    NaN entries (pulls that did not converge) are left out, and the legend says how many."""
+    xm, _ = mean_sem(x)
+    ym, ye = mean_sem(y)
+    left = int(np.isnan(x).sum())
     ok = (xm > 0) & (ym > 0)
     for row_x, row_y in zip(x, y, strict=True):
         sel = (row_x > 0) & (row_y > 0)
         ax.loglog(row_x[sel], row_y[sel], ".", color="0.75", ms=3)
     ax.errorbar(xm[ok], ym[ok], yerr=ye[ok], fmt="o", color="C0", ms=4, capsize=2,
-                label="ensemble mean" if x.shape[0] > 1 else "one sample")
+                label=("ensemble mean" if x.shape[0] > 1 else "one sample")
+                + (f" ({left} unconverged pull{'s' if left != 1 else ''} left out)"
+                   if left else ""))
     try:
         f = fit_power_law(x, y)
         xx = np.geomspace(xm[ok].min(), xm[ok].max(), 50)
@@ -254,8 +256,8 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
                                "$F_n \\propto D_z^{\\beta}$"))
     has_pull = "friction_force" in run.scalars
     if has_pull:
-        ff = quantity(run, "friction_force")
-        written.append(_loglog_png(plt, stem, "friction", fn, ff,
+        fn_pulled, ff, _ = pair(run, "normal_force", "friction_force")
+        written.append(_loglog_png(plt, stem, "friction", fn_pulled, ff,
                                    quantity_label(run, "normal_force"),
                                    quantity_label(run, "friction_force"),
                                    "$F_{friction} \\propto F_n^{\\alpha}$"))
@@ -412,10 +414,10 @@ def plot_fits(paths: list[str], fits, x: str, y: str, out: str | Path) -> Path:
     excluded = False
     for i, (p, f) in enumerate(zip(paths, fits, strict=True)):
         run = read_run(p)
-        xv, yv = quantity(run, x), quantity(run, y)
-        xm, ym = xv.mean(axis=0), yv.mean(axis=0)
+        xv, yv, _ = pair(run, x, y)
+        xm, _ = mean_sem(xv)
+        ym, ye = mean_sem(yv)
         n = xv.shape[0]
-        ye = yv.std(axis=0, ddof=1) / np.sqrt(n) if n > 1 else np.zeros_like(ym)
         ok = (xm > 0) & (ym > 0)
         lo, hi = f.fit.x_range
         inside = ok & (xm >= lo * (1 - 1e-12)) & (xm <= hi * (1 + 1e-12))

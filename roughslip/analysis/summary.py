@@ -7,15 +7,25 @@ from typing import Any
 
 import numpy as np
 
+from roughslip.analysis.fit import PULLED, means, unconverged_pulls
 from roughslip.run.store import read_run
 
 
 def mean_sem(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and standard error of the mean over samples (axis 0); SEM is 0 for one sample."""
+    """Mean and standard error of the mean over samples (axis 0), of the entries that are not
+    NaN (entries left out); the SEM is 0 where one sample is left."""
     rows = np.asarray(rows, dtype=float)
-    n = rows.shape[0]
-    mean = rows.mean(axis=0) if n else np.full(rows.shape[1:], np.nan)
-    sem = rows.std(axis=0, ddof=1) / np.sqrt(n) if n > 1 else np.zeros(rows.shape[1:])
+    if rows.shape[0] == 0:
+        return np.full(rows.shape[1:], np.nan), np.zeros(rows.shape[1:])
+    if not np.isnan(rows).any():
+        n = rows.shape[0]
+        sem = rows.std(axis=0, ddof=1) / np.sqrt(n) if n > 1 else np.zeros(rows.shape[1:])
+        return rows.mean(axis=0), sem
+    n = (~np.isnan(rows)).sum(axis=0)
+    mean = means(rows)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        var = np.nansum((rows - mean) ** 2, axis=0) / (n - 1)
+        sem = np.where(n > 1, np.sqrt(var / n), 0.0)
     return mean, sem
 
 
@@ -204,7 +214,13 @@ def summarize(path: str | Path) -> str:
     head = f"  {axis_label:>12} " + " ".join(
         f"{n:>30}" if one else f"{n + ' (mean +- sem)':>30}" for n in names)
     lines.append(head)
-    stats = {n: mean_sem(run.scalars[n][sel]) for n in names}
+    out = unconverged_pulls(run)  # left out of the pull's means
+
+    def values(name: str) -> np.ndarray:
+        v = np.asarray(run.scalars[name][sel], dtype=float)
+        return np.where(out, np.nan, v) if name in PULLED and out.any() else v
+
+    stats = {n: mean_sem(values(n)) for n in names}
     for k, x in enumerate(run.axis):
         row = f"  {x:>12.5g} "
         for n in names:
@@ -215,7 +231,8 @@ def summarize(path: str | Path) -> str:
     problems = [f"  squeeze solves not converged: {bad} of {total}"]
     if "pull_converged" in run.scalars:
         bad, total = _count_false(run.scalars["pull_converged"][sel])
-        problems.append(f"  pulls not converged: {bad} of {total}")
+        problems.append(f"  pulls not converged: {bad} of {total}"
+                        + (" (left out of the friction means and fits)" if bad else ""))
         if run.config_dict().get("pull", {}).get("method") == "batch":
             problems.append("  approximate pulls (method 'batch'): biased low, with no error "
                             "estimate")

@@ -17,7 +17,7 @@ from scipy import linalg
 from scipy.sparse.linalg import LinearOperator, gmres
 
 from roughslip.errors import NumericalError
-from roughslip.friction.events import TIE, Snapshot, argext, event_table
+from roughslip.friction.events import TIE, Snapshot, argext, digest, event_table
 from roughslip.friction.laws import LAWS
 from roughslip.linalg.inverse import refine
 
@@ -428,15 +428,20 @@ class ContactState:
                  np.finfo(float).tiny)
         gs = max(self.scale_g, np.finfo(float).tiny)
         cons = (
+            *self.law.stick_rows(lam, self.S, self.f0, self.f1, fs),
             ("lost", self.C, fz0, fz1, fs),
             ("gained", ~self.C, self.g0, self.g1, gs),
-            *self.law.stick_rows(lam, self.S, self.f0, self.f1, fs),
         )
         return event_table(cons, D, Dref, self.Dscale)
 
     def snapshot(self, D: float) -> Snapshot:
         """The totals and fields at ``D`` (copies)."""
         return Snapshot.of(self, D)
+
+    def signature(self) -> bytes:
+        """The contact and stick sets and the slip directions (bond offsets are continuous
+        data: a site lost and bonded again at one drive is the same discrete state)."""
+        return digest(self.C, self.S, self.sigma)
 
     def totals(self, D: float) -> tuple[float, float]:
         fz, fx, _ = self.at(D)

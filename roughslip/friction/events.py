@@ -11,6 +11,7 @@ values within a relative ``TIE`` of the extreme, the lowest flat index.
 from __future__ import annotations
 
 import functools
+import hashlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -24,6 +25,9 @@ from roughslip.linalg import jit
 TIE = 1e-9
 #: a slipping bond sticks again when its slip rate (per unit pull) opposes its force by more
 RATE_TIE = 1e-9
+#: the visits of one discrete state at one drive that end a path as a cycle
+#: (:func:`follow_events`)
+VISITS = 3
 
 
 @dataclass(frozen=True)
@@ -234,6 +238,16 @@ class EventState(Protocol):
 
     def depth_at(self, D: float) -> float: ...
 
+    def signature(self) -> bytes: ...  # the discrete state (sets, slip directions, phases)
+
+
+def digest(*arrays: np.ndarray) -> bytes:
+    """A short digest of the bytes of ``arrays``: a state's :meth:`EventState.signature`."""
+    h = hashlib.blake2b(digest_size=16)
+    for a in arrays:
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.digest()
+
 
 def follow_events(st: EventState, limit: int, record_states: bool,
                   end: float | Callable[[], float] = math.inf, *, landings: bool = False,
@@ -243,6 +257,13 @@ def follow_events(st: EventState, limit: int, record_states: bool,
     until ``end``. A callable ``end`` is asked again after every solve: the end of a drive
     known only through the current state (the depth at which an indentation reaches a normal
     force, :func:`~roughslip.coupling.histories.indent_to`).
+
+    A discrete state (:meth:`EventState.signature`) that comes back at one drive ends the
+    path on its :data:`VISITS`-th visit, as a cycle: its ``message`` names the drive and the
+    last event's site, and the pull is reported as not converged. In exact arithmetic one
+    return would be a cycle already, as the sets decide the next event; a second visit can
+    only differ by continuous data (the offset of a bond formed again, the solver's error at
+    a loose tolerance), and it is given that chance.
 
     ``landings``: record the state an avalanche ends in, at the drive that set it off (event
     ``"jump"``), and the state after an event that changed the forces at constant drive
@@ -271,6 +292,8 @@ def follow_events(st: EventState, limit: int, record_states: bool,
     D = 0.0
     first = True
     falling = False  # inside an avalanche (recorded states below the drive, or transients)
+    seen: dict[bytes, int] = {}  # visits of the discrete states met at the current drive
+    seen_at = 0.0  # the drive they were met at
     # until no bond holds; under the Coulomb law also until no slipping bond turns back
     # (a bond slipping against the pull sticks again, even when every other one slips)
     while True:
@@ -282,6 +305,17 @@ def follow_events(st: EventState, limit: int, record_states: bool,
             break
         if len(path.events) + path.transient > limit:
             path.message = f"stopped after {limit} events"
+            break
+        if D > seen_at + TIE * max(st.Dscale, abs(D)):
+            seen.clear()
+            seen_at = D
+        key = st.signature()
+        seen[key] = seen.get(key, 0) + 1
+        if seen[key] >= VISITS:
+            last = path.events[-1]
+            path.message = (f"the events cycle: the state at D = {D!r} came back "
+                            f"{VISITS - 1} times, the last after the {last.kind!r} event at "
+                            f"site {last.site}")
             break
         lo, hi, kind, j = st.interval(D)
         if first and math.isfinite(hi) and hi > 0:

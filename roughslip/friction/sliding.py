@@ -39,7 +39,14 @@ from roughslip.friction.bonds import (
     shrinking_only,
     track,
 )
-from roughslip.friction.events import TIE, Snapshot, argext, event_table, follow_events
+from roughslip.friction.events import (
+    TIE,
+    Snapshot,
+    argext,
+    digest,
+    event_table,
+    follow_events,
+)
 from roughslip.linalg.inverse import Tracked
 
 
@@ -95,6 +102,10 @@ class TangentialState:
         """The totals at ``D``; no fields (the pull's result is the state at full sliding)."""
         F_x, F_z = self.totals(D)
         return Snapshot(F_x, F_z, D, None, None, None, None)
+
+    def signature(self) -> bytes:
+        """The stick set and the slip directions."""
+        return digest(self.S, self.sigma)
 
     def _site(self, row: int) -> int:
         return int(self.b.sites[self.inv.ids[row]])

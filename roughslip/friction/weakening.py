@@ -61,7 +61,15 @@ import numpy as np
 
 from roughslip.errors import MemoryLimitError, NumericalError
 from roughslip.friction.bonds import Bonds, PullOptions, SlipResult
-from roughslip.friction.events import RATE_TIE, TIE, Snapshot, argext, event_table, follow_events
+from roughslip.friction.events import (
+    RATE_TIE,
+    TIE,
+    Snapshot,
+    argext,
+    digest,
+    event_table,
+    follow_events,
+)
 from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 
@@ -220,6 +228,11 @@ class WeakeningState:
         phi, psi, _, live = self._rows()
         F = D * float(phi[live].sum()) - float(psi[live].sum()) + float(self.fR.sum())
         return F, float(self.b.normal.fz.sum())
+
+    def signature(self) -> bytes:
+        """The phases, the slip directions and the slip each phase started from (a burst at
+        one drive meets the same phases again only with more slip)."""
+        return digest(self.phase, self.sigma, self.delta, self.s0)
 
     def snapshot(self, D: float) -> Snapshot:
         return Snapshot.of(self, D)

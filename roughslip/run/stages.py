@@ -104,6 +104,8 @@ class _DecoupledSample:
         rec.scalars.update(friction_force=s.friction_force,
                            friction_normal_force=s.normal_force, pull_seconds=s.seconds,
                            pull_converged=s.converged, pull_steps=s.steps)
+        if not s.converged:
+            rec.notes.append(f"pull not converged ({s.message}); left out of the means")
         if pl.error_estimate and math.isfinite(s.error_estimate):  # batch has none: fill NaN
             rec.scalars["pull_error_estimate"] = s.error_estimate
         if "fx" in want:
@@ -162,6 +164,9 @@ class _CoupledSample:
                                                                    else []),
             contact=r.contact0,
         )
+        if not r.converged:
+            rec.notes.append(f"coupled solve not converged ({r.message}); left out of the "
+                             "means")
         f = rec.fields
         if "fz" in want:
             f["fz"] = r.fz0
