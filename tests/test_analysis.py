@@ -15,10 +15,12 @@ from click.testing import CliRunner
 from roughslip.analysis import verify
 from roughslip.analysis.fit import fit_files, fit_power_law
 from roughslip.cli import cli
+from roughslip.contact.problem import Problem
 from roughslip.errors import InputError
 from roughslip.run.config import load_config
 from roughslip.run.scene import Scene
 from roughslip.run.store import RunWriter, SampleResult
+from roughslip.testing import dense_block
 
 # ------------------------------------------------------------------------------ fitting
 
@@ -227,18 +229,30 @@ def test_verify_lines_are_ordered_and_tighter_tolerances_are_more_accurate(quick
 def test_verify_coupled_model_as_the_docs_state(quick_rows):
     """docs/methods.rst#error-vs-time: at nu = 1/2 the coupled pull is the decoupled one (to
     rounding accumulated over the events); at nu = 0.3 the dense solver is exact to rounding at
-    every tolerance, and the matrix-free one is not monotonic: at tol 1e-6 and 1e-8 its
-    friction force is 20 % low, because the squeeze releases 16 other bonds of the symmetric
-    contact (near-ties in 'most overloaded first'), while its residual says 1e-6."""
+    every tolerance. The matrix-free one is exact to its tolerance wherever its squeeze
+    releases the reference's bonds. On this symmetric contact bonds are overloaded in groups
+    of equal size, and a solver error above the rounding can order a group otherwise: then it
+    releases another set, the point says so, and its friction force may be far off (20 % on
+    one BLAS kernel, at residual 1e-6). Which of the two happens is the rounding's choice; the
+    statement holds either way."""
     result, _ = quick_rows
     for p in _points(result, scene="coupled", series="resolution"):
         assert abs(p.error) < (1e-11 if p.method == "dense/break" else 1e-8), p
     dense = _points(result, scene="coupled", series="tolerance", method="dense/break")
-    assert all(p.at_floor for p in dense)
+    assert all(p.at_floor and not p.note for p in dense)
     cg = {p.tol: p for p in _points(result, scene="coupled", series="tolerance",
                                     method="cg/break")}
-    assert abs(cg[1e-10].error) < 1e-7
-    assert abs(cg[1e-6].error) > 0.1 and cg[1e-6].residual < 1e-5 and cg[1e-6].converged
+    assert abs(cg[1e-10].error) < 1e-7 and not cg[1e-10].note
+    # the friction force of the bonds the squeeze left: within 2 cond(K) tol, the whole grid's
+    # block bounding the condition number of every principal block (interlacing)
+    heights, h, _, _ = verify.hertz_scene(6)
+    A = dense_block(Problem.from_arrays(heights, a=h, E=1.0, nu=0.3))
+    w = np.linalg.eigvalsh(A)
+    kappa = w[-1] / w[0]
+    for tol in (1e-6, 1e-8):
+        p = cg[tol]
+        assert p.converged and p.residual < 10 * tol
+        assert abs(p.error) < 2 * kappa * tol or p.note == verify.RELEASED, p
     coulomb = _points(result, scene="coupled", series="tolerance", method="dense/coulomb")
     assert all(abs(p.error) < 1e-7 for p in coulomb)
 

@@ -284,19 +284,26 @@ def test_a_previous_format_run_resumes_as_the_same_configuration(tmp_path):
 def test_a_coupled_run_of_the_version_before_squeeze_histories_resumes_and_reproduces(tmp_path):
     """A coupled run written before ``coupling.history`` existed (format 2): its configuration
     loads with the default history, ``bonded``, its digest is recognised, --resume finds
-    nothing to do, and a fresh run gives every stored number bitwise again, but for the
-    certified residuals: they measure the round-off of the solves (about 4e-16 here), which
-    the faster folds and products of later versions change, and stay below the tolerance."""
+    nothing to do, and a fresh run reproduces it. The file was written on another machine
+    (OpenBLAS's AVX-512 kernels), so the promise is the cross-machine one: the same events
+    (every count, flag and contact area bitwise), every force within twice the certified
+    tolerance times the condition number of the whole grid's block (which bounds every block
+    the solves invert), the surfaces within FFT round-off, and the certified residuals, which
+    measure round-off, below the tolerance. (On the machine that wrote it the numbers are
+    bitwise equal; under other kernels they differ by about 1e-15.)"""
     import numpy as np
 
+    from roughslip.contact.problem import Problem
     from roughslip.coupling.coupled import COUPLED_TOL
     from roughslip.run.config import load_config
+    from roughslip.testing import dense_block
 
     src = tmp_path / "old.h5"
     shutil.copy(DATA / "run_v2_coupled.h5", src)
     with h5py.File(src, "r") as f:
         text, digest = f.attrs["config"], f.attrs["config_digest"]
         assert f.attrs["format_version"] == 2
+        surface = f["samples/s000000/rigid_surface"][()]
     assert "history" not in text
     cfg_path = tmp_path / "old.toml"
     cfg_path.write_text(text)
@@ -309,15 +316,24 @@ def test_a_coupled_run_of_the_version_before_squeeze_histories_resumes_and_repro
     new = tmp_path / "new.h5"
     r = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(new), "--quiet"])
     assert r.exit_code == 0, r.output
+    w = np.linalg.eigvalsh(dense_block(Problem.from_arrays(surface, nu=cfg.material.nu)))
+    kappa = w[-1] / w[0]
+    eps = np.finfo(float).eps
+    forces = ("friction_force", "friction_normal_force", "normal_force", "depth_length", "fx")
     with h5py.File(src, "r") as a, h5py.File(new, "r") as b:
         names: list[str] = []
         a.visititems(lambda n, o: names.append(n) if isinstance(o, h5py.Dataset) else None)
         compared = [n for n in names if "seconds" not in n]
         assert len(compared) > 15
         for n in compared:
-            if n.rsplit("/", 1)[-1] == "residual":
-                x, y = a[n][()], b[n][()]
-                assert np.array_equal(np.isnan(x), np.isnan(y)), n
+            x, y, last = a[n][()], b[n][()], n.rsplit("/", 1)[-1]
+            assert np.array_equal(np.isnan(x), np.isnan(y)), n
+            if last == "residual":
                 assert np.nanmax(y) <= tol and np.nanmax(x) <= tol, n
-                continue
-            assert np.array_equal(a[n][()], b[n][()], equal_nan=True), n
+            elif last in forces:
+                scale = np.nanmax(np.abs(x))
+                assert np.nanmax(np.abs(x - y)) <= 2 * kappa * tol * scale, n
+            elif last == "rigid_surface":  # the FFT's round-off: a few eps per level
+                assert np.abs(x - y).max() <= 16 * np.log2(x.size) * eps * np.abs(x).max(), n
+            else:  # the events: counts, flags, contact areas, the axis
+                assert np.array_equal(x, y, equal_nan=True), n

@@ -109,8 +109,9 @@ class CoupledResult:
     squeeze_seconds: float = math.nan
     #: worst relative residual of the block solves against the FFT operator (both solvers); a
     #: measure of convergence, not of the error: where equally overloaded bonds are released
-    #: (a symmetric contact), the matrix-free solver's friction force was 20 % off at residual
-    #: 1e-6 (docs/methods.rst#estimates-against-truth)
+    #: (a symmetric contact), the matrix-free solver's error can reorder them, and its
+    #: friction force can then be 20 % off at residual 1e-6
+    #: (docs/methods.rst#estimates-against-truth)
     residual: float = math.nan
     #: D_z after the squeeze (given, or found under load control)
     depth: float = math.nan
