@@ -87,6 +87,54 @@ class VerificationError(RoughslipError):
     exit_code = 1
 
 
+#: the longest value (or key) an error message repeats, in characters: about a terminal line.
+#: A message stays one readable line however large the value that broke a rule (a 10 MB
+#: string in a configuration is echoed as its first 80 characters and its length).
+ECHO_LIMIT = 80
+
+
+def shorten(text: str, *, length: int | None = None) -> str:
+    """``text`` for an error message: whole when it has at most :data:`ECHO_LIMIT` characters,
+    else its first :data:`ECHO_LIMIT`, ``...`` and how long it was.
+
+    Parameters
+    ----------
+    text : str
+        What the message would show.
+    length : int, optional
+        The length to report when ``text`` renders only the start of a longer value (then the
+        ellipsis and the length are always added).
+
+    Returns
+    -------
+    str
+        E.g. ``"xxxx"... (10000000 characters)``.
+    """
+    if length is None:
+        if len(text) <= ECHO_LIMIT:
+            return text
+        length = len(text)
+    return f"{text[:ECHO_LIMIT]}... ({length} characters)"
+
+
+def echo(value: object) -> str:
+    """``repr(value)`` for an error message, at most about :data:`ECHO_LIMIT` characters
+    (:func:`shorten`); a long string is not rendered whole first.
+
+    Parameters
+    ----------
+    value : object
+        A value from a file, a configuration or the command line.
+
+    Returns
+    -------
+    str
+    """
+    if isinstance(value, str) and len(value) > ECHO_LIMIT:
+        return shorten(repr(value[:ECHO_LIMIT]), length=len(value))
+    return shorten(repr(value))
+
+
 EXIT_CODES = {
     "ok": 0,
     "failure": 1,

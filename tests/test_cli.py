@@ -77,3 +77,21 @@ def test_progress_lines_give_no_eta_until_it_means_something(monkeypatch, capsys
     assert all("ETA" not in line for line in lines[:3])
     assert lines[3].endswith("103 s elapsed, ETA 36 s")  # 1 s per solve, 36 to go
     assert lines[4].endswith("ETA 35 s")
+
+
+def _one_line_error(r) -> str:
+    """The message of a failed command: exactly one line on stderr, no traceback."""
+    lines = r.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("roughslip: error: "), r.output[:2000]
+    return lines[0]
+
+
+def test_a_huge_value_is_one_short_line_and_exit_2(tmp_path):
+    p = tmp_path / "run.toml"
+    p.write_text(dumps_toml({**BASE, "surface": {"kind": "x" * 10_000_000}}))
+    r = CliRunner().invoke(cli, ["run", str(p), "-o", str(tmp_path / "o.h5")])
+    assert r.exit_code == 2
+    line = _one_line_error(r)
+    assert len(line) < 300 and "run.toml: surface.kind = " in line
+    assert "... (10000000 characters): must be one of 'self-affine'" in line
+    assert not (tmp_path / "o.h5").exists()

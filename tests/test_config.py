@@ -256,3 +256,33 @@ def test_machine_file_sets_execution_beneath_the_experiment(tmp_path, monkeypatc
     (tmp_path / "roughslip").mkdir()
     (tmp_path / "roughslip" / "machine.toml").write_text("[execution]\nworkers = 5\n")
     assert load_config(data=exp).execution.workers == 5
+
+
+# ---------------------------------------------------------------------------- odd input
+
+
+def test_a_huge_value_or_key_is_echoed_cut_with_its_length(tmp_path):
+    """An error repeats at most ECHO_LIMIT characters of a value, a key or a --set text, with
+    how long it was: a 10 MB value gives a one-line message, not a 10 MB one."""
+    from roughslip.errors import ECHO_LIMIT
+
+    huge = "x" * 10_000_000
+    data = {**BASE, "surface": {"kind": huge}}
+    with pytest.raises(ConfigError) as e:
+        load_config(write(tmp_path, data))
+    msg = str(e.value)
+    assert len(msg.splitlines()) == 1 and len(msg) < 2 * ECHO_LIMIT + 150
+    assert msg.startswith('run.toml: surface.kind = "' + "x" * (ECHO_LIMIT - 1) + '... '
+                          '(10000000 characters): must be one of')
+    data = {**BASE, "pull": {huge: 1}}
+    with pytest.raises(ConfigError, match=r"^run\.toml: pull\.x{75}\.\.\. \(10000005 "
+                                          r"characters\): unknown key \(known: ") as e:
+        load_config(write(tmp_path, data))
+    with pytest.raises(ConfigError) as e:
+        load_config(write(tmp_path, BASE), [f"surface.hurst='{huge}'"])
+    msg = str(e.value)
+    assert len(msg) < 3 * ECHO_LIMIT + 100 and "(10000016 characters)" in msg
+    assert "surface.hurst = " in msg and "(10000000 characters): must be a number" in msg
+    # short values are shown whole, as before
+    with pytest.raises(ConfigError, match=r"surface\.kind = \"rough\": must be one of"):
+        load_config(write(tmp_path, {**BASE, "surface": {"kind": "rough"}}))

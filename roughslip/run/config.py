@@ -29,7 +29,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from roughslip.errors import ConfigError
+from roughslip.errors import ConfigError, echo, shorten
 from roughslip.friction.laws import LAWS, LawParameterError
 from roughslip.friction.pull import methods_for
 from roughslip.run import schema
@@ -65,21 +65,22 @@ __all__ = ["FIELD_NAMES", "LAW_PARAMS", "SECTIONS", "SURFACE_KEYS", "SURFACE_KIN
 
 def parse_override(text: str) -> tuple[list[str], Any]:
     """Parse ``key.path=value``; the value is inline TOML, or a bare word taken as a string."""
+    where = f"--set {shorten(text)}"
     if "=" not in text:
-        raise ConfigError(f"--set {text}: expected KEY=VALUE, e.g. surface.hurst=0.6")
+        raise ConfigError(f"{where}: expected KEY=VALUE, e.g. surface.hurst=0.6")
     key, raw = text.split("=", 1)
     key = key.strip()
     raw = raw.strip()
     parts = key.split(".")
     if not key or any(not p or not BARE_KEY.match(p) for p in parts):
-        raise ConfigError(f"--set {text}: {key!r} is not a dotted key like surface.hurst")
+        raise ConfigError(f"{where}: {echo(key)} is not a dotted key like surface.hurst")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError as exc:
         if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.\-/]*", raw):
             value = raw
         else:
-            raise ConfigError(f"--set {text}: value is not valid TOML ({exc})") from None
+            raise ConfigError(f"{where}: value is not valid TOML ({exc})") from None
     return parts, value
 
 
@@ -94,9 +95,8 @@ def merge_overrides(data: dict[str, Any], overrides: Sequence[str]) -> dict[str,
             if nxt is None:
                 nxt = node[p] = {}
             elif not isinstance(nxt, dict):
-                raise ConfigError(
-                    f"--set {text}: {'.'.join(parts[: i + 1])} is a value, not a table"
-                )
+                raise ConfigError(f"--set {shorten(text)}: "
+                                  f"{shorten('.'.join(parts[: i + 1]))} is a value, not a table")
             node = nxt
         if isinstance(value, dict) and isinstance(node.get(parts[-1]), dict) and \
                 parts[-1] not in ("depths",):
@@ -176,7 +176,10 @@ def _deepcopy(d: Any) -> Any:
 
 def _suggest(key: str, known: Sequence[str]) -> str:
     lower = {k.lower(): k for k in known}
-    close = difflib.get_close_matches(key.lower(), list(lower), n=1)
+    # difflib's ratio is at most 2 k / (len(key) + k) for known keys of length <= k: a key
+    # over 2.5 k long cannot reach its cutoff 0.6, and comparing a huge one only costs time
+    close = (difflib.get_close_matches(key.lower(), list(lower), n=1)
+             if len(key) <= 2.5 * max(map(len, known)) else [])
     if close:
         return f" (did you mean {lower[close[0]]!r}?)"
     return f" (known: {', '.join(known)})"

@@ -28,7 +28,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from roughslip.errors import ConfigError
+from roughslip.errors import ConfigError, echo, shorten
 
 #: the environment variable that names the machine file ("" turns the layer off)
 MACHINE_ENV = "ROUGHSLIP_MACHINE"
@@ -62,9 +62,9 @@ def read_machine(path: Path) -> dict[str, Any]:
         raise ConfigError(f"{path}: invalid TOML: {exc}") from None
     for k, v in data.items():
         if k not in SECTIONS:
-            raise ConfigError(f"{path}: {k}: a machine file holds only "
+            raise ConfigError(f"{path}: {shorten(k)}: a machine file holds only "
                               f"{', '.join(f'[{s}]' for s in SECTIONS)} (settings that never "
                               "change the numbers)")
         if not isinstance(v, dict):
-            raise ConfigError(f"{path}: {k} = {v!r}: must be a table ([{k}])")
+            raise ConfigError(f"{path}: {k} = {echo(v)}: must be a table ([{k}])")
     return data

@@ -8,7 +8,7 @@ import dataclasses
 from collections.abc import Callable
 from typing import Any
 
-from roughslip.errors import ConfigError
+from roughslip.errors import ConfigError, shorten
 from roughslip.run.tomlio import show
 
 
@@ -24,12 +24,14 @@ class Context:
 
     def fail(self, key: str, value: Any = dataclasses.MISSING, rule: str = "") -> ConfigError:
         """The error (returned, not raised) of ``key``, with its value when given, the rule it
-        breaks and where it came from."""
+        breaks and where it came from; the key, the value and the ``--set`` text each at most
+        about :data:`~roughslip.errors.ECHO_LIMIT` characters."""
         where = self.source
         hit = self.overridden.get(key) or next(
             (t for k, t in self.overridden.items() if k.startswith(key + ".")), None)
         if hit is not None:
-            where = f"{self.source} (--set {hit})"
+            where = f"{self.source} (--set {shorten(hit)})"
+        key = shorten(key)
         if value is dataclasses.MISSING:
             return ConfigError(f"{where}: {key}: {rule}")
         return ConfigError(f"{where}: {key} = {show(value)}: {rule}")

@@ -8,6 +8,8 @@ import re
 from collections.abc import Mapping
 from typing import Any
 
+from roughslip.errors import ECHO_LIMIT, shorten
+
 BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 
 
@@ -59,8 +61,12 @@ def toml_value(v: Any) -> str:
 
 
 def show(v: Any) -> str:
-    """A value for an error message: inline TOML, or its repr."""
+    """A value for an error message: inline TOML, or its repr, at most about
+    :data:`~roughslip.errors.ECHO_LIMIT` characters (a longer one is cut, with its length:
+    :func:`~roughslip.errors.shorten`)."""
+    if isinstance(v, str) and len(v) > ECHO_LIMIT:
+        return shorten(toml_str(v[:ECHO_LIMIT]), length=len(v))
     try:
-        return toml_value(v)
+        return shorten(toml_value(v))
     except TypeError:
-        return repr(v)
+        return shorten(repr(v))

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from roughslip.errors import InputError
+from roughslip.errors import InputError, echo, shorten
 
 
 def sample_rng(seed: int, index: int) -> np.random.Generator:
@@ -219,10 +219,10 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
                 names = list(z.files)
                 if key is None:
                     if len(names) != 1:
-                        raise InputError(f"{name}: holds arrays {names}; set surface.key")
+                        raise InputError(f"{name}: holds arrays {echo(names)}; set surface.key")
                     key = names[0]
                 if key not in names:
-                    raise InputError(f"{name}: no array {key!r} (it has {names})")
+                    raise InputError(f"{name}: no array {echo(key)} (it has {echo(names)})")
                 arr = z[key]
         elif suffix in TEXT_SUFFIXES:
             arr = _load_text(p, "," if suffix == ".csv" else None)
@@ -230,7 +230,7 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
             arr = _load_hdf5(p, key)
         else:
             raise InputError(
-                f"{name}: unknown topography format {suffix!r} (built in: .npy, .npz, "
+                f"{name}: unknown topography format {echo(suffix)} (built in: .npy, .npz, "
                 f"{', '.join(TEXT_SUFFIXES)}, {', '.join(HDF5_SUFFIXES)}; instrument formats "
                 "through roughslip.surfaces.topography)"
             )
@@ -240,9 +240,9 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
         msg = str(exc)
         if "pickle" in msg.lower():
             msg = "holds Python objects (pickled data is never loaded)"
-        raise InputError(f"{name}: cannot read heights ({msg})") from None
+        raise InputError(f"{name}: cannot read heights ({shorten(msg)})") from None
     except OSError as exc:
-        raise InputError(f"{name}: cannot read ({exc})") from None
+        raise InputError(f"{name}: cannot read ({shorten(str(exc))})") from None
     return _validate(np.asarray(arr), name, allow_missing) * float(scale)
 
 
@@ -274,16 +274,16 @@ def _load_hdf5(p: Path, key: str | None) -> np.ndarray:
     try:
         f = h5py.File(p, "r")
     except OSError as exc:
-        raise InputError(f"{p}: not a readable HDF5 file ({exc})") from None
+        raise InputError(f"{p}: not a readable HDF5 file ({shorten(str(exc))})") from None
     with f:
         if key is None:
             names: list[str] = []
             f.visititems(lambda n, o: names.append(n) if isinstance(o, h5py.Dataset) else None)
             if len(names) != 1:
-                raise InputError(f"{p}: holds datasets {names}; set surface.key")
+                raise InputError(f"{p}: holds datasets {echo(names)}; set surface.key")
             key = names[0]
         if key not in f or not isinstance(f[key], h5py.Dataset):
-            raise InputError(f"{p}: no dataset {key!r}")
+            raise InputError(f"{p}: no dataset {echo(key)}")
         return f[key][()]
 
 

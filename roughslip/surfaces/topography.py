@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from roughslip.errors import InputError
+from roughslip.errors import InputError, echo, shorten
 from roughslip.surfaces.synthetic import HDF5_SUFFIXES, TEXT_SUFFIXES, load_topography
 from roughslip.surfaces.x3p import read_x3p
 
@@ -84,7 +84,7 @@ def metres_per(unit: str, where: str) -> float:
     try:
         return _UNIT_ALIASES[unit]
     except KeyError:
-        raise InputError(f"{where}: unknown length unit {unit!r} (known: "
+        raise InputError(f"{where}: unknown length unit {echo(unit)} (known: "
                          f"{', '.join(_UNIT_ALIASES)})") from None
 
 
@@ -133,7 +133,7 @@ def _read_x3p(p: Path, key: str | None) -> RawTopography:
         try:
             layer = int(key)
         except ValueError:
-            raise InputError(f"{p}: key {key!r}: an X3P file's key is its layer number "
+            raise InputError(f"{p}: key {echo(key)}: an X3P file's key is its layer number "
                              "(0, 1, ...)") from None
     h, pixel, _revision = read_x3p(p, layer)
     return RawTopography(h, pixel, "m", "x3p", str(p), f"layer {layer}")
@@ -154,11 +154,11 @@ def _read_instrument(p: Path, key: str | None) -> RawTopography:
         else:
             names = [c.name for c in channels]
             if key not in names:
-                raise InputError(f"{name}: no channel {key!r} (it has {names})")
+                raise InputError(f"{name}: no channel {echo(key)} (it has {echo(names)})")
             index = names.index(key)
         ch = channels[index]
         if ch.dim != 2:
-            raise InputError(f"{name}: channel {ch.name!r} is a line scan, not a 2-D map")
+            raise InputError(f"{name}: channel {echo(ch.name)} is a line scan, not a 2-D map")
         t = reader.topography(channel_index=index)
         if not t.is_uniform:
             raise InputError(f"{name}: non-uniform grid; roughslip needs a uniform one")
@@ -174,7 +174,7 @@ def _read_instrument(p: Path, key: str | None) -> RawTopography:
     except Exception as exc:  # the reader's own errors: corrupt, truncated, unknown format
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(f"{name}: cannot read as a topography ({type(exc).__name__}: "
-                         f"{msg})") from None
+                         f"{shorten(msg)})") from None
     if h.ndim != 2 or h.size == 0:
         raise InputError(f"{name}: holds no 2-D height map")
     if np.isinf(h).any():
@@ -242,12 +242,12 @@ def prepare(raw: RawTopography, how: Preparation) -> PreparedTopography:
     file_unit = raw.unit
     if file_unit is not None and sc.unit is not None:
         if metres_per(file_unit, name) != metres_per(sc.unit, name):
-            raise InputError(f"{name}: the file's unit is {file_unit!r}; {how.key('unit')} = "
+            raise InputError(f"{name}: the file's unit is {echo(file_unit)}; {how.key('unit')} = "
                              f"{sc.unit!r} contradicts it (remove {how.key('unit')})")
     unit = file_unit or sc.unit
     if unit is not None and run_unit is None:
         ru = how.key("run_unit")
-        raise InputError(f"{name}: heights are in {unit!r}; set {ru} (e.g. "
+        raise InputError(f"{name}: heights are in {echo(unit)}; set {ru} (e.g. "
                          f"{ru} = \"um\") to say which unit the run uses")
     if unit is None and run_unit is not None:
         raise InputError(f"{name}: the file carries no unit; set {how.key('unit')} (the unit "

@@ -33,7 +33,7 @@ from xml.etree import ElementTree
 
 import numpy as np
 
-from roughslip.errors import InputError
+from roughslip.errors import InputError, echo
 
 #: stored types of the z axis
 DTYPES = {"I": np.dtype("<i2"), "L": np.dtype("<i4"), "F": np.dtype("<f4"),
@@ -70,7 +70,7 @@ def _number(node: ElementTree.Element, *path: str, where: str, default: float | 
     try:
         value = float(found.text)
     except ValueError:
-        raise InputError(f"{where}: {'/'.join(path)} = {found.text.strip()!r} is not a "
+        raise InputError(f"{where}: {'/'.join(path)} = {echo(found.text.strip())} is not a "
                          "number") from None
     if not math.isfinite(value):
         raise InputError(f"{where}: {'/'.join(path)} = {value} is not finite")
@@ -80,11 +80,12 @@ def _number(node: ElementTree.Element, *path: str, where: str, default: float | 
 def _member(z: zipfile.ZipFile, link: str, where: str) -> bytes:
     name = link.strip().replace("\\", "/").lstrip("/")
     if ".." in name.split("/"):
-        raise InputError(f"{where}: link {link!r} leaves the archive")
+        raise InputError(f"{where}: link {echo(link)} leaves the archive")
     try:
         return z.read(name)
     except KeyError:
-        raise InputError(f"{where}: the archive has no {name!r} (linked from main.xml)") from None
+        raise InputError(f"{where}: the archive has no {echo(name)} (linked from "
+                         "main.xml)") from None
 
 
 def _check_md5(data: bytes, expected: str | None, what: str, where: str) -> None:
@@ -139,7 +140,7 @@ def read_x3p(path: str | Path, layer: int = 0) -> tuple[np.ndarray, tuple[float,
         revision = _text(root, "Record1", "Revision", where=where)
         feature = _text(root, "Record1", "FeatureType", where=where)
         if feature != "SUR":
-            raise InputError(f"{where}: feature type {feature!r}; an areal surface (SUR) is "
+            raise InputError(f"{where}: feature type {echo(feature)}; an areal surface (SUR) is "
                              "needed (PRF is a profile, PCL a point cloud)")
         axes = _find(root, "Record1", "Axes")
         if axes is None:
@@ -147,7 +148,7 @@ def read_x3p(path: str | Path, layer: int = 0) -> tuple[np.ndarray, tuple[float,
         for name in ("CX", "CY"):
             kind = _text(axes, name, "AxisType", where=where)
             if kind != "I":
-                raise InputError(f"{where}: axis {name} is {kind!r}, not incremental (I): "
+                raise InputError(f"{where}: axis {name} is {echo(kind)}, not incremental (I): "
                                  "not a regular grid")
         dx = _number(axes, "CX", "Increment", where=where)
         dy = _number(axes, "CY", "Increment", where=where)
@@ -155,7 +156,7 @@ def read_x3p(path: str | Path, layer: int = 0) -> tuple[np.ndarray, tuple[float,
             raise InputError(f"{where}: pixel size {dx:g} x {dy:g} m: must be > 0")
         ztype = _text(axes, "CZ", "DataType", where=where)
         if ztype not in DTYPES:
-            raise InputError(f"{where}: z data type {ztype!r}: must be one of "
+            raise InputError(f"{where}: z data type {echo(ztype)}: must be one of "
                              f"{', '.join(DTYPES)}")
         zinc = _number(axes, "CZ", "Increment", where=where, default=1.0)
         zoff = _number(axes, "CZ", "Offset", where=where, default=0.0)
@@ -205,7 +206,7 @@ def read_x3p(path: str | Path, layer: int = 0) -> tuple[np.ndarray, tuple[float,
                     try:
                         values[i] = float(text.split(";")[-1])
                     except ValueError:
-                        raise InputError(f"{where}: Datum {i} = {text!r} is not a "
+                        raise InputError(f"{where}: Datum {i} = {echo(text)} is not a "
                                          "number") from None
             valid = np.isfinite(values)
     heights = zoff + zinc * values
