@@ -95,3 +95,24 @@ def test_a_huge_value_is_one_short_line_and_exit_2(tmp_path):
     assert len(line) < 300 and "run.toml: surface.kind = " in line
     assert "... (10000000 characters): must be one of 'self-affine'" in line
     assert not (tmp_path / "o.h5").exists()
+
+
+def test_deep_nesting_is_one_line_and_exit_2(tmp_path):
+    """Nesting too deep for the TOML parser (it recursed into a 3,000-line traceback and exit
+    1): one line naming the file, or the --set, and the limit."""
+    p = tmp_path / "deep.toml"
+    p.write_text(dumps_toml(BASE) + "[output]\nfields = " + "[" * 1000 + "]" * 1000 + "\n")
+    for args in (["run", str(p)], ["show-config", str(p)]):
+        r = CliRunner().invoke(cli, args)
+        assert r.exit_code == 2
+        assert _one_line_error(r) == (
+            "roughslip: error: deep.toml: nested too deep to read: tables, inline tables and "
+            "arrays may nest at most 32 levels")
+    ok = tmp_path / "run.toml"
+    ok.write_text(dumps_toml(BASE))
+    r = CliRunner().invoke(cli, ["show-config", str(ok), "--set",
+                                 "squeeze.depths=" + "[" * 40 + "]" * 40])
+    assert r.exit_code == 2
+    line = _one_line_error(r)
+    assert line.startswith("roughslip: error: --set squeeze.depths=[[[")
+    assert "squeeze.depths[0]" in line and "at most 32 levels" in line

@@ -286,3 +286,65 @@ def test_a_huge_value_or_key_is_echoed_cut_with_its_length(tmp_path):
     # short values are shown whole, as before
     with pytest.raises(ConfigError, match=r"surface\.kind = \"rough\": must be one of"):
         load_config(write(tmp_path, {**BASE, "surface": {"kind": "rough"}}))
+
+
+def _nested(kind: str, depth: int) -> str:
+    """A value (or, for "tables", a table header) nested ``depth`` levels below its section."""
+    if kind == "arrays":
+        return "[output]\nfields = " + "[" * depth + "]" * depth + "\n"
+    if kind == "inline":
+        return "[ensemble]\nx = " + "{a = " * depth + "1" + "}" * depth + "\n"
+    return "[" + ".".join(["a"] * depth) + "]\nb = 1\n"
+
+
+@pytest.mark.parametrize("kind", ["arrays", "inline", "tables"])
+@pytest.mark.parametrize("depth", [33, 400, 5000])
+def test_nesting_deeper_than_the_limit_is_one_line(tmp_path, kind, depth):
+    """Tables, inline tables or arrays nested past MAX_NESTING: one line naming the file and
+    the limit, whether the parser reads them (then the key is named too) or would recurse
+    too deep (it raised RecursionError, and the loader's copy did for deep tables)."""
+    from roughslip.run.tomlio import MAX_NESTING
+
+    p = tmp_path / "deep.toml"
+    p.write_text(dumps_toml(BASE) + _nested(kind, depth if kind == "tables" else depth - 1))
+    with pytest.raises(ConfigError) as e:
+        load_config(p)
+    msg = str(e.value)
+    assert len(msg.splitlines()) == 1 and len(msg) < 300, msg[:500]
+    assert msg.startswith("deep.toml: ")
+    assert msg.endswith(f"tables, inline tables and arrays may nest at most {MAX_NESTING} "
+                        "levels")
+    if depth < 300:  # read, then measured: the key where it went too deep is named
+        first = {"arrays": "output.fields[0]", "inline": "ensemble.x.a", "tables": "a.a.a"}
+        assert msg.startswith(f"deep.toml: {first[kind]}") and "nested more than 32" in msg
+
+
+@pytest.mark.parametrize("kind", ["arrays", "inline", "tables"])
+def test_nesting_at_the_limit_is_read(tmp_path, kind):
+    p = tmp_path / "deep.toml"
+    p.write_text(dumps_toml(BASE) + _nested(kind, 32 if kind == "tables" else 31))
+    with pytest.raises(ConfigError, match=r"unknown|must be a string") as e:  # read, checked
+        load_config(p)
+    assert "nest" not in str(e.value)
+
+
+def test_nesting_of_a_set_value_and_of_a_given_mapping(tmp_path):
+    p = write(tmp_path, BASE)
+    for depth in (32, 2000):
+        with pytest.raises(ConfigError) as e:
+            load_config(p, ["output.fields=" + "[" * depth + "]" * depth])
+        msg = str(e.value)
+        assert len(msg.splitlines()) == 1 and len(msg) < 400
+        assert msg.startswith("--set output.fields=[[[[") and "at most 32 levels" in msg
+    with pytest.raises(ConfigError, match=r"must be a string"):  # 31 arrays and the section
+        load_config(p, ["output.fields=" + "[" * 31 + "]" * 31])
+    keys = ".".join(["a"] * 34)
+    with pytest.raises(ConfigError, match=r"^--set a\.a.*: nested more than 32 levels deep"):
+        load_config(p, [f"{keys}=1"])
+    deep: dict = {}
+    node = deep
+    for _ in range(5000):  # as a library caller might pass it
+        node["a"] = {}
+        node = node["a"]
+    with pytest.raises(ConfigError, match=r"^<config>: x\.a\.a.*nested more than 32 levels"):
+        load_config(data={**BASE, "x": deep})

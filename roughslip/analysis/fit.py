@@ -12,7 +12,6 @@ seeded, so a fit is reproducible.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -227,7 +226,7 @@ def fit_files(paths: list[str | Path], x: str = "normal_force", y: str = "fricti
     if not paths:
         raise InputError("no run files given")
     runs = [read_run(p) for p in paths]
-    flats = [_flatten(tomllib.loads(r.config_toml)) for r in runs]
+    flats = [_flatten(r.config_dict()) for r in runs]
     keys = sorted(set().union(*flats))
     varied_keys = [k for k in keys if not k.startswith(_IGNORED)
                    and len({repr(f.get(k)) for f in flats}) > 1]

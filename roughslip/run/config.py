@@ -55,7 +55,7 @@ from roughslip.run.sections import (
     SurfaceConfig,
     UnitsConfig,
 )
-from roughslip.run.tomlio import BARE_KEY, dumps_toml
+from roughslip.run.tomlio import BARE_KEY, check_nesting, dumps_toml, loads_toml, too_deep
 
 __all__ = ["FIELD_NAMES", "LAW_PARAMS", "SECTIONS", "SURFACE_KEYS", "SURFACE_KINDS",
            "TOP_LEVEL_KEYS", "CouplingConfig", "EnsembleConfig", "ExecutionConfig",
@@ -81,6 +81,10 @@ def parse_override(text: str) -> tuple[list[str], Any]:
             value = raw
         else:
             raise ConfigError(f"{where}: value is not valid TOML ({exc})") from None
+    except RecursionError:
+        raise too_deep(where) from None
+    # the value sits below the tables of its key: output.fields=[...] is an array at level 2
+    check_nesting({parts[-1]: value}, where, len(parts) - 1, ".".join(parts[:-1]))
     return parts, value
 
 
@@ -146,10 +150,9 @@ def load_config(path: str | Path | None = None, overrides: Sequence[str] = (),
             text = raw.decode("utf-8")
         except UnicodeDecodeError:
             raise ConfigError(f"{source}: not UTF-8 text") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{source}: invalid TOML: {exc}") from None
+        data = loads_toml(text, source)
+    else:
+        check_nesting(data, source)
     data = _deepcopy(data)
     machine = machine_file() if use_machine else None
     if machine is not None:  # below the experiment's own [execution] (roughslip.run.machine)

@@ -24,11 +24,11 @@ these (:mod:`roughslip.linalg.memory`).
 from __future__ import annotations
 
 import os
-import tomllib
 from pathlib import Path
 from typing import Any
 
 from roughslip.errors import ConfigError, echo, shorten
+from roughslip.run.tomlio import loads_toml
 
 #: the environment variable that names the machine file ("" turns the layer off)
 MACHINE_ENV = "ROUGHSLIP_MACHINE"
@@ -55,11 +55,12 @@ def read_machine(path: Path) -> dict[str, Any]:
     """The tables of a machine file; only :data:`SECTIONS` are allowed (their keys are
     checked by the loader, with the file named in its errors)."""
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read the machine file ({exc.strerror})") from None
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+    except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: invalid TOML: {exc}") from None
+    data = loads_toml(text, str(path))
     for k, v in data.items():
         if k not in SECTIONS:
             raise ConfigError(f"{path}: {shorten(k)}: a machine file holds only "

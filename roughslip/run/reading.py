@@ -12,6 +12,7 @@ import numpy as np
 
 from roughslip.errors import InputError
 from roughslip.run import schema
+from roughslip.run.tomlio import loads_toml
 
 FORMAT = schema.FORMAT
 FORMAT_VERSION = schema.FORMAT_VERSION
@@ -49,10 +50,9 @@ class RunData:
         return int(self.complete.sum())
 
     def config_dict(self) -> dict[str, Any]:
-        """The stored configuration as a dict."""
-        import tomllib
-
-        return tomllib.loads(self.config_toml)
+        """The stored configuration as a dict (a ConfigError naming the file when it is not
+        valid TOML or nested too deep: :func:`~roughslip.run.tomlio.loads_toml`)."""
+        return loads_toml(self.config_toml, f"{self.path} (its stored configuration)")
 
     def field(self, sample: int, depth_index: int, name: str) -> np.ndarray:
         """One stored field of one sample (global number) and depth."""
