@@ -232,7 +232,7 @@ def test_malformed_toml_and_missing_topography(tmp_path):
 
 
 def test_topography_with_nan_exits_2_naming_the_file(tmp_path):
-    h = np.zeros((8, 8))
+    h = sphere((8, 8), radius=10.0)  # not flat: a flat file is refused as such
     h[2, 5] = np.nan
     np.save(tmp_path / "topo.npy", h)
     data = {"surface": {"kind": "file", "path": "topo.npy"}, "squeeze": {"depths": [0.1]}}

@@ -4,6 +4,7 @@ preparation, tiles, statistics, and bad files."""
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -260,7 +261,7 @@ def test_tiles_are_an_ensemble(tmp_path):
 
 
 def test_downsampling_averages_blocks(tmp_path):
-    h = np.arange(36.0).reshape(6, 6)
+    h = np.arange(64.0).reshape(8, 8)  # 4 x 4 blocks: the smallest scan a run takes
     h[0, 0] = np.nan
     np.save(tmp_path / "d.npy", h)
     cfg = load_config(_cfg(tmp_path, {"path": "d.npy", "downsample": 2, "missing": "void"},
@@ -268,7 +269,7 @@ def test_downsampling_averages_blocks(tmp_path):
     out = tmp_path / "d.h5"
     run(cfg, out)
     g = read_run(out).surface(0)
-    assert g.shape == (3, 3) and g[0, 0] == pytest.approx((1 + 6 + 7) / 3)
+    assert g.shape == (4, 4) and g[0, 0] == pytest.approx((1 + 8 + 9) / 3)
     assert g[1, 1] == pytest.approx(h[2:4, 2:4].mean())
     assert read_run(out).attrs["pixel_size"] == 0.5 * 2
 
@@ -493,3 +494,135 @@ def test_x3p_damage_is_one_line(tmp_path, scan, x3pio):
         read_raw(tmp_path / "nodata.x3p")
     with pytest.raises(InputError, match="layer number"):
         read_raw(good, key="height")
+
+
+# ------------------------------------------------------------------ what a scan must hold
+
+
+def _one_line(r, *words: str) -> str:
+    assert r.exit_code == 2, r.output
+    lines = r.output.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in r.output, r.output
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    return lines[0]
+
+
+@pytest.mark.parametrize("shape", [(1, 64), (64, 3), (2, 2), (3, 40)])
+@pytest.mark.parametrize("fmt", ["npy", "txt", "x3p", "gwy"])
+def test_a_scan_smaller_than_4_x_4_is_refused_naming_the_file(tmp_path, fmt, shape):
+    """One minimum for every format and for both commands (a 1 x 64 scan was refused as
+    "surface.tiles = None: tiles of 1 x 64", a key never set; 64 x 3 and 2 x 2 ran)."""
+    from roughslip.surfaces.limits import MIN_SCAN_SIDE
+
+    h = np.random.default_rng(2).standard_normal(shape) * 1e-7
+    p = tmp_path / f"small.{fmt}"
+    {"npy": lambda: np.save(p, h), "txt": lambda: np.savetxt(p, h),
+     "x3p": lambda: write_x3p(p, h, 1e-6, 1e-6),
+     "gwy": lambda: write_gwy(p, h, 1e-6, 1e-6)}[fmt]()
+    rule = f"{shape[0]} x {shape[1]} pixels (ny x nx): a scan must be at least " \
+           f"{MIN_SCAN_SIDE} x {MIN_SCAN_SIDE} pixels"
+    with pytest.raises(InputError, match=re.escape(f"small.{fmt}: {rule}")):
+        read_raw(p)
+    _one_line(CliRunner().invoke(cli, ["topography", str(p)]), f"small.{fmt}: {rule}")
+    unit = {} if fmt in ("npy", "txt") else {"units": {"length": "um"}}
+    r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, {"path": p.name}, **unit)), "-o",
+                                 str(tmp_path / "o.h5")])
+    line = _one_line(r, f"small.{fmt}: {rule}")
+    assert "tiles" not in line and not (tmp_path / "o.h5").exists()
+
+
+def test_the_minimum_holds_after_crop_downsample_and_tiles_naming_the_key(tmp_path):
+    h = self_affine((24, 32), hurst=0.8, rms_height=1.0, rng=sample_rng(4, 0))
+    np.save(tmp_path / "s.npy", h)
+    for surface, words in (
+        ({"crop": [0, 3, 0, 32]}, ["surface.crop = [0, 3, 0, 32]: leaves 3 x 32 pixels (ny x "
+                                   "nx) of ", "s.npy: a scan must be at least 4 x 4 pixels"]),
+        ({"downsample": 7}, ["surface.downsample = 7: leaves 3 x 4 pixels (ny x nx) of the "
+                             "[24, 32] grid of ", "s.npy: a scan must be at least 4 x 4"]),
+        ({"tiles": [5, 2]}, []),
+        ({"tiles": [7, 2]}, ["surface.tiles = [7, 2]: tiles of 3 x 16 pixels (ny x nx) from "
+                             "the [24, 32] grid of ", "s.npy: a tile must be at least 4 x 4 "
+                             "pixels; use fewer tiles"]),
+    ):
+        cfg = _cfg(tmp_path, {"path": "s.npy", **surface})
+        r = CliRunner().invoke(cli, ["show-config", str(cfg)])
+        assert r.exit_code == 0  # the configuration is fine: the file decides
+        r = CliRunner().invoke(cli, ["run", str(cfg), "-o", str(tmp_path / "o.h5"), "--quiet",
+                                     "--set", "squeeze.depths=[0.1]"])
+        if surface == {"tiles": [5, 2]}:  # 4 x 16 tiles: the smallest allowed
+            assert r.exit_code == 0, r.output
+            (tmp_path / "o.h5").unlink()
+            continue
+        _one_line(r, *words)
+
+
+def test_a_flat_topography_is_refused_naming_the_file(tmp_path):
+    """Constant heights (every depth in rms units was 0, and the run said nothing), heights
+    constant to rounding, and a tile left flat by the preparation."""
+    from roughslip.surfaces.limits import FLAT_RELIEF
+
+    y, x = np.mgrid[0:16, 0:16].astype(float)
+    files = {"zeros.npy": np.zeros((16, 16)), "five.npy": np.full((16, 16), 5.0),
+             "rounding.npy": 1e6 + 1e-7 * (x % 2)}  # varies by 1e-13 of its size
+    for name, h in files.items():
+        np.save(tmp_path / name, h)
+        rule = "a topography needs an rms height above 1e-12 x its largest |height|"
+        with pytest.raises(InputError, match=rf"{re.escape(name)}: the heights are constant "
+                                             r"\(rms height [^,]+, largest \|height\| [^)]+\): "
+                                             + re.escape(rule)):
+            read_raw(tmp_path / name)
+        r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, {"path": name},
+                                                     squeeze={"depths": [0.5],
+                                                              "depth_unit": "rms"})),
+                                     "-o", str(tmp_path / "o.h5")])
+        _one_line(r, name, "the heights are constant", rule)
+        _one_line(CliRunner().invoke(cli, ["topography", str(tmp_path / name)]), name, rule)
+        assert not (tmp_path / "o.h5").exists()
+    np.save(tmp_path / "rough.npy", 1e6 + 1e-3 * np.sin(x) * np.cos(y / 2))  # 1e-9: kept
+    assert read_raw(tmp_path / "rough.npy").heights.shape == (16, 16)
+    assert FLAT_RELIEF == 1e-12
+    # a plane is not flat, but nothing is left once its tilt is removed
+    np.save(tmp_path / "plane.npy", 0.3 * x - 0.2 * y + 1.0)
+    r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, {"path": "plane.npy",
+                                                            "detrend": "tilt",
+                                                            "tiles": [2, 1]})),
+                                 "-o", str(tmp_path / "o.h5")])
+    _one_line(r, "plane.npy: tile 0 (after surface.tiles, surface.detrend): the heights are "
+                 "constant", "largest |height| of the file 5.5)")
+    # every point missing (masked): named as such, not as flat
+    write_gwy(tmp_path / "masked.gwy", x, 1e-6, 1e-6, mask=np.ones_like(x))
+    with pytest.raises(InputError, match=r"masked\.gwy: every point is missing"):
+        read_raw(tmp_path / "masked.gwy")
+
+
+def test_surface_path_that_is_missing_or_a_directory(tmp_path):
+    (tmp_path / "adir.npy").mkdir()
+    for path, words in (("nothere.npy", ["surface.path = \"nothere.npy\": no such file"]),
+                        ("adir.npy", ["surface.path = \"adir.npy\": is a directory"])):
+        r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, {"path": path})), "-o",
+                                     str(tmp_path / "o.h5")])
+        _one_line(r, *words)
+    with pytest.raises(InputError, match=r"adir\.npy: is a directory, not a topography file"):
+        read_raw(tmp_path / "adir.npy")
+
+
+
+def test_an_unreadable_topography_file_is_one_line(tmp_path, monkeypatch):
+    import builtins
+    import io
+
+    np.save(tmp_path / "locked.npy", sphere((8, 8), radius=9.0))
+    real = io.open
+
+    def denied(file, *args, **kw):  # as for a file without read permission (tests run as root)
+        if str(file).endswith("locked.npy"):
+            raise PermissionError(13, "Permission denied", str(file))
+        return real(file, *args, **kw)
+
+    monkeypatch.setattr(io, "open", denied)
+    monkeypatch.setattr(builtins, "open", denied)
+    r = CliRunner().invoke(cli, ["run", str(_cfg(tmp_path, {"path": "locked.npy"})), "-o",
+                                 str(tmp_path / "o.h5")])
+    _one_line(r, "locked.npy: cannot read ([Errno 13] Permission denied")
+

@@ -346,6 +346,8 @@ def _check_surface(name: str, s: SurfaceConfig, table: dict[str, Any], ctx: Cont
         p = Path(s.path).expanduser()
         if not p.is_absolute():
             p = (base_dir / p).resolve()
+        if p.is_dir():
+            raise ctx.fail(f"{name}.path", s.path, f"is a directory, not a file ({p})")
         if not p.is_file():
             raise ctx.fail(f"{name}.path", s.path, f"no such file ({p})")
         s = dataclasses.replace(s, path=str(p))

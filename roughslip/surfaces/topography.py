@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from roughslip.errors import InputError, echo, shorten
+from roughslip.surfaces.limits import MIN_SCAN_SIDE, SIDE_RULE, check_scan
 from roughslip.surfaces.synthetic import HDF5_SUFFIXES, TEXT_SUFFIXES, load_topography
 from roughslip.surfaces.x3p import read_x3p
 
@@ -103,13 +104,46 @@ def formats() -> list[tuple[str, str]]:
 
 
 def read_raw(path: str | Path, key: str | None = None) -> RawTopography:
-    """Read a topography file: built-in formats directly, others through SurfaceTopography."""
+    """Read a topography file: built-in formats directly, others through SurfaceTopography.
+
+    Every format, for a run and for ``roughslip topography``, ends in the same check of what
+    was read (:func:`~roughslip.surfaces.limits.check_scan`): at least
+    :data:`~roughslip.surfaces.limits.MIN_SCAN_SIDE` pixels along each axis, a valid point,
+    and heights that are not constant.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    key : str, optional
+        Channel (instrument files), array (``.npz``), dataset (HDF5) or layer (X3P).
+
+    Returns
+    -------
+    RawTopography
+
+    Raises
+    ------
+    InputError
+        One line naming the file and the rule it breaks.
+    MemoryLimitError
+        When the heights a file declares do not fit in the memory available.
+    """
     p = Path(path)
     name = str(p)
+    if p.is_dir():
+        raise InputError(f"{name}: is a directory, not a topography file")
     if not p.is_file():
         raise InputError(f"{name}: no such file")
     if p.stat().st_size == 0:
         raise InputError(f"{name}: is empty (0 bytes)")
+    raw = _read_any(p, key)
+    check_scan(raw.heights, name)
+    return raw
+
+
+def _read_any(p: Path, key: str | None) -> RawTopography:
+    name = str(p)
     if p.suffix.lower() == ".x3p":
         return _read_x3p(p, key)
     if p.suffix.lower() in BUILTIN_SUFFIXES:
@@ -254,6 +288,8 @@ def prepare(raw: RawTopography, how: Preparation) -> PreparedTopography:
                          f"of its heights and pixel size)")
     factor = 1.0 if unit is None else metres_per(unit, name) / metres_per(run_unit, name)
     h = h * (factor * sc.scale)
+    finite = h[np.isfinite(h)]
+    height_scale = float(np.max(np.abs(finite))) if finite.size else 0.0
     pixel = None if raw.pixel_size is None else (raw.pixel_size[0] * factor,
                                                  raw.pixel_size[1] * factor)
     prov: dict[str, Any] = {"file": name, "format": raw.format, "channel": raw.channel,
@@ -289,6 +325,9 @@ def prepare(raw: RawTopography, how: Preparation) -> PreparedTopography:
             raise InputError(f"{how.key('crop')} = {sc.crop}: outside the grid of {name} "
                              f"({list(h.shape)})")
         h = h[y0:y1, x0:x1]
+        if min(h.shape) < MIN_SCAN_SIDE:
+            raise InputError(f"{how.key('crop')} = {sc.crop}: leaves {h.shape[0]} x "
+                             f"{h.shape[1]} pixels (ny x nx) of {name}: {SIDE_RULE}")
     # 3. missing points
     missing = ~np.isfinite(h)
     n_missing = int(missing.sum())
@@ -309,9 +348,10 @@ def prepare(raw: RawTopography, how: Preparation) -> PreparedTopography:
     k = sc.downsample
     if k > 1:
         ny, nx = (h.shape[0] // k) * k, (h.shape[1] // k) * k
-        if ny == 0 or nx == 0:
-            raise InputError(f"{how.key('downsample')} = {k}: larger than the grid "
-                             f"{list(h.shape)}")
+        if min(ny, nx) < MIN_SCAN_SIDE * k:
+            raise InputError(f"{how.key('downsample')} = {k}: leaves {h.shape[0] // k} x "
+                             f"{h.shape[1] // k} pixels (ny x nx) of the {list(h.shape)} grid "
+                             f"of {name}: {SIDE_RULE}")
         blocks = h[:ny, :nx].reshape(ny // k, k, nx // k, k)
         valid = np.isfinite(blocks)
         count = valid.sum(axis=(1, 3))
@@ -322,9 +362,10 @@ def prepare(raw: RawTopography, how: Preparation) -> PreparedTopography:
     # 5. tiles
     ty, tx = sc.tiles or (1, 1)
     sy, sx = h.shape[0] // ty, h.shape[1] // tx
-    if sy < 2 or sx < 2:
-        raise InputError(f"{how.key('tiles')} = {sc.tiles}: tiles of {sy} x {sx} pixels from a "
-                         f"{list(h.shape)} grid; use fewer tiles")
+    if min(sy, sx) < MIN_SCAN_SIDE:  # (without tiles the steps above ensure the size)
+        raise InputError(f"{how.key('tiles')} = {sc.tiles}: tiles of {sy} x {sx} pixels "
+                         f"(ny x nx) from the {list(h.shape)} grid of {name}: "
+                         f"{SIDE_RULE.replace('a scan', 'a tile')}; use fewer tiles")
     tiles = [h[i * sy:(i + 1) * sy, j * sx:(j + 1) * sx].copy()
              for i in range(ty) for j in range(tx)]
     for i, t in enumerate(tiles):
@@ -333,6 +374,15 @@ def prepare(raw: RawTopography, how: Preparation) -> PreparedTopography:
     # 6. detrending
     if sc.detrend != "none":
         tiles = [detrend(t, sc.detrend) for t in tiles]
+    # none may be flat: measured against the file's heights, so that a trend removed down to
+    # rounding, or a crop of a flat region, is seen
+    steps = [how.key(s) for s, done in (("crop", sc.crop is not None), ("downsample", k > 1),
+                                        ("tiles", sc.tiles is not None),
+                                        ("detrend", sc.detrend != "none")) if done]
+    for i, t in enumerate(tiles):
+        piece = f"tile {i}" if len(tiles) > 1 else "the prepared grid"
+        check_scan(t, f"{name}: {piece} (after {', '.join(steps)})" if steps else name,
+                   scale=height_scale)
     prov.update(pixel_size=a, unit=run_unit, crop=sc.crop, downsample=k, tiles=[ty, tx],
                 tile_shape=[sy, sx], detrend=sc.detrend)
     return PreparedTopography(tiles, a, prov, notes)
