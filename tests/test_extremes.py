@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import math
 import os
+import re
+import struct
+import zipfile
 
 import h5py
 import numpy as np
@@ -407,4 +410,102 @@ def test_worker_crash_keeps_completed_samples(tmp_path, monkeypatch):
     assert not r.complete[2]
     s = run(cfg, out, resume=True)
     assert read_run(out).complete.all() and s.computed >= 1
+
+
+
+# ------------------------------------------------------------------------------ hostile files
+
+
+def _x3p_xml(nx: int, ny: int, pad: int = 0) -> bytes:
+    """main.xml of an areal X3P of ``nx`` x ``ny`` doubles, with ``pad`` bytes of comment."""
+    return ('<?xml version="1.0" encoding="UTF-8"?>\n<p:ISO5436_2 xmlns:p="x"><Record1>'
+            '<Revision>ISO5436 - 2000</Revision><FeatureType>SUR</FeatureType><Axes>'
+            '<CX><AxisType>I</AxisType><DataType>D</DataType><Increment>1e-6</Increment></CX>'
+            '<CY><AxisType>I</AxisType><DataType>D</DataType><Increment>1e-6</Increment></CY>'
+            '<CZ><AxisType>A</AxisType><DataType>D</DataType></CZ></Axes></Record1><Record3>'
+            f'<MatrixDimension><SizeX>{nx}</SizeX><SizeY>{ny}</SizeY><SizeZ>1</SizeZ>'
+            '</MatrixDimension><DataLink><PointDataLink>bindata/data.bin</PointDataLink>'
+            f'</DataLink></Record3><!--{" " * pad}--></p:ISO5436_2>').encode()
+
+
+def _x3p(path, xml: bytes, data: bytes, method: int = zipfile.ZIP_DEFLATED) -> None:
+    with zipfile.ZipFile(path, "w", method) as z:
+        z.writestr("main.xml", xml)
+        z.writestr("bindata/data.bin", data)
+
+
+def _declare(path, member: str, size: int) -> None:
+    """Make the archive declare ``size`` bytes for ``member`` (central directory and local
+    header), whatever its data holds: a size that lies."""
+    raw = bytearray(path.read_bytes())
+    with zipfile.ZipFile(path) as z:
+        local = z.getinfo(member).header_offset
+    struct.pack_into("<I", raw, local + 22, size)
+    start = 0
+    while (i := raw.find(b"PK\x01\x02", start)) >= 0:
+        n = struct.unpack_from("<H", raw, i + 28)[0]
+        if raw[i + 46:i + 46 + n].decode() == member:
+            struct.pack_into("<I", raw, i + 24, size)
+        start = i + 4
+    path.write_bytes(bytes(raw))
+
+
+def _refused(path, match: str) -> str:
+    """read_raw refuses ``path`` in one line naming it, and so does `roughslip topography`
+    (exit 2); returns the message."""
+    from roughslip.surfaces.topography import read_raw
+
+    with pytest.raises(InputError, match=match) as e:
+        read_raw(path)
+    msg = str(e.value)
+    assert len(msg.splitlines()) == 1 and len(msg) < 400 and path.name in msg, msg
+    r = CliRunner().invoke(cli, ["topography", str(path)])
+    assert r.exit_code == 2 and "Traceback" not in r.output
+    assert r.output.strip() == f"roughslip: error: {msg}"
+    return msg
+
+
+def test_an_x3p_zip_bomb_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    """A main.xml that inflates past MAX_XML_BYTES, or by more than MAX_COMPRESSION_RATIO, is
+    refused from its declared size and ratio; a size that lies is caught by the bounded read;
+    point data whose size is not SizeX x SizeY x 8 is refused before it is read."""
+    from roughslip.surfaces import limits
+
+    h = sphere((8, 8), radius=5.0) * 1e-6
+    good = tmp_path / "good.x3p"
+    _x3p(good, _x3p_xml(8, 8), h.tobytes())
+    from roughslip.surfaces.topography import read_raw
+
+    assert np.array_equal(read_raw(good).heights, h)
+    # 1. inflates past the cap (16 MiB + a little of spaces: 17 kB compressed, ratio ~1000)
+    big = tmp_path / "big.x3p"
+    _x3p(big, _x3p_xml(8, 8, pad=limits.MAX_XML_BYTES), h.tobytes())
+    assert big.stat().st_size < 100_000
+    _refused(big, r"big\.x3p: 'main\.xml' declares 16777\d+ bytes, more than the 16777216 "
+                  r"allowed$")
+    # 2. a ratio no deflate stream reaches (bzip2 of 2 MB of spaces), under the cap
+    ratio = tmp_path / "ratio.x3p"
+    _x3p(ratio, _x3p_xml(8, 8, pad=2_000_000), h.tobytes(), zipfile.ZIP_BZIP2)
+    _refused(ratio, r"ratio\.x3p: 'main\.xml' declares \d+ bytes compressed to \d+ \(ratio "
+                    r"\d+:1\): an archive member may be compressed at most 1100:1$")
+    # 3. declared sizes that lie: smaller than the data (the bounded read stops at the
+    # declared size, and the checksum of the archive fails), and larger
+    for name, size in (("small.x3p", 100), ("large.x3p", 5000)):
+        p = tmp_path / name
+        _x3p(p, _x3p_xml(8, 8, pad=3000), h.tobytes(), zipfile.ZIP_STORED)
+        _declare(p, "main.xml", size)
+        _refused(p, re.escape(name) + r": 'main\.xml': (damaged archive|\d+ bytes read where)")
+    # 4. point data of the wrong size: read never
+    wrong = tmp_path / "wrong.x3p"
+    _x3p(wrong, _x3p_xml(8, 8), h.tobytes()[:-8])
+    real_open = zipfile.ZipFile.open
+
+    def guarded(self, name, *args, **kw):  # the data of a wrong size may never be read
+        assert getattr(name, "filename", name) != "bindata/data.bin"
+        return real_open(self, name, *args, **kw)
+
+    monkeypatch.setattr(zipfile.ZipFile, "open", guarded)
+    _refused(wrong, r"wrong\.x3p: 'bindata/data\.bin' declares 504 bytes; 8 x 8 x 1 float64 "
+                    r"values \(SizeX x SizeY x SizeZ of main\.xml\) need 512$")
+    monkeypatch.undo()
 

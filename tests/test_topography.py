@@ -626,3 +626,17 @@ def test_an_unreadable_topography_file_is_one_line(tmp_path, monkeypatch):
                                  str(tmp_path / "o.h5")])
     _one_line(r, "locked.npy: cannot read ([Errno 13] Permission denied")
 
+
+def test_zip_based_instrument_files_are_checked_before_they_are_handed_over(tmp_path):
+    """A format SurfaceTopography reads from a zip archive (here its NMM .zip): a member that
+    would inflate by more than MAX_COMPRESSION_RATIO is refused before the reader opens it."""
+    import zipfile
+
+    p = tmp_path / "scan.zip"
+    with zipfile.ZipFile(p, "w", zipfile.ZIP_BZIP2) as z:
+        z.writestr("scan.dsc", b" " * 2_000_000)
+    with pytest.raises(InputError, match=r"scan\.zip: 'scan\.dsc' declares 2000000 bytes "
+                                         r"compressed to \d+ \(ratio \d+:1\): an archive "
+                                         r"member may be compressed at most 1100:1"):
+        read_raw(p)
+    _one_line(CliRunner().invoke(cli, ["topography", str(p)]), "scan.zip", "1100:1")

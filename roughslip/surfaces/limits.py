@@ -1,4 +1,16 @@
-r"""What a scan must hold.
+r"""What a topography file may make roughslip read, and what a scan must hold.
+
+A file is read only after what it declares has been checked against what it holds and against
+fixed limits, so that neither a damaged nor a hostile file can take the machine's memory:
+
+Archive members (X3P)
+    Before a member is read, its declared size is checked against a cap (the exact size that
+    ``main.xml`` implies for point data; :data:`MAX_XML_BYTES` for ``main.xml``) and its
+    compression ratio against :data:`MAX_COMPRESSION_RATIO`; it is then read with a bounded
+    read of at most the cap plus one byte, so that a size that lies cannot matter
+    (:func:`read_member`). Other instrument files that are zip archives, which
+    SurfaceTopography reads, have every member's declared size and ratio checked before they
+    are handed over (:func:`check_archive`).
 
 A scan that was read must be at least :data:`MIN_SCAN_SIDE` pixels along each axis, hold at
 least one valid point, and not be flat: its rms height above :data:`FLAT_RELIEF` times its
@@ -8,9 +20,12 @@ a run leaves (crop, down-sampling, tiles, detrending; :mod:`roughslip.surfaces.t
 
 from __future__ import annotations
 
+import zipfile
+import zlib
+
 import numpy as np
 
-from roughslip.errors import InputError
+from roughslip.errors import InputError, echo
 
 #: The smallest scan side, in pixels, along each axis. Every statistic ``roughslip
 #: topography`` prints and every preparation step is defined from 4 on: the rms slope needs 2
@@ -32,6 +47,137 @@ SIDE_RULE = f"a scan must be at least {MIN_SCAN_SIDE} x {MIN_SCAN_SIDE} pixels"
 #: roughness is many orders of magnitude above that. Depths in rms units (``depth_unit =
 #: "rms"``) would all be 0 on such a surface, and in length units every point touches at once.
 FLAT_RELIEF = 1e-12
+
+#: The most points a height map may have: 2^30, e.g. 32768 x 32768 pixels, 8 GiB as float64.
+#: Above the largest single scans of instruments and far above the grids a run solves (its
+#: FFT operators need several times the heights); it bounds what a header can make roughslip
+#: allocate, whatever the memory available.
+MAX_SCAN_POINTS = 2**30
+
+#: The largest ``main.xml`` of an X3P file that is read, in bytes (16 MiB). With binary point
+#: data it is a few kilobytes; listing the points as XML (``DataList``) takes about 27 bytes a
+#: point, so 16 MiB holds about 600,000 points (a 775 x 775 scan): larger scans store binary
+#: data. Parsing it takes about ten times its size in memory.
+MAX_XML_BYTES = 16 * 2**20
+
+#: The largest compression ratio (declared size over compressed size) of an archive member.
+#: Deflate, the method of X3P writers and of ``numpy.savez_compressed``, cannot exceed 1032:1
+#: (its longest match, 258 bytes, costs at least two bits), so no real member is refused;
+#: the methods that can (bzip2, LZMA) inflate a kilobyte to gigabytes in a zip bomb.
+MAX_COMPRESSION_RATIO = 1100
+
+
+#: what reading a damaged archive member raises (zlib.error: corrupt deflate data;
+#: RuntimeError: encrypted; NotImplementedError: an unknown compression method)
+_ARCHIVE_ERRORS: tuple[type[BaseException], ...] = (
+    zipfile.BadZipFile, zlib.error, OSError, EOFError, RuntimeError, NotImplementedError,
+    ValueError)
+try:
+    from lzma import LZMAError
+except ImportError:  # a Python without lzma cannot read LZMA members at all
+    pass
+else:
+    _ARCHIVE_ERRORS += (LZMAError,)
+
+
+class Refused(InputError):
+    """A file refused by a limit of this module: what it declares is too large, or not what it
+    holds. Readers do not hand such a file to another reader (which would trust it)."""
+
+
+def read_member(z: zipfile.ZipFile, name: str, where: str, *, limit: int,
+                expected: int | None = None, why: str = "") -> bytes:
+    """Read one archive member, bounded.
+
+    Parameters
+    ----------
+    z : zipfile.ZipFile
+        The open archive.
+    name : str
+        The member.
+    where : str
+        The file, for the messages.
+    limit : int
+        The most bytes the member may hold.
+    expected : int, optional
+        The exact size the member must have (point data whose size ``main.xml`` implies).
+    why : str
+        What makes ``expected`` the size, for the message (``"20 x 10 x 1 float64 values
+        ... need"``).
+
+    Returns
+    -------
+    bytes
+
+    Raises
+    ------
+    KeyError
+        When the archive has no such member (the caller words that error).
+    InputError
+        When the declared size is not ``expected`` or exceeds ``limit``, the compression
+        ratio exceeds :data:`MAX_COMPRESSION_RATIO`, the data read is longer or shorter than
+        declared, or the archive is damaged.
+    """
+    info = z.getinfo(name)
+    what = f"{where}: {echo(name)}"
+    if expected is not None and info.file_size != expected:
+        raise Refused(f"{what} declares {info.file_size} bytes; "
+                      f"{why or 'the file header says'} {expected}")
+    if info.file_size > limit:
+        raise Refused(f"{what} declares {info.file_size} bytes, more than the {limit} "
+                      "allowed")
+    _check_ratio(info, what)
+    try:
+        with z.open(info) as fh:
+            data = fh.read(limit + 1)
+    except _ARCHIVE_ERRORS as exc:
+        raise Refused(f"{what}: damaged archive ({type(exc).__name__}: {echo(str(exc))})"
+                      ) from None
+    if len(data) != info.file_size:
+        raise Refused(f"{what}: {len(data)} bytes read where {info.file_size} are "
+                      "declared: the archive is damaged")
+    return data
+
+
+def _check_ratio(info: zipfile.ZipInfo, what: str) -> None:
+    ratio = info.file_size / max(info.compress_size, 1)
+    if ratio > MAX_COMPRESSION_RATIO:
+        raise Refused(f"{what} declares {info.file_size} bytes compressed to "
+                      f"{info.compress_size} (ratio {ratio:.0f}:1): an archive member may be "
+                      f"compressed at most {MAX_COMPRESSION_RATIO}:1")
+
+
+def check_archive(path: str, where: str) -> None:
+    """Check every member of a zip archive before another library reads it: its declared size
+    at most :data:`MAX_SCAN_POINTS` float64 values plus :data:`MAX_XML_BYTES`, its compression
+    ratio at most :data:`MAX_COMPRESSION_RATIO`. A file that is not a zip archive passes.
+
+    Parameters
+    ----------
+    path : str
+        The file.
+    where : str
+        The file, for the messages.
+
+    Raises
+    ------
+    InputError
+        Naming the file and the member.
+    """
+    try:
+        if not zipfile.is_zipfile(path):
+            return
+        with zipfile.ZipFile(path) as z:
+            infos = z.infolist()
+    except (zipfile.BadZipFile, OSError, ValueError):
+        return  # not readable as an archive: the reader says what it is
+    limit = 8 * MAX_SCAN_POINTS + MAX_XML_BYTES
+    for info in infos:
+        what = f"{where}: {echo(info.filename)}"
+        if info.file_size > limit:
+            raise Refused(f"{what} declares {info.file_size} bytes, more than the {limit} "
+                          "allowed")
+        _check_ratio(info, what)
 
 
 def check_scan(h: np.ndarray, where: str, *, scale: float | None = None) -> None:

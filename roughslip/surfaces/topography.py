@@ -47,7 +47,13 @@ from typing import Any
 import numpy as np
 
 from roughslip.errors import InputError, echo, shorten
-from roughslip.surfaces.limits import MIN_SCAN_SIDE, SIDE_RULE, check_scan
+from roughslip.surfaces.limits import (
+    MIN_SCAN_SIDE,
+    SIDE_RULE,
+    Refused,
+    check_archive,
+    check_scan,
+)
 from roughslip.surfaces.synthetic import HDF5_SUFFIXES, TEXT_SUFFIXES, load_topography
 from roughslip.surfaces.x3p import read_x3p
 
@@ -109,7 +115,8 @@ def read_raw(path: str | Path, key: str | None = None) -> RawTopography:
     Every format, for a run and for ``roughslip topography``, ends in the same check of what
     was read (:func:`~roughslip.surfaces.limits.check_scan`): at least
     :data:`~roughslip.surfaces.limits.MIN_SCAN_SIDE` pixels along each axis, a valid point,
-    and heights that are not constant.
+    and heights that are not constant. Headers and archive members are checked before they
+    are read (:mod:`roughslip.surfaces.limits`).
 
     Parameters
     ----------
@@ -150,6 +157,8 @@ def _read_any(p: Path, key: str | None) -> RawTopography:
         try:
             h = load_topography(p, key, allow_missing=True)
             return RawTopography(h, None, None, p.suffix.lower().lstrip("."), name, key)
+        except Refused:
+            raise  # too large, or not what it declares: no other reader may trust it
         except InputError as builtin_error:
             # an instrument file with a common extension (e.g. Zygo MetroPro .dat)?
             try:
@@ -180,6 +189,7 @@ def _read_instrument(p: Path, key: str | None) -> RawTopography:
     except ImportError:
         raise InputError(f"{name}: reading {p.suffix or 'this'} files needs the topography "
                          f"extra: {EXTRA_HINT}") from None
+    check_archive(name, name)  # zip-based formats: every member's size and ratio
     try:
         reader = open_topography(name)
         channels = list(reader.channels)

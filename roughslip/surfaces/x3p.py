@@ -21,6 +21,12 @@ An X3P file is a zip archive:
 Heights come out in metres as ``[iy, ix]`` (the file's x is the last axis), with NaN at the
 missing points (invalid bits, empty ``Datum``, NaN in floating-point data). A checksum that does
 not match is an error: the file is corrupt.
+
+No member is read whole on trust (:func:`roughslip.surfaces.limits.read_member`): ``main.xml``
+and the checksum file may hold at most :data:`~roughslip.surfaces.limits.MAX_XML_BYTES`, the
+point data exactly ``SizeX x SizeY x SizeZ`` values of the z axis's type, the valid points
+one bit a point (:data:`VALID_PADDING` bytes more at most); each compressed at most
+:data:`~roughslip.surfaces.limits.MAX_COMPRESSION_RATIO` to 1 and read with a bounded read.
 """
 
 from __future__ import annotations
@@ -34,10 +40,16 @@ from xml.etree import ElementTree
 import numpy as np
 
 from roughslip.errors import InputError, echo
+from roughslip.surfaces.limits import MAX_XML_BYTES, read_member
 
 #: stored types of the z axis
 DTYPES = {"I": np.dtype("<i2"), "L": np.dtype("<i4"), "F": np.dtype("<f4"),
           "D": np.dtype("<f8")}
+
+
+#: Bytes a valid-points member may hold beyond its ``ceil(points / 8)``: a writer may pad the
+#: bits to a 64-bit word; a longer member is not a bit mask of this matrix.
+VALID_PADDING = 8
 
 
 def _local(tag: str) -> str:
@@ -77,12 +89,15 @@ def _number(node: ElementTree.Element, *path: str, where: str, default: float | 
     return value
 
 
-def _member(z: zipfile.ZipFile, link: str, where: str) -> bytes:
+def _member(z: zipfile.ZipFile, link: str, where: str, *, limit: int,
+            expected: int | None = None, why: str = "") -> bytes:
+    """The member ``link`` names, at most ``limit`` bytes (exactly ``expected`` when given, as
+    ``why`` says): :func:`roughslip.surfaces.limits.read_member`."""
     name = link.strip().replace("\\", "/").lstrip("/")
     if ".." in name.split("/"):
         raise InputError(f"{where}: link {echo(link)} leaves the archive")
     try:
-        return z.read(name)
+        return read_member(z, name, where, limit=limit, expected=expected, why=why)
     except KeyError:
         raise InputError(f"{where}: the archive has no {echo(name)} (linked from "
                          "main.xml)") from None
@@ -125,17 +140,16 @@ def read_x3p(path: str | Path, layer: int = 0) -> tuple[np.ndarray, tuple[float,
         raise InputError(f"{where}: cannot read as X3P: not a zip archive ({exc})") from None
     with z:
         try:
-            xml = z.read("main.xml")
+            xml = read_member(z, "main.xml", where, limit=MAX_XML_BYTES)
         except KeyError:
             raise InputError(f"{where}: the archive has no main.xml") from None
-        except (zipfile.BadZipFile, OSError, EOFError) as exc:
-            raise InputError(f"{where}: cannot read as X3P: damaged archive ({exc})") from None
         try:
             root = ElementTree.fromstring(xml)
         except ElementTree.ParseError as exc:
             raise InputError(f"{where}: main.xml is not valid XML ({exc})") from None
         if "md5checksum.hex" in z.namelist():
-            line = z.read("md5checksum.hex").decode("ascii", "replace").split()
+            line = read_member(z, "md5checksum.hex", where, limit=MAX_XML_BYTES
+                               ).decode("ascii", "replace").split()
             _check_md5(xml, line[0] if line else None, "main.xml", where)
         revision = _text(root, "Record1", "Revision", where=where)
         feature = _text(root, "Record1", "FeatureType", where=where)
@@ -173,19 +187,21 @@ def read_x3p(path: str | Path, layer: int = 0) -> tuple[np.ndarray, tuple[float,
         if (link is None) == (listing is None):
             raise InputError(f"{where}: Record3 needs exactly one of DataLink and DataList")
         if link is not None:
-            raw = _member(z, _text(link, "PointDataLink", where=where), where)
+            dtype = DTYPES[ztype]
+            # a member of exactly the matrix's size: nothing larger is read
+            need = count * dtype.itemsize
+            data_link = _text(link, "PointDataLink", where=where)
+            raw = _member(z, data_link, where, limit=need, expected=need,
+                          why=f"{nx} x {ny} x {nz} {dtype.name} values (SizeX x SizeY x "
+                              "SizeZ of main.xml) need")
             md5 = _find(link, "MD5ChecksumPointData")
             _check_md5(raw, None if md5 is None else md5.text, "the point data", where)
-            dtype = DTYPES[ztype]
-            if len(raw) != count * dtype.itemsize:
-                raise InputError(f"{where}: the point data holds {len(raw)} bytes; "
-                                 f"{nx} x {ny} x {nz} {dtype.name} values need "
-                                 f"{count * dtype.itemsize}")
             values = np.frombuffer(raw, dtype=dtype).astype(float)
             valid = np.ones(count, dtype=bool)
             vlink = _find(link, "ValidPointsLink")
             if vlink is not None and vlink.text and vlink.text.strip():
-                bits = _member(z, vlink.text, where)
+                bits = _member(z, vlink.text, where,
+                               limit=math.ceil(count / 8) + VALID_PADDING)
                 vmd5 = _find(link, "MD5ChecksumValidPoints")
                 _check_md5(bits, None if vmd5 is None else vmd5.text, "the valid points",
                            where)
