@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
 import os
 import re
@@ -508,4 +510,66 @@ def test_an_x3p_zip_bomb_is_refused_before_it_is_read(tmp_path, monkeypatch):
     _refused(wrong, r"wrong\.x3p: 'bindata/data\.bin' declares 504 bytes; 8 x 8 x 1 float64 "
                     r"values \(SizeX x SizeY x SizeZ of main\.xml\) need 512$")
     monkeypatch.undo()
+    # 5. a matrix whose points would exceed MAX_SCAN_POINTS, or the memory available
+    huge = tmp_path / "huge.x3p"
+    _x3p(huge, _x3p_xml(40_000, 40_000), h.tobytes())
+    _refused(huge, r"huge\.x3p: declares a 40000 x 40000 array \(1\.6e\+09 points\): a height "
+                   r"map may have at most 1073741824")
+    monkeypatch.setenv("ROUGHSLIP_MEMORY_LIMIT_GB", "0.001")
+    mem = tmp_path / "mem.x3p"
+    _x3p(mem, _x3p_xml(400, 400), h.tobytes())
+    with pytest.raises(MemoryLimitError, match=r"mem\.x3p: a 400 x 400 height map needs "
+                                               r"~0\.00238 GiB to read but 0\.001 GiB"):
+        read_raw(mem)
 
+
+def _npy_header(path, shape, descr="<f8", data=b"\0" * 128) -> None:
+    """A .npy file (or stream) whose header declares ``shape`` whatever ``data`` holds."""
+    from numpy.lib import format as npy
+
+    with contextlib.nullcontext(path) if hasattr(path, "write") else open(path, "wb") as f:
+        npy.write_array_header_1_0(f, {"descr": descr, "fortran_order": False, "shape": shape})
+        f.write(data)
+
+
+def test_array_headers_are_checked_before_the_data_is_read(tmp_path):
+    """.npy, .npz and HDF5: a header that declares more than MAX_SCAN_POINTS, or another size
+    than the data holds, is one line naming the file (numpy said "-2446744073709551616
+    elements"); a dataset stored in (almost) nothing is refused by its compression ratio."""
+    _npy_header(tmp_path / "huge.npy", (4_000_000_000, 4_000_000_000))
+    _refused(tmp_path / "huge.npy", r"huge\.npy: declares a 4000000000 x 4000000000 array "
+                                    r"\(1\.6e\+19 points\): a height map may have at most")
+    _npy_header(tmp_path / "short.npy", (40, 40))
+    _refused(tmp_path / "short.npy", r"short\.npy: declares a 40 x 40 float64 array \(12800 "
+                                     r"bytes of data\) but holds 128: the file is damaged")
+    h = sphere((6, 5), radius=4.0)
+    _npy_header(tmp_path / "long.npy", (6, 5), data=h.tobytes() + b"\0" * 8)
+    _refused(tmp_path / "long.npy", r"long\.npy: declares a 6 x 5 float64 array \(240 bytes "
+                                    r"of data\) but holds 248")
+    good = tmp_path / "ok.npy"
+    np.save(good, np.asfortranarray(h.astype(">f4")))
+    from roughslip.surfaces.topography import read_raw
+
+    assert np.array_equal(read_raw(good).heights, h.astype(">f4"))
+    # .npz: the member's header too, and its ratio
+    buf = io.BytesIO()
+    _npy_header(buf, (20_000, 20_000), data=b"")
+    with zipfile.ZipFile(tmp_path / "lie.npz", "w") as z:
+        z.writestr("h.npy", buf.getvalue() + h.tobytes())
+    _refused(tmp_path / "lie.npz", r"lie\.npz \(array 'h'\): declares a 20000 x 20000 float64 "
+                                   r"array \(3200000000 bytes of data\) but holds 240")
+    with zipfile.ZipFile(tmp_path / "bomb.npz", "w", zipfile.ZIP_BZIP2) as z:
+        z.writestr("h.npy", b"\0" * 2_000_000)
+    _refused(tmp_path / "bomb.npz", r"bomb\.npz: 'h\.npy' declares 2000000 bytes compressed "
+                                    r"to \d+ \(ratio \d+:1\)")
+    # HDF5: a 30000 x 30000 dataset never written is all fill value, stored in 0 bytes
+    with h5py.File(tmp_path / "fill.h5", "w") as f:
+        f.create_dataset("h", shape=(30000, 30000), dtype="f8", chunks=(64, 64),
+                         compression="gzip")
+    _refused(tmp_path / "fill.h5", r"fill\.h5 \(dataset 'h'\): declares 7200000000 bytes "
+                                   r"stored in 0 \(ratio 7200000000:1\): a dataset may be "
+                                   r"compressed at most 1100:1")
+    with h5py.File(tmp_path / "many.h5", "w") as f:
+        f.create_dataset("h", shape=(2**16, 2**15), dtype="f4", chunks=(64, 64))
+    _refused(tmp_path / "many.h5", r"many\.h5 \(dataset 'h'\): declares a 65536 x 32768 "
+                                   r"array \(2\.15e\+09 points\)")

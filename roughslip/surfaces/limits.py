@@ -3,7 +3,11 @@ r"""What a topography file may make roughslip read, and what a scan must hold.
 A file is read only after what it declares has been checked against what it holds and against
 fixed limits, so that neither a damaged nor a hostile file can take the machine's memory:
 
-Archive members (X3P)
+Arrays (``.npy``, the arrays of ``.npz``, HDF5 datasets)
+    The shape and the data type in the header are checked first (:func:`check_array`): a real
+    2-D array of at most :data:`MAX_SCAN_POINTS` points whose data has exactly the size the
+    file holds, and whose heights fit in the memory available.
+Archive members (X3P, ``.npz``)
     Before a member is read, its declared size is checked against a cap (the exact size that
     ``main.xml`` implies for point data; :data:`MAX_XML_BYTES` for ``main.xml``) and its
     compression ratio against :data:`MAX_COMPRESSION_RATIO`; it is then read with a bounded
@@ -20,12 +24,15 @@ a run leaves (crop, down-sampling, tiles, detrending; :mod:`roughslip.surfaces.t
 
 from __future__ import annotations
 
+import math
 import zipfile
 import zlib
+from typing import IO
 
 import numpy as np
 
-from roughslip.errors import InputError, echo
+from roughslip.errors import InputError, MemoryLimitError, echo
+from roughslip.linalg.memory import available_bytes
 
 #: The smallest scan side, in pixels, along each axis. Every statistic ``roughslip
 #: topography`` prints and every preparation step is defined from 4 on: the rms slope needs 2
@@ -83,6 +90,67 @@ else:
 class Refused(InputError):
     """A file refused by a limit of this module: what it declares is too large, or not what it
     holds. Readers do not hand such a file to another reader (which would trust it)."""
+
+
+def _gib(n: float) -> str:
+    return f"{n / 2**30:.3g} GiB"
+
+
+def check_array(shape: tuple[int, ...], dtype: np.dtype, data_bytes: int | None, where: str
+                ) -> int:
+    """Check a height map's header before its data is read.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        The shape the header declares.
+    dtype : numpy.dtype
+        The data type it declares.
+    data_bytes : int or None
+        The bytes of data the file (or the archive member) holds after the header; None when
+        the data is not stored as one block (an HDF5 dataset).
+    where : str
+        The file, for the messages.
+
+    Returns
+    -------
+    int
+        The number of points.
+
+    Raises
+    ------
+    InputError
+        For a data type that is not a real number, an array that is not 2-D or has no point,
+        more than :data:`MAX_SCAN_POINTS` points, or data of another size than the header
+        implies.
+    MemoryLimitError
+        When the data and its float64 copy do not fit in the memory available
+        (:func:`roughslip.linalg.memory.available_bytes`).
+    """
+    if dtype.hasobject or dtype.fields is not None or dtype.kind not in "iuf":
+        raise InputError(f"{where}: heights must be real numbers (the file declares dtype "
+                         f"{echo(str(dtype))})")
+    if len(shape) != 2:
+        raise InputError(f"{where}: heights must be a 2-D array (the file declares "
+                         f"{len(shape)}-D, shape {echo(tuple(shape))})")
+    count = math.prod(int(n) for n in shape)  # Python integers: no overflow
+    if count == 0:
+        raise InputError(f"{where}: is empty (shape {tuple(shape)})")
+    if count > MAX_SCAN_POINTS:
+        raise Refused(f"{where}: declares a {shape[0]} x {shape[1]} array ({count:.3g} "
+                         f"points): a height map may have at most {MAX_SCAN_POINTS} "
+                         f"(2^{int(math.log2(MAX_SCAN_POINTS))})")
+    need = count * dtype.itemsize
+    if data_bytes is not None and need != data_bytes:
+        raise Refused(f"{where}: declares a {shape[0]} x {shape[1]} {dtype.name} array "
+                         f"({need} bytes of data) but holds {data_bytes}: the file is "
+                         "damaged or not what it claims")
+    have = available_bytes()
+    if need + 8 * count > have:
+        raise MemoryLimitError(f"{where}: a {shape[0]} x {shape[1]} height map needs "
+                               f"~{_gib(need + 8 * count)} to read but {_gib(have)} are "
+                               "available")
+    return count
 
 
 def read_member(z: zipfile.ZipFile, name: str, where: str, *, limit: int,
@@ -178,6 +246,28 @@ def check_archive(path: str, where: str) -> None:
             raise Refused(f"{what} declares {info.file_size} bytes, more than the {limit} "
                           "allowed")
         _check_ratio(info, what)
+
+
+def read_exactly(fh: IO[bytes], size: int, where: str) -> bytes:
+    """Read ``size`` bytes, no more (a bounded read of ``size + 1``: a stream that holds more
+    or fewer than the header said is an error).
+
+    Parameters
+    ----------
+    fh : binary file object
+    size : int
+    where : str
+        The file, for the messages.
+
+    Returns
+    -------
+    bytes
+    """
+    data = fh.read(size + 1)
+    if len(data) != size:
+        raise Refused(f"{where}: holds {'more' if len(data) > size else len(data)} bytes of "
+                      f"data where its header declares {size}")
+    return data
 
 
 def check_scan(h: np.ndarray, where: str, *, scale: float | None = None) -> None:

@@ -17,12 +17,23 @@ run from ``SeedSequence(seed).spawn``, independently of how samples are distribu
 
 from __future__ import annotations
 
+import io
 import math
+import zipfile
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 
 from roughslip.errors import InputError, echo, shorten
+from roughslip.surfaces.limits import (
+    MAX_COMPRESSION_RATIO,
+    MAX_SCAN_POINTS,
+    Refused,
+    check_array,
+    read_exactly,
+    read_member,
+)
 
 
 def sample_rng(seed: int, index: int) -> np.random.Generator:
@@ -200,11 +211,16 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
                     allow_missing: bool = False) -> np.ndarray:
     """Read a 2-D height map; never executes code from the file.
 
-    Supported: ``.npy`` (``allow_pickle=False``), ``.npz`` (array ``key``, or the only one),
+    Supported: ``.npy`` (never pickled data), ``.npz`` (array ``key``, or the only one),
     text matrices (``.txt``, ``.dat``, ``.asc`` whitespace- and ``.csv`` comma-separated), HDF5
     (dataset ``key``, or the only dataset). Empty, 1-D, ragged or non-numeric input, infinite
     values, and NaN (missing points) unless ``allow_missing``, are rejected with an
-    :class:`InputError` naming the file. Instrument formats: :mod:`roughslip.surfaces.topography`.
+    :class:`InputError` naming the file. The header of an array (``.npy``, an ``.npz`` member,
+    an HDF5 dataset) is checked before its data is read: the shape and data type against the
+    data the file holds, :data:`~roughslip.surfaces.limits.MAX_SCAN_POINTS` and the memory
+    available, and an ``.npz`` member's size and compression ratio
+    (:mod:`roughslip.surfaces.limits`). Instrument formats:
+    :mod:`roughslip.surfaces.topography`.
     """
     p = Path(path)
     name = str(p)
@@ -213,17 +229,10 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
     suffix = p.suffix.lower()
     try:
         if suffix == ".npy":
-            arr = np.load(p, allow_pickle=False)
+            with p.open("rb") as fh:
+                arr = _read_npy(fh, p.stat().st_size, name)
         elif suffix == ".npz":
-            with np.load(p, allow_pickle=False) as z:
-                names = list(z.files)
-                if key is None:
-                    if len(names) != 1:
-                        raise InputError(f"{name}: holds arrays {echo(names)}; set surface.key")
-                    key = names[0]
-                if key not in names:
-                    raise InputError(f"{name}: no array {echo(key)} (it has {echo(names)})")
-                arr = z[key]
+            arr = _load_npz(p, key)
         elif suffix in TEXT_SUFFIXES:
             arr = _load_text(p, "," if suffix == ".csv" else None)
         elif suffix in HDF5_SUFFIXES:
@@ -236,7 +245,7 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
             )
     except InputError:
         raise
-    except ValueError as exc:
+    except (ValueError, zipfile.BadZipFile, EOFError) as exc:
         msg = str(exc)
         if "pickle" in msg.lower():
             msg = "holds Python objects (pickled data is never loaded)"
@@ -244,6 +253,44 @@ def load_topography(path: str | Path, key: str | None = None, scale: float = 1.0
     except OSError as exc:
         raise InputError(f"{name}: cannot read ({shorten(str(exc))})") from None
     return _validate(np.asarray(arr), name, allow_missing) * float(scale)
+
+
+def _read_npy(fh: IO[bytes], size: int, where: str) -> np.ndarray:
+    """An array in the ``.npy`` format from ``fh`` (at its start; ``size`` bytes in all), its
+    header checked before the data is read (:func:`~roughslip.surfaces.limits.check_array`)."""
+    from numpy.lib import format as npy
+
+    try:
+        version = npy.read_magic(fh)
+        # 3.0 differs from 2.0 only in UTF-8 field names, which a height map has none of
+        read = npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0
+        shape, fortran, dtype = read(fh)
+    except ValueError as exc:
+        raise InputError(f"{where}: not a .npy array ({shorten(str(exc))})") from None
+    check_array(shape, dtype, size - fh.tell(), where)
+    data = read_exactly(fh, math.prod(shape) * dtype.itemsize, where)
+    arr = np.frombuffer(data, dtype=dtype)
+    return arr.reshape(shape[::-1]).T if fortran else arr.reshape(shape)
+
+
+def _load_npz(p: Path, key: str | None) -> np.ndarray:
+    """Array ``key`` (or the only one) of an ``.npz`` archive, its member's declared size and
+    compression ratio, and its header, checked before its data is read."""
+    name = str(p)
+    with zipfile.ZipFile(p) as z:
+        members = {n.removesuffix(".npy"): n for n in z.namelist()}  # as numpy names them
+        names = list(members)
+        if key is None:
+            if len(names) != 1:
+                raise InputError(f"{name}: holds arrays {echo(names)}; set surface.key")
+            key = names[0]
+        if key not in members:
+            raise InputError(f"{name}: no array {echo(key)} (it has {echo(names)})")
+        info = z.getinfo(members[key])
+        header = 2**16  # the largest .npy header numpy reads, and more
+        data = read_member(z, info.filename, name,
+                           limit=8 * MAX_SCAN_POINTS + header)
+    return _read_npy(io.BytesIO(data), len(data), f"{name} (array {echo(key)})")
 
 
 def _load_text(p: Path, delimiter: str | None) -> np.ndarray:
@@ -284,7 +331,16 @@ def _load_hdf5(p: Path, key: str | None) -> np.ndarray:
             key = names[0]
         if key not in f or not isinstance(f[key], h5py.Dataset):
             raise InputError(f"{p}: no dataset {echo(key)}")
-        return f[key][()]
+        d = f[key]
+        where = f"{p} (dataset {echo(key)})"
+        check_array(d.shape, d.dtype, None, where)
+        stored = d.id.get_storage_size()
+        ratio = d.nbytes / max(stored, 1)
+        if ratio > MAX_COMPRESSION_RATIO:
+            raise Refused(f"{where}: declares {d.nbytes} bytes stored in {stored} (ratio "
+                          f"{ratio:.0f}:1): a dataset may be compressed at most "
+                          f"{MAX_COMPRESSION_RATIO}:1")
+        return d[()]
 
 
 def _validate(arr: np.ndarray, name: str, allow_missing: bool = False) -> np.ndarray:

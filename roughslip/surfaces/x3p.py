@@ -24,8 +24,9 @@ not match is an error: the file is corrupt.
 
 No member is read whole on trust (:func:`roughslip.surfaces.limits.read_member`): ``main.xml``
 and the checksum file may hold at most :data:`~roughslip.surfaces.limits.MAX_XML_BYTES`, the
-point data exactly ``SizeX x SizeY x SizeZ`` values of the z axis's type, the valid points
-one bit a point (:data:`VALID_PADDING` bytes more at most); each compressed at most
+point data exactly ``SizeX x SizeY x SizeZ`` values of the z axis's type (checked against
+:data:`~roughslip.surfaces.limits.MAX_SCAN_POINTS` and the memory available first), the valid
+points one bit a point (:data:`VALID_PADDING` bytes more at most); each compressed at most
 :data:`~roughslip.surfaces.limits.MAX_COMPRESSION_RATIO` to 1 and read with a bounded read.
 """
 
@@ -40,7 +41,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from roughslip.errors import InputError, echo
-from roughslip.surfaces.limits import MAX_XML_BYTES, read_member
+from roughslip.surfaces.limits import MAX_XML_BYTES, check_array, read_member
 
 #: stored types of the z axis
 DTYPES = {"I": np.dtype("<i2"), "L": np.dtype("<i4"), "F": np.dtype("<f4"),
@@ -188,7 +189,9 @@ def read_x3p(path: str | Path, layer: int = 0) -> tuple[np.ndarray, tuple[float,
             raise InputError(f"{where}: Record3 needs exactly one of DataLink and DataList")
         if link is not None:
             dtype = DTYPES[ztype]
-            # a member of exactly the matrix's size: nothing larger is read
+            # the matrix's size first, then a member of exactly that size: nothing larger is read
+            check_array((nz * ny, nx), dtype, None,
+                        where if nz == 1 else f"{where} ({nz} layers of {ny} x {nx})")
             need = count * dtype.itemsize
             data_link = _text(link, "PointDataLink", where=where)
             raw = _member(z, data_link, where, limit=need, expected=need,
