@@ -190,11 +190,14 @@ def _interruptible(progress: Callable[[dict[str, Any]], None]):
 @handle_errors
 def run_cmd(config, out, overrides, workers, resume, overwrite, scheduler, strict, quiet):
     """Squeeze (and pull) every sample at every depth of CONFIG; write an HDF5 file."""
+    from roughslip.run.budget import check_budget
     from roughslip.run.config import load_config
     from roughslip.run.executor import run
 
     extra = ["execution.strict=true"] if strict else []
     cfg = load_config(config, [*overrides, *extra])
+    if not (scheduler or cfg.execution.scheduler):  # a cluster's workers have their own
+        check_budget(cfg, workers or cfg.execution.workers)  # before any surface is made
     out = out or str(Path("results") / (Path(config).stem + ".h5"))
     progress = _Progress(quiet)
     try:

@@ -110,6 +110,88 @@ def test_memory_guard_refuses_and_suggests(tmp_path):
     run(load_config(data=data), tmp_path / "w.h5", workers=2)  # fits
 
 
+def _guard(tmp_path, args, env=None, data=None):
+    """`roughslip run` refused by the memory budget: exit 2, one line, nothing written."""
+    out = tmp_path / "guard.h5"
+    r = CliRunner().invoke(cli, ["run", str(_cfg_file(tmp_path, data or GOOD)), "-o", str(out),
+                                 "--quiet", *args], env=env)
+    assert r.exit_code == 2, r.output
+    lines = r.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("roughslip: error: c.toml: "), r.output
+    assert not out.exists()
+    return lines[0]
+
+
+def test_the_memory_guard_names_the_size_key_and_a_hint_that_holds(tmp_path, monkeypatch):
+    """grid.n = 100000 said "use --workers 1", which needs 8,270 GiB as well: the guard names
+    the key that sets the size, and suggests fewer workers only when one fits, else the
+    largest size that fits and the budget's own setting when that is the limit. It runs
+    before any surface is made (a 100000 x 100000 one alone is 75 GiB)."""
+    from roughslip.run.budget import _per_worker
+
+    env = {"ROUGHSLIP_MEMORY_LIMIT_GB": "0.5"}
+    need = _per_worker(load_config(_cfg_file(tmp_path, GOOD)))
+    line = _guard(tmp_path, ["--set", "grid.n=100000", "--workers", "3"], env)
+    n = int(re.search(r"grid\.n = (\d+) is the largest that fits", line).group(1))
+    assert need((n, n)) <= 2**29 < need((n + 1, n + 1))
+    assert line == (f"roughslip: error: c.toml: grid.n = 100000: a 100000 x 100000 grid needs "
+                    f"~{need((100000, 100000)) / 2**30:.0f} GiB per worker (even one worker), "
+                    "more than the 0.5 GiB available (ROUGHSLIP_MEMORY_LIMIT_GB=0.5); "
+                    f"grid.n = {n} is the largest that fits, or raise "
+                    "ROUGHSLIP_MEMORY_LIMIT_GB")
+    assert "--workers" not in line
+    # one worker fits, four do not: fewer workers is the hint
+    m = int(n / 2.5**0.5)  # about 2.5 workers fit
+    per = need((m, m))
+    fewer = 2**29 // per
+    assert fewer == 2
+    line = _guard(tmp_path, ["--set", f"grid.n={m}", "--workers", "4"], env)
+    assert line.endswith(f"4 workers need ~{4 * per / 2**30:.3g} GiB, more than the 0.5 GiB "
+                         f"available (ROUGHSLIP_MEMORY_LIMIT_GB=0.5); use --workers {fewer}")
+    assert f"grid.n = {m}: a {m} x {m} grid needs" in line
+    # the configuration's own budget, and a rectangular grid
+    line = _guard(tmp_path, ["--set", "execution.memory_limit_gb=0.25"],
+                  data={**GOOD, "grid": {"shape": [3000, 1500]}})
+    assert "grid.shape = [3000, 1500]: a 3000 x 1500 grid needs" in line
+    m = re.search(r"grid\.shape = \[(\d+), (\d+)\] \(the same aspect\) is the largest", line)
+    assert m and int(m.group(1)) == 2 * int(m.group(2))
+    assert need((int(m.group(1)), int(m.group(2)))) <= 2**28
+    assert line.endswith("(execution.memory_limit_gb = 0.25); " + m.group(0) + " that fits, "
+                         "or raise execution.memory_limit_gb")
+
+
+def test_the_memory_guard_of_a_file_grid_and_of_a_cluster_run(tmp_path, monkeypatch):
+    from roughslip.run.budget import check_budget
+    from roughslip.surfaces import synthetic
+
+    np.save(tmp_path / "scan.npy", self_affine((64, 48), hurst=0.8, rms_height=1.0,
+                                               rng=sample_rng(1, 0)))
+    cfg = load_config(_cfg_file(tmp_path, {"surface": {"kind": "file", "path": "scan.npy"},
+                                           "squeeze": {"depths": [0.1]}}))
+    scene = Scene.from_config(cfg)
+    per = estimate_memory(scene)
+    check_budget(cfg, 1)  # the file sets the grid: not checked before it is read
+    with memory.limited(0.6 * per / 2**30):
+        with pytest.raises(MemoryLimitError, match=r"^c\.toml: surface\.path = 'scan\.npy': "
+                                                   r"its 64 x 48 grid needs .* per worker "
+                                                   r"\(even one worker\).*; surface\.downsample "
+                                                   r"= 2 fits \(32 x 24\)$"):
+            check_budget(cfg, 1, scene)
+    # a cluster's workers are not this machine: no local check, but a surface too large to
+    # make here is one line too, not a traceback
+    def no_memory(*args, **kw):
+        raise MemoryError
+
+    monkeypatch.setattr(synthetic, "sphere", no_memory)
+    r = CliRunner().invoke(cli, ["run", str(_cfg_file(tmp_path, {
+        "grid": {"n": 100_000}, "surface": {"kind": "sphere", "radius": 1.0},
+        "squeeze": {"depths": [0.1]}})), "--scheduler", "tcp://127.0.0.1:9", "-o",
+        str(tmp_path / "x.h5")])
+    assert r.exit_code == 2 and r.output.strip() == (
+        "roughslip: error: [surface]: a 100000 x 100000 sphere (74.5 GiB of heights) does not "
+        "fit in this machine's memory (grid.n or grid.shape)")
+
+
 # ------------------------------------------------------------------------------ contact extremes
 
 

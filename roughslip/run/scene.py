@@ -26,7 +26,7 @@ import numpy as np
 
 from roughslip.coupling.coupled import COUPLED_TOL
 from roughslip.elastic.operators import Grid, Material
-from roughslip.errors import InputError
+from roughslip.errors import InputError, MemoryLimitError
 from roughslip.run import schema
 from roughslip.run.digest import DEFAULTS_VERSION
 from roughslip.run.sections import RunConfig, SurfaceConfig
@@ -270,6 +270,10 @@ def _analytic(sc: SurfaceConfig, grid: Grid, where: str) -> np.ndarray:
             return S.plane(shape, a=a, slope=sc.slope or (0.0, 0.0))
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
+    except MemoryError:  # a grid far too large, e.g. for a cluster run checked on its nodes
+        raise MemoryLimitError(f"{where}: a {shape[0]} x {shape[1]} {sc.kind} "
+                               f"({8 * grid.size / 2**30:.3g} GiB of heights) does not fit in "
+                               "this machine's memory (grid.n or grid.shape)") from None
     raise InputError(f"{where}: kind {sc.kind!r} is not an analytic shape")
 
 
