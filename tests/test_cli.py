@@ -116,3 +116,16 @@ def test_deep_nesting_is_one_line_and_exit_2(tmp_path):
     line = _one_line_error(r)
     assert line.startswith("roughslip: error: --set squeeze.depths=[[[")
     assert "squeeze.depths[0]" in line and "at most 32 levels" in line
+
+
+def test_a_huge_command_line_name_is_echoed_short():
+    """Names given on the command line (fit --x) are echoed like configuration values."""
+    import pytest
+
+    from roughslip.analysis.fit import quantity
+    from roughslip.errors import InputError
+
+    with pytest.raises(InputError) as e:
+        quantity(None, "q" * 1_000_000)
+    msg = str(e.value)
+    assert len(msg) < 400 and " '" + "q" * 79 + "... (1000000 characters); choose from" in msg

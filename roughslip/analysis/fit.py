@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from roughslip.errors import InputError
+from roughslip.errors import InputError, echo
 from roughslip.run.store import RunData, read_run
 
 QUANTITIES = ("depth", "depth_length", "normal_force", "contact_area", "friction_force",
@@ -182,14 +182,14 @@ def pair(run: RunData, x: str, y: str) -> tuple[np.ndarray, np.ndarray, int]:
 def quantity(run: RunData, name: str) -> np.ndarray:
     """Per-sample values (complete samples) of a named quantity of a run file."""
     if name not in QUANTITIES:
-        raise InputError(f"unknown quantity {name!r}; choose from {', '.join(QUANTITIES)}")
+        raise InputError(f"unknown quantity {echo(name)}; choose from {', '.join(QUANTITIES)}")
     sel = run.complete
     if name == "depth":
         if run.axis_name != "depth":
             return run.scalars["depth_length"][sel]
         return np.broadcast_to(run.axis, (int(sel.sum()), run.axis.size)).copy()
     if name not in run.scalars:
-        raise InputError(f"{run.path}: has no {name!r} (was the pull enabled?)")
+        raise InputError(f"{run.path}: has no {echo(name)} (was the pull enabled?)")
     return run.scalars[name][sel]
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from roughslip.analysis.summary import length_unit, pixel_size
-from roughslip.errors import InputError
+from roughslip.errors import InputError, echo
 from roughslip.surfaces.synthetic import HDF5_SUFFIXES
 from roughslip.surfaces.topography import (
     LENGTH_UNITS,
@@ -58,7 +58,7 @@ def describe(path: str | Path, *, key: str | None = None, unit: str | None = Non
     raw = read_raw(p, key)
     if raw.unit and unit and not math.isclose(metres_per(raw.unit, str(p)),
                                               metres_per(unit, "--unit"), rel_tol=1e-12):
-        raise InputError(f"{p}: --unit {unit} contradicts the file's unit {raw.unit}")
+        raise InputError(f"{p}: --unit {unit} contradicts the file's unit {echo(raw.unit)}")
     u = raw.unit or unit
     heights, ps = raw.heights, raw.pixel_size
     if ps is None and pixel is not None:

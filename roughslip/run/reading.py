@@ -10,7 +10,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from roughslip.errors import InputError
+from roughslip.errors import InputError, shorten
 from roughslip.run import schema
 from roughslip.run.tomlio import loads_toml
 
@@ -28,7 +28,7 @@ def check_format(f: h5py.File, path: Path) -> None:
         raise InputError(f"{path}: not a roughslip run file (format attribute missing)")
     if int(f.attrs.get("format_version", -1)) > FORMAT_VERSION:
         raise InputError(f"{path}: written by a newer roughslip (format version "
-                         f"{f.attrs['format_version']})")
+                         f"{shorten(str(f.attrs['format_version']))})")
 
 
 @dataclass
@@ -77,7 +77,7 @@ def open_file(path: str | Path) -> h5py.File:
     try:
         f = h5py.File(p, "r")
     except OSError as exc:
-        raise InputError(f"{p}: not a readable HDF5 file ({exc})") from None
+        raise InputError(f"{p}: not a readable HDF5 file ({shorten(str(exc))})") from None
     try:
         check_format(f, p)
     except InputError:
