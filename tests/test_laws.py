@@ -121,7 +121,8 @@ def test_the_configuration_offers_the_registered_laws():
     from roughslip.run.config import PullConfig
 
     meta = {f.name: f.metadata for f in dataclasses.fields(PullConfig)}["slip_law"]
-    assert meta["choices"] == LAWS.names() == ("break", "coulomb", "slip-weakening")
+    assert tuple(meta["choices"]) == LAWS.names()  # live: a law registered later is a choice
+    assert {"break", "coulomb", "slip-weakening"} <= set(LAWS.names())
     assert LAWS.summary("coulomb") in meta["doc"]
 
 

@@ -289,9 +289,9 @@ def test_bad_precision():
     normal = squeeze(sphere((12, 12), radius=10.0), depth=1.0, tol=1e-12)
     with pytest.raises(InputError, match="precision"):
         pull(normal, precision="half")
-    with pytest.raises(InputError, match="only the break law"):
+    with pytest.raises(InputError, match="only slip_law 'break' with method 'inverse'"):
         pull(normal, precision="single", slip_law="coulomb")
-    with pytest.raises(InputError, match="only the break law"):
+    with pytest.raises(InputError, match="only slip_law 'break' with method 'inverse'"):
         pull(normal, precision="single", method="cg")
 
 

@@ -50,12 +50,12 @@ from typing import Protocol
 import numpy as np
 
 from roughslip.contact import pk_passes
-from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem, check_heights, finite
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import ConvergenceError, InputError, NumericalError
 from roughslip.linalg.cg import cg
 from roughslip.linalg.threads import blas_threads
+from roughslip.registry import Registry
 
 __all__ = ["METHODS", "NormalResult", "NormalSolver", "check_heights", "squeeze"]
 

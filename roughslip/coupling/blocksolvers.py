@@ -27,13 +27,13 @@ from typing import NamedTuple, Protocol
 
 import numpy as np
 
-from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem
 from roughslip.elastic.tables import gather_pairs
 from roughslip.errors import MemoryLimitError, NumericalError
 from roughslip.linalg.cg import cg
 from roughslip.linalg.inverse import BYTES_PER_ORDER2, Tracked, UpdatableInverse, submatrix
 from roughslip.linalg.memory import available_bytes
+from roughslip.registry import Registry
 
 # ------------------------------------------------------------------------------------------------
 # Linear solvers for the reduced block

@@ -33,11 +33,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from roughslip.contact.methods import Registry
 from roughslip.contact.problem import Problem
 from roughslip.coupling.state import ContactState
 from roughslip.errors import NumericalError
 from roughslip.friction.events import TIE, follow_events
+from roughslip.registry import Registry
 
 
 @dataclass

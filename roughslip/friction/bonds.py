@@ -26,6 +26,7 @@ from roughslip.friction.events import Curve, argext
 from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.restricted import Restricted
+from roughslip.linalg.stick import SolverFactory, StickSolver
 
 
 @dataclass(frozen=True)
@@ -142,9 +143,12 @@ class SlipResult:
 
 @dataclass(frozen=True)
 class PullOptions:
-    """The settings every pull method reads (validated by :func:`pull`)."""
+    """The settings every pull method reads (validated by :func:`pull`).
 
-    slip_law: str = "break"
+    ``slip_law``, the law's name, follows ``law`` (earlier versions took the name; the law
+    object is what the methods read)."""
+
+    slip_law: str = ""
     tol: float = 1e-10
     early_stop: bool = True
     batch_size: int = 16
@@ -152,11 +156,27 @@ class PullOptions:
     max_iter: int = 10_000
     #: BLAS threads of the dense methods
     threads: int = 1
-    #: the slip law itself (:data:`roughslip.friction.laws.LAWS`), for the methods that run
-    #: every law
+    #: the slip law, bound to its parameters (:meth:`roughslip.friction.laws.SlipLaw.bind`)
     law: object = None
+    #: the pull method (:class:`roughslip.friction.pull.PullMethod`); its
+    #: :attr:`~roughslip.friction.pull.PullMethod.solver` builds the stick solver
+    method: object = None
     #: the precision of the stored inverse (``"double"`` or ``"single"``)
     precision: str = "double"
+
+    def __post_init__(self) -> None:
+        if self.law is not None:
+            object.__setattr__(self, "slip_law", self.law.name)
+
+    @property
+    def method_name(self) -> str:
+        """The pull method's name (``"inverse"`` when no method is given)."""
+        return "inverse" if self.method is None else self.method.name
+
+    def solver(self) -> SolverFactory:
+        """The stick solver's factory (:class:`~roughslip.linalg.inverse.UpdatableInverse`
+        when no method is given: the dense inverse)."""
+        return UpdatableInverse if self.method is None else self.method.solver
 
 
 class Bonds:
@@ -305,12 +325,14 @@ def shrinking_only(ids: np.ndarray) -> np.ndarray:
 PRECISION_NAMES = {np.dtype(np.float64): "double", np.dtype(np.float32): "single"}
 
 
-def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64
-                 ) -> UpdatableInverse:
-    r"""The inverse of :math:`G_{xx}` on all bonds, in the lower-triangle layout of
-    :class:`~roughslip.linalg.inverse.UpdatableInverse` (unknown ``i``: bond position ``i``):
-    one :math:`n \times n` matrix of ``dtype`` (float64, or float32 for the single-precision
-    pull), compacted in place as bonds leave.
+def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
+                 solver: SolverFactory = UpdatableInverse) -> StickSolver:
+    r"""The inverse of :math:`G_{xx}` on all bonds, held by the stick solver ``solver``
+    (:class:`~roughslip.linalg.stick.StickSolver`; unknown ``i``: bond position ``i``), for a
+    set that only shrinks: for the dense inverse, the lower-triangle layout of
+    :class:`~roughslip.linalg.inverse.UpdatableInverse`, one :math:`n \times n` matrix of
+    ``dtype`` (float64, or float32 for the single-precision pull), compacted in place as bonds
+    leave.
 
     Raises :class:`MemoryLimitError` before allocating when it does not fit
     (:func:`~roughslip.linalg.inverse.inverse_bytes`), and :class:`NumericalError` when
@@ -332,8 +354,8 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64
                 "(approximate)")
         return True
 
-    inv = UpdatableInverse(b.entries, n, room=room, threads=threads, block=block, lower=True,
-                           dtype=dtype)
+    inv = solver(b.entries, n, room=room, threads=threads, block=block, lower=True,
+                 dtype=dtype)
     try:
         inv.factor(np.arange(n))
     except NumericalError as exc:
@@ -341,7 +363,7 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64
     return inv
 
 
-def track(inv: UpdatableInverse, name: str, rhs: np.ndarray) -> np.ndarray:
+def track(inv: StickSolver, name: str, rhs: np.ndarray) -> np.ndarray:
     """Keep the solution for ``rhs`` (on the rows) current through the removals."""
     x = inv.apply(rhs)
     inv.tracked[name] = Tracked(rhs.copy(), x, shrinking_only)
@@ -357,16 +379,17 @@ class BondRows:
         self.cap = b.cap.copy()
         self.alive = b.n
 
-    def remove(self, inv: UpdatableInverse, row: int, column: np.ndarray | None = None
-               ) -> None:
-        """Remove the bond of ``row`` from the inverse (its tracked solutions follow);
-        ``column``: the current column of the inverse at ``row``, when the caller has it."""
-        if not inv.remove(int(inv.ids[row]), column):
+    def remove(self, inv: StickSolver, row: int, column: np.ndarray | None = None,
+               held: dict[str, float] | None = None) -> None:
+        """Remove the bond of ``row`` from the inverse (its tracked solutions follow, with the
+        values ``held``, :meth:`~roughslip.linalg.stick.StickSolver.remove`); ``column``: the
+        current column of the inverse at ``row``, when the caller has it."""
+        if not inv.remove(int(inv.ids[row]), column, held):
             raise NumericalError("lost positive definiteness in the inverse update")
         self.cap[row] = math.inf
         self.alive -= 1
 
-    def fold(self, inv: UpdatableInverse, dead: float = 0.25) -> bool:
+    def fold(self, inv: StickSolver, dead: float = 0.25) -> bool:
         """Once ``block`` removals are pending, fold them in and compact when a share
         ``dead`` of the rows are dead; True when it did (the moment to certify)."""
         if inv.k < inv.block:
@@ -388,7 +411,7 @@ def stick_residual(b: Bonds, pos: np.ndarray, v: np.ndarray, rhs: np.ndarray | f
     return r, float(np.linalg.norm(r)) / max(float(np.linalg.norm(rhs)), 1e-300)
 
 
-def certify(b: Bonds, inv: UpdatableInverse, name: str, load: np.ndarray | None, tol: float,
+def certify(b: Bonds, inv: StickSolver, name: str, load: np.ndarray | None, tol: float,
             shift: np.ndarray | None = None) -> tuple[float, int]:
     r"""Check the tracked solution ``name`` against the FFT operator, refining it if needed
     (:meth:`~roughslip.linalg.inverse.UpdatableInverse.refine`, at most 3 times).

@@ -76,17 +76,19 @@ def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> SlipR
                         message=f"{solves} CG solves, {iters} iterations")
 
 
-def break_inverse(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
-    r"""Exact break law on the updated inverse (:func:`~roughslip.friction.bonds.bond_inverse`):
-    :math:`O(n)` per break plus blocked BLAS-3 updates; :math:`\varphi` is certified against
-    the FFT operator after each block. ``opt.precision == "single"``: the float32 inverse
-    with certified decisions (:func:`~roughslip.friction.breaking_single.break_inverse_single`).
+def break_sequence(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+    r"""Exact break law on the stick solver of ``opt.method`` (the updated inverse,
+    :func:`~roughslip.friction.bonds.bond_inverse`): :math:`O(n)` per break plus the solver's
+    blocked updates; :math:`\varphi` is certified against the FFT operator after each fold,
+    and the sequence stops exactly once :math:`\lambda\sum_S f_z` falls below the best.
+    ``opt.precision == "single"``: the float32 inverse with certified decisions
+    (:func:`~roughslip.friction.breaking_single.break_inverse_single`).
     """
     if opt.precision == "single":
         return break_inverse_single(b, opt, t0)
     tol, block = opt.tol, opt.block
     curve = BreakCurve(b, opt.early_stop)
-    inv = bond_inverse(b, block, opt.threads)
+    inv = bond_inverse(b, block, opt.threads, solver=opt.solver())
     track(inv, "phi", np.ones(b.n))
     rows = BondRows(b)
     cap_sum = float(b.cap.sum())
@@ -109,9 +111,13 @@ def break_inverse(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
         pos, f, dx = curve.peak_state
         _, res = stick_residual(b, pos, f / dx, 1.0)
         worst, ok = max(worst, res), ok and res <= tol
-    return curve.result(t0, "inverse", converged=bool(ok), residual=worst,
+    return curve.result(t0, opt.method_name, converged=bool(ok), residual=worst,
                         solves=refinements, precision="double",
                         message=f"{b.n} bonds, block {block}, {refinements} refinements")
+
+
+#: the break sequence on the dense inverse (the name of earlier versions)
+break_inverse = break_sequence
 
 
 def break_batch(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:

@@ -12,8 +12,10 @@ affine constraint rows per stick site, :math:`\lambda f_z - f_x \ge 0` (event ``
 * **its reversal rule** (:attr:`SlipLaw.reverses`, :meth:`SlipLaw.turned_back`): whether a
   slipping bond whose slip the drive would turn around sticks again where it is (event
   ``"stick"``);
-* **its decoupled pull methods** (:attr:`SlipLaw.pull_runs`, by name of
-  :data:`roughslip.friction.pull.METHODS`).
+* **its decoupled pull**: the engine that runs it on a method's stick solver
+  (:attr:`SlipLaw.engine`), and what that engine needs of the solver (:attr:`SlipLaw.needs`),
+  from which the methods that run it follow
+  (:meth:`roughslip.friction.pull.PullMethod.runs`).
 
 The laws are registered in :data:`LAWS`, which the configuration reads for the choices and the
 help of ``pull.slip_law``. docs/extending.md says how to add one.
@@ -23,17 +25,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
 
-from roughslip.contact.methods import Registry
 from roughslip.errors import InputError
-from roughslip.friction.breaking import break_batch, break_cg, break_inverse, break_literal
+from roughslip.friction.breaking import break_sequence
 from roughslip.friction.events import RATE_TIE, TIE
 from roughslip.friction.sliding import slide
 from roughslip.friction.weakening import weaken
+from roughslip.registry import Registry
 
 
 class LawParameterError(InputError):
@@ -51,7 +53,7 @@ Row = tuple[str, np.ndarray, np.ndarray, np.ndarray, float]
 
 @dataclass(frozen=True)
 class SlipLaw:
-    """A slip law (module docstring). Subclass it and override what differs.
+    r"""A slip law (module docstring). Subclass it and override what differs.
 
     Attributes
     ----------
@@ -69,16 +71,25 @@ class SlipLaw:
         is the sum of the forces they carry, which no tangential solve enters (its error is
         the normal forces' alone). Otherwise the friction force is the peak of the pull
         curve.
-    pull_runs
-        Its decoupled pull methods: ``{method name: run(bonds, options, t0)}``.
+    engine
+        Its decoupled pull, ``engine(bonds, options, t0) -> SlipResult``, on the stick solver
+        of ``options.method`` (:class:`~roughslip.linalg.stick.StickSolver`).
+    needs
+        What the engine needs of the stick solver beyond :math:`\varphi` on each stick set
+        (:data:`roughslip.friction.pull.CAPABILITIES`). By default ``"tracked"``: a failed
+        bond carries force. A law that needs nothing is a break sequence on :math:`\varphi`
+        alone (failed bonds carry nothing and never stick again), which the matrix-free
+        methods also run.
     couples
         The coupled model (:func:`~roughslip.coupling.coupled.couple`) runs it exactly.
     lands
         Its decoupled pull records the state each burst lands in, at the drive (an event
         with site -1): :func:`roughslip.analysis.bursts.landing_curve` reads its curve.
     single
-        Its ``"inverse"`` method also runs on a single-precision inverse
+        Its engine has certified decisions for a single-precision inverse
         (``pull(..., precision="single")``).
+    lam
+        The static coefficient :math:`\lambda_s` once bound (:meth:`bind`; NaN before).
     """
 
     #: the law's own parameters: keywords of :func:`~roughslip.friction.pull.pull` and keys
@@ -90,21 +101,29 @@ class SlipLaw:
     curve: str = "events"
     reverses: bool = False
     slides: bool = False
-    pull_runs: dict[str, Callable] = field(default_factory=dict)
     couples: bool = True
     lands: bool = False
     single: bool = False
+    engine: Callable[..., object] | None = None
+    needs: frozenset[str] = frozenset({"tracked"})
+    lam: float = math.nan
+
+    @property
+    def sequence(self) -> bool:
+        r"""Its decoupled pull is a break sequence on :math:`\varphi` alone: failed bonds
+        carry nothing and never stick again (it needs nothing of a stick solver)."""
+        return not self.needs
 
     def bind(self, lam: float, **params: float | None) -> SlipLaw:
-        """The law with its own parameters (``None``: not given), checked against the static
-        coefficient ``lam``; :class:`~roughslip.errors.InputError` names a parameter the law
-        does not have, or one it needs and lacks."""
+        """The law with its static coefficient ``lam`` and its own parameters (``None``: not
+        given); :class:`~roughslip.errors.InputError` names a parameter the law does not
+        have, or one it needs and lacks."""
         for key, value in params.items():
             if value is not None and key not in self.params:
                 raise LawParameterError(key, value, f"slip_law = {self.name!r} has no such "
                                         "parameter" + (f" (it has {', '.join(self.params)})"
                                                        if self.params else ""))
-        return self
+        return replace(self, lam=float(lam))
 
     def failed_sign(self, kind: str) -> float:
         """The slip direction a bond keeps after the failure event ``kind`` (``"slip+"`` or
@@ -158,6 +177,8 @@ class SlipLaw:
 class BreakLaw(SlipLaw):
     """The report's law: a failed bond breaks and carries nothing after."""
 
+    needs: frozenset[str] = frozenset()
+
 
 @dataclass(frozen=True)
 class CoulombLaw(SlipLaw):
@@ -194,7 +215,7 @@ class SlipWeakeningLaw(SlipLaw):
                                     f"(= {lam!r})")
         if not (isinstance(dc, int | float) and math.isfinite(dc) and dc > 0):
             raise LawParameterError("slip_distance", dc, "must be a finite number > 0")
-        return replace(self, lam_dynamic=float(ld), slip_distance=float(dc))
+        return replace(self, lam=float(lam), lam_dynamic=float(ld), slip_distance=float(dc))
 
     def failed_sign(self, kind: str) -> float:
         return 1.0 if kind == "slip+" else -1.0
@@ -204,14 +225,12 @@ class SlipWeakeningLaw(SlipLaw):
 LAWS: Registry[SlipLaw] = Registry("slip law")
 
 LAWS.register("break", "a failed bond carries no force (the report's law)")(BreakLaw(
-    "break", failed="released", curve="break sequence", single=True,
-    pull_runs={"literal": break_literal, "inverse": break_inverse, "cg": break_cg,
-               "batch": break_batch}))
+    "break", failed="released", curve="break sequence", single=True, engine=break_sequence))
 LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(
     "coulomb", failed="slipping", curve="slip events", reverses=True, slides=True,
-    pull_runs={"inverse": slide}))
+    engine=slide, needs=frozenset({"tracked"})))
 LAWS.register("slip-weakening", "a failed bond slips, its strength falling from lam f_z to "
               "lam_dynamic f_z over the slip slip_distance")(SlipWeakeningLaw(
     "slip-weakening", failed="slipping", curve="slip events", reverses=True, couples=False,
-    lands=True,
-    pull_runs={"inverse": weaken}))
+    lands=True, engine=weaken,
+    needs=frozenset({"tracked", "growing", "shifted", "indefinite"})))

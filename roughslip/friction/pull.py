@@ -44,16 +44,17 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from roughslip.contact.methods import Registry
 from roughslip.contact.squeeze import NormalResult
 from roughslip.errors import InputError
 from roughslip.friction.bonds import Bonds, BreakCurve, PullOptions, SlipResult
+from roughslip.friction.breaking import break_batch, break_cg, break_literal
 from roughslip.friction.events import TIE
-from roughslip.friction.laws import LAWS
+from roughslip.friction.laws import LAWS, SlipLaw
 from roughslip.friction.pull_estimates import (  # noqa: F401  (public here too)
     REFINE_TOL,
     bond_spectrum,
@@ -61,9 +62,11 @@ from roughslip.friction.pull_estimates import (  # noqa: F401  (public here too)
     refinement_estimate,
 )
 from roughslip.linalg import lapack64
-from roughslip.linalg.inverse import inverse_bytes
+from roughslip.linalg.inverse import UpdatableInverse, inverse_bytes
 from roughslip.linalg.memory import available_bytes
+from roughslip.linalg.stick import SolverFactory
 from roughslip.linalg.threads import blas_threads
+from roughslip.registry import Registry
 
 #: the slip laws' names when this module was loaded (:data:`roughslip.friction.laws.LAWS` is
 #: the registry)
@@ -73,21 +76,79 @@ SLIP_LAWS = LAWS.names()
 TIE_TOL = TIE
 
 
+#: what a method's stick solver can give beyond :math:`\varphi` on each stick set, and so what
+#: a slip law may need of it (:attr:`~roughslip.friction.laws.SlipLaw.needs`):
+#:
+#: * ``"tracked"``: solutions kept through the changes, with values held by removed unknowns
+#:   (slipping bonds that carry force);
+#: * ``"growing"``: unknowns added to the set by bordering (a bond that sticks again keeping
+#:   its weakening state);
+#: * ``"shifted"``: shifts of a diagonal entry (a bond that starts or stops weakening);
+#: * ``"indefinite"``: a symmetric matrix that is not positive definite.
+CAPABILITIES = ("tracked", "growing", "shifted", "indefinite")
+
+
 @dataclass(frozen=True)
 class PullMethod:
-    """A pull method. Each slip law says which methods it has and runs them
-    (:attr:`roughslip.friction.laws.SlipLaw.pull_runs`).
+    r"""A pull method, with what it can do (the capabilities :func:`pull` and ``auto`` read;
+    no method name is compared anywhere else).
+
+    A method either provides a stick solver (:attr:`solver`, the protocol
+    :class:`~roughslip.linalg.stick.StickSolver`), on which each slip law's own engine runs
+    (:attr:`~roughslip.friction.laws.SlipLaw.engine`), or a matrix-free engine of its own
+    (:attr:`run`), which solves for :math:`\varphi` on each stick set afresh and so runs only
+    the laws that need nothing more (the break law). The laws a method runs follow from
+    :attr:`offers` and each law's :attr:`~roughslip.friction.laws.SlipLaw.needs`
+    (:meth:`runs`).
 
     Attributes
     ----------
-    exact : bool
+    name
+        Its name in :data:`METHODS`.
+    exact
         Gives the exact pull curve (up to the solver tolerance).
-    dense : bool
-        Works on an n x n matrix: BLAS gets the threads, and the FFTs one thread.
+    dense
+        Works on an n x n matrix: BLAS gets the threads, and the FFTs one thread; ``auto``
+        takes it while its matrix fits in memory (:func:`inverse_memory_bytes`).
+    solver
+        The stick solver's factory (the signature of
+        :class:`~roughslip.linalg.inverse.UpdatableInverse`), or None.
+    run
+        ``run(bonds, options, t0) -> SlipResult``: a matrix-free engine, or None.
+    offers
+        What the solver gives (:data:`CAPABILITIES`).
+    precisions
+        The precisions of its stored matrix (``"single"``: with certified decisions, for
+        the laws that have them, :attr:`~roughslip.friction.laws.SlipLaw.single`).
+    tiny
+        ``auto`` takes it for at most this many bonds (0: by the other rules).
+    auto
+        ``auto`` may choose it.
+    early_stop
+        It stops exactly once no later state can exceed the best (``pull.early_stop``).
+    estimate
+        Its friction force has the refinement error estimate (``estimate_error``).
     """
 
+    name: str
     exact: bool
     dense: bool
+    solver: SolverFactory | None = None
+    run: Callable[..., SlipResult] | None = None
+    offers: frozenset[str] = frozenset()
+    precisions: tuple[str, ...] = ("double",)
+    tiny: int = 0
+    auto: bool = True
+    early_stop: bool = True
+    estimate: bool = True
+
+    def runs(self, law: SlipLaw) -> bool:
+        r"""Whether it runs ``law``: on a stick solver, a law with an engine that needs
+        nothing the solver does not offer; matrix-free, a law that needs nothing (a break
+        sequence on :math:`\varphi` alone). ``"auto"`` runs nothing itself."""
+        if self.solver is not None:
+            return law.engine is not None and law.needs <= self.offers
+        return self.run is not None and not law.needs
 
 
 #: the pull methods, by name (the configuration's ``pull.method``)
@@ -106,19 +167,37 @@ def inverse_memory_bytes(n: int, block: int = 128, precision: str = "double") ->
     return inverse_bytes(n, lower=True, block=block, itemsize=4 if precision == "single" else 8)
 
 
-def _single_ok(slip_law: str) -> bool:
-    """Whether ``slip_law`` has the single-precision inverse
-    (:attr:`~roughslip.friction.laws.SlipLaw.single`)."""
-    return LAWS.get(slip_law, "slip_law").single
+def _law(slip_law: str | SlipLaw) -> SlipLaw:
+    """A slip law given by name or as the object."""
+    return LAWS.get(slip_law, "slip_law") if isinstance(slip_law, str) else slip_law
 
 
-def choose_precision(n: int, memory: int | None = None, slip_law: str = "break",
-                     block: int = 128) -> str:
-    """The precision ``"auto"`` picks for the inverse of ``n`` bonds given ``memory`` bytes:
-    double when its matrix fits, else single when that fits and ``slip_law`` has it
-    (the break law), else double (whose memory check then says what would fit)."""
+def _method(method: str | PullMethod) -> PullMethod:
+    """A pull method given by name or as the object."""
+    return METHODS.get(method) if isinstance(method, str) else method
+
+
+def single_ok(slip_law: str | SlipLaw, method: str | PullMethod = "inverse") -> bool:
+    """Whether ``method`` runs ``slip_law`` on a single-precision matrix: the law has
+    certified decisions (:attr:`~roughslip.friction.laws.SlipLaw.single`) and the method
+    stores its matrix in single precision (``"auto"``: some method does)."""
+    law = _law(slip_law)
+    if not law.single:
+        return False
+    m = _method(method)
+    if m.solver is None and m.run is None:  # auto
+        return any(METHODS.get(n).runs(law) and "single" in METHODS.get(n).precisions
+                   for n in METHODS)
+    return m.runs(law) and "single" in m.precisions
+
+
+def choose_precision(n: int, memory: int | None = None, slip_law: str | SlipLaw = "break",
+                     block: int = 128, method: str | PullMethod = "inverse") -> str:
+    """The precision ``"auto"`` picks for the matrix of ``n`` bonds given ``memory`` bytes:
+    double when it fits, else single when that fits and the law and the method have it
+    (:func:`single_ok`), else double (whose memory check then says what would fit)."""
     memory = available_bytes() if memory is None else memory
-    if inverse_memory_bytes(n, block) <= memory or not _single_ok(slip_law):
+    if inverse_memory_bytes(n, block) <= memory or not single_ok(slip_law, method):
         return "double"
     return "single" if inverse_memory_bytes(n, block, "single") <= memory else "double"
 
@@ -139,57 +218,67 @@ def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
     return np.interp(dx, xs, ys, right=result.friction_force)
 
 
-def check_friction(lam: float, slip_law: str, coupled: bool = False) -> None:
-    """Raise :class:`InputError` unless ``lam`` is a finite number > 0 and ``slip_law`` a name
-    in :data:`~roughslip.friction.laws.LAWS` (the pull, the coupled model and the indentation
-    share the rule), which the coupled model runs when ``coupled``."""
+def check_friction(lam: float, slip_law: str | SlipLaw, coupled: bool = False) -> None:
+    """Raise :class:`InputError` unless ``lam`` is a finite number > 0 and ``slip_law`` a law
+    of :data:`~roughslip.friction.laws.LAWS` (by name or object; the pull, the coupled model
+    and the indentation share the rule), which the coupled model runs when ``coupled``."""
     if not (isinstance(lam, int | float) and math.isfinite(lam) and lam > 0):
         raise InputError(f"lam = {lam!r}: must be a finite number > 0")
-    law = LAWS.get(slip_law, "slip_law")
+    law = _law(slip_law)
     if coupled and not law.couples:
         raise InputError(f"slip_law = {slip_law!r}: the coupled model has no exact path for "
                          "it (its strength and f_z both vary, a bilinear constraint); use "
                          "the decoupled pull")
 
 
-def methods_for(slip_law: str) -> list[str]:
-    """The pull methods that accept ``slip_law`` (``auto`` chooses among them)."""
-    runs = LAWS.get(slip_law, "slip_law").pull_runs
-    return [n for n in METHODS.names() if n == "auto" or n in runs]
+def methods_for(slip_law: str | SlipLaw) -> list[str]:
+    """The pull methods that run ``slip_law`` (:meth:`PullMethod.runs`), and ``"auto"``,
+    which chooses among them."""
+    law = _law(slip_law)
+    return [n for n in METHODS.names()
+            if METHODS.get(n).runs(law) or not (METHODS.get(n).solver or METHODS.get(n).run)]
 
 
-def choose_method(n: int, memory: int | None = None, slip_law: str = "break",
+def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "break",
                   precision: str = "auto") -> str:
     """The exact method ``"auto"`` picks for ``n`` bonds given ``memory`` bytes, among those
-    of ``slip_law``.
+    that run ``slip_law`` and that ``auto`` may choose (:attr:`PullMethod.auto`), by their
+    capabilities, in the order of :data:`METHODS`.
 
-    Tiny contacts use the literal algorithm. Then the inverse (about n^3 flops, n^2 doubles)
-    whenever it fits in memory and the LAPACK can index it (for 3 271 bonds it was about 100
-    times faster than one warm-started CG solve per break, docs/benchmarks.md), in double
-    precision or, under the break law with ``precision`` ``"auto"`` or ``"single"``, in
-    single precision (n^2 floats); otherwise the matrix-free exact method. A law with the
-    inverse only (Coulomb), or ``precision="single"`` under the break law, gets the inverse,
-    which checks its memory itself.
+    A law that only dense methods run gets the first of them, which checks its memory
+    itself; so does ``precision="single"`` for a law with certified decisions. Otherwise a
+    method made for tiny contacts takes them (:attr:`PullMethod.tiny`, the literal
+    algorithm); then a dense method whenever its matrix fits in memory (in double or, where
+    the law and the method have it, single precision) and the LAPACK can index it (for
+    3 271 bonds the inverse was about 100 times faster than one warm-started CG solve per
+    break, docs/benchmarks.md); otherwise the first matrix-free exact method.
     """
-    runs = LAWS.get(slip_law, "slip_law").pull_runs
-    exact = [m for m in runs if METHODS.get(m).exact]
-    if not exact:
-        raise InputError(f"slip_law = {slip_law!r} has no exact decoupled pull method; use "
+    law = _law(slip_law)
+    cands = [METHODS.get(m) for m in METHODS.names()]
+    cands = [m for m in cands if m.auto and m.exact and m.runs(law)]
+    if not cands:
+        raise InputError(f"slip_law = {law.name!r} has no exact decoupled pull method; use "
                          "the coupled model (coupling.enabled = true, or couple())")
-    if exact == ["inverse"]:
-        return "inverse"
-    if precision == "single" and _single_ok(slip_law) and "inverse" in runs:
-        return "inverse"  # asked for by name: it checks its memory itself
+    dense = [m for m in cands if m.dense]
+    free = [m for m in cands if not m.dense and not m.tiny]
+    if dense and not free:
+        return dense[0].name
+    if precision == "single":
+        for m in dense:
+            if single_ok(law, m):
+                return m.name  # asked for by name: it checks its memory itself
     memory = available_bytes() if memory is None else memory
-    if n <= 12 and "literal" in runs:
-        return "literal"
+    for m in cands:
+        if n <= m.tiny:
+            return m.name
     limit = lapack64.max_n()
-    allowed = [p for p in ("double", "single") if precision in ("auto", p)
-               and (p == "double" or _single_ok(slip_law))]
-    fits = any(inverse_memory_bytes(n, precision=p) <= memory for p in allowed)
-    if "inverse" in runs and fits and (limit is None or n <= limit):
-        return "inverse"
-    return "cg" if "cg" in runs else exact[0]
+    for m in dense:
+        allowed = [p for p in ("double", "single") if precision in ("auto", p)
+                   and (p == "double" or single_ok(law, m))]
+        if any(inverse_memory_bytes(n, precision=p) <= memory for p in allowed) and (
+                limit is None or n <= limit):
+            return m.name
+    return (free or dense)[0].name
 
 
 def pull(
@@ -267,8 +356,8 @@ def pull(
     """
     t0 = time.perf_counter()
     check_friction(lam, slip_law)
-    law = LAWS.get(slip_law).bind(lam, lam_dynamic=lam_dynamic, slip_distance=slip_distance)
-    METHODS.get(method)
+    law = _law(slip_law).bind(lam, lam_dynamic=lam_dynamic, slip_distance=slip_distance)
+    asked = _method(method)
     if precision not in PRECISIONS:
         raise InputError(f"precision = {precision!r}: must be one of {', '.join(PRECISIONS)}")
     if not 0 < tol < 1:
@@ -278,28 +367,31 @@ def pull(
     threads = normal.problem.threads if threads is None else int(threads)
     if threads < 1:
         raise InputError(f"threads = {threads!r}: must be >= 1")
-    opt = PullOptions(slip_law=slip_law, tol=float(tol), early_stop=bool(early_stop),
-                      batch_size=int(batch_size), block=int(block), max_iter=int(max_iter),
-                      threads=threads, law=law)
+    opt = PullOptions(tol=float(tol), early_stop=bool(early_stop), batch_size=int(batch_size),
+                      block=int(block), max_iter=int(max_iter), threads=threads, law=law,
+                      method=asked)
     b = Bonds(normal, float(lam))
     if b.n == 0:
-        return BreakCurve(b, early_stop).result(t0, method, converged=True,
-                                            message="no contact: nothing to pull",
-                                            slip_law=slip_law)
-    chosen = (choose_method(b.n, slip_law=slip_law, precision=precision) if method == "auto"
-              else method)
-    impl = METHODS.get(chosen)
-    run = law.pull_runs.get(chosen)
-    if run is None:
-        raise InputError(f"slip_law = {slip_law!r} supports methods "
-                         f"{', '.join(methods_for(slip_law))}, not {chosen!r}")
+        return BreakCurve(b, early_stop).result(t0, asked.name, converged=True,
+                                                message="no contact: nothing to pull",
+                                                slip_law=law.name)
+    impl = (METHODS.get(choose_method(b.n, slip_law=law, precision=precision))
+            if asked.solver is None and asked.run is None else asked)
+    if not impl.runs(law):
+        raise InputError(f"slip_law = {law.name!r} supports methods "
+                         f"{', '.join(methods_for(law))}, not {impl.name!r}")
     if precision == "auto":
-        precision = (choose_precision(b.n, slip_law=slip_law, block=int(block))
-                     if chosen == "inverse" else "double")
-    if precision == "single" and not (chosen == "inverse" and _single_ok(slip_law)):
-        raise InputError(f"precision = 'single': only the break law's inverse method has it, "
-                         f"not slip_law = {slip_law!r} with method {chosen!r}")
-    opt = replace(opt, precision=precision)
+        precision = (choose_precision(b.n, slip_law=law, block=int(block), method=impl)
+                     if impl.dense else "double")
+    if precision == "single" and not single_ok(law, impl):
+        laws = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)
+        methods = ", ".join(repr(n) for n in METHODS.names()
+                            if "single" in METHODS.get(n).precisions)
+        raise InputError(f"precision = 'single': only slip_law {laws} with method {methods} "
+                         f"has it (certified decisions on a single-precision matrix), not "
+                         f"slip_law = {law.name!r} with method {impl.name!r}")
+    opt = replace(opt, precision=precision, method=impl)
+    run = impl.run if impl.solver is None else law.engine
     if impl.dense:
         # Dense linear algebra gets the threads, and the certification's FFTs run on one
         # thread beside it; FFT-bound CG loops keep BLAS single-threaded (competing FFTW and
@@ -307,14 +399,14 @@ def pull(
         b = Bonds(normal, float(lam), threads=1)
     with blas_threads(threads if impl.dense else 1):
         res = run(b, opt, t0)
-    if method != chosen:
-        res = replace(res, message=f"auto chose {chosen} for {b.n} bonds; " + res.message)
+    if impl is not asked:
+        res = replace(res, message=f"auto chose {impl.name} for {b.n} bonds; " + res.message)
     if estimate_error:
         lo, hi = bond_spectrum(normal, threads=threads)
         kappa = hi / lo
         res = replace(res, condition=kappa, error_bound=kappa * res.residual,
                       seconds=time.perf_counter() - t0)
-        if res.method != "batch" and not law.lands:  # batch and slip-weakening: none (NaN)
+        if impl.estimate and not law.lands:  # batch and slip-weakening: none (NaN)
             # a sliding law's friction force takes no tangential solve
             solve = 0.0 if law.slides else refinement_estimate(normal, res)
             part = abs(normal_share(normal, res))
@@ -326,12 +418,14 @@ def pull(
 
 
 METHODS.register("auto", "an exact method chosen by bond count and memory")(
-    PullMethod(exact=True, dense=False))
+    PullMethod("auto", exact=True, dense=False, auto=False))
 METHODS.register("literal", "the report's algorithm, one CG solve from zero per break")(
-    PullMethod(exact=True, dense=False))
+    PullMethod("literal", exact=True, dense=False, run=break_literal, tiny=12,
+               early_stop=False))
 METHODS.register("inverse", "exact, an updated inverse of G_xx on the bonds (O(n^2) memory)")(
-    PullMethod(exact=True, dense=True))
+    PullMethod("inverse", exact=True, dense=True, solver=UpdatableInverse,
+               offers=frozenset(CAPABILITIES), precisions=("double", "single")))
 METHODS.register("cg", "exact and matrix-free, a warm-started CG solve per break")(
-    PullMethod(exact=True, dense=False))
+    PullMethod("cg", exact=True, dense=False, run=break_cg))
 METHODS.register("batch", "approximate, several bonds broken per solve")(
-    PullMethod(exact=False, dense=False))
+    PullMethod("batch", exact=False, dense=False, run=break_batch, estimate=False))

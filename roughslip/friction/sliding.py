@@ -57,7 +57,7 @@ class TangentialState:
     def __init__(self, b: Bonds, opt: PullOptions) -> None:
         self.b, self.law, self.opt = b, opt.law, opt
         n = b.n
-        self.inv = bond_inverse(b, opt.block, opt.threads)
+        self.inv = bond_inverse(b, opt.block, opt.threads, solver=opt.solver())
         track(self.inv, "phi", np.ones(n))
         self.inv.tracked["psi"] = Tracked(np.zeros(n), np.zeros(n), shrinking_only)
         self.rows = BondRows(b)
@@ -166,8 +166,7 @@ class TangentialState:
         s = self.law.failed_sign(kind)
         carried = float(self.law.carried(self.b.lam, np.array([s]))[0] * self.b.fz[pos])
         # psi <- psi - c (psi_k + f_L,k) / c_k: the removal does it with psi_k so raised
-        self.inv.tracked["psi"].x[r] += carried
-        self.rows.remove(self.inv, r)
+        self.rows.remove(self.inv, r, held={"psi": -carried})
         self.sigma[pos], self.slip[pos] = s, carried
         self.slip_sum += carried
         self.S.ravel()[j] = False
@@ -222,7 +221,7 @@ def slide(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
         broken_site=np.array([e.site for e in ev], dtype=np.int64),
         stick_at_peak=np.zeros(b.shape, bool), fx_at_peak=b.field(st.slip),
         converged=bool(st.ok) and not path.message, seconds=time.perf_counter() - t0,
-        method="inverse", slip_law=opt.slip_law, lam=b.lam, n_bonds=b.n, steps=len(ev),
+        method=opt.method_name, slip_law=opt.slip_law, lam=b.lam, n_bonds=b.n, steps=len(ev),
         residual=st.worst, solves=st.refinements, normal_force=b.normal.normal_force,
         message=path.message or ("exact event sequence to full sliding"
                                  + (f", {sticks} bond(s) stuck again" if sticks else "")),

@@ -70,7 +70,7 @@ from roughslip.friction.events import (
     event_table,
     follow_events,
 )
-from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
+from roughslip.linalg.inverse import Tracked, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 
 STICK, WEAK, RESIDUAL = 0, 1, 2
@@ -118,8 +118,8 @@ class WeakeningState:
                     f"{available_bytes() / 2**30:.2f} GiB are available")
             return True
 
-        self.inv = UpdatableInverse(self._entries, n, room=room, threads=opt.threads,
-                                    block=opt.block, definite=False)
+        self.inv = opt.solver()(self._entries, n, room=room, threads=opt.threads,
+                                block=opt.block, definite=False)
         try:
             self.inv.factor(np.arange(n), positive=True)  # G_xx on the bonds: all stick
         except NumericalError as exc:
@@ -343,19 +343,14 @@ class WeakeningState:
     # -- events ----------------------------------------------------------------------------
     def _set_b(self, p: int, value: float, col: np.ndarray) -> None:
         """Change :math:`b_p` of psi's right-hand side (``col``: column p of the inverse)."""
-        inv = self.inv
-        t = inv.tracked["psi"]
-        t.x += (value - self.bvec[p]) * col
-        t.b[int(inv.row[p])] += value - self.bvec[p]
+        self.inv.change_rhs("psi", p, value - self.bvec[p], col)
         self.bvec[p] = value
 
     def _leave(self, p: int, force: float, col: np.ndarray | None = None) -> None:
         """Bond ``p`` leaves the set with the fixed force ``force`` (residual); ``col``: its
         column of the inverse, when at hand."""
         inv = self.inv
-        r = int(inv.row[p])
-        inv.tracked["psi"].x[r] += force  # psi <- psi - c (psi_r + F) / c_r
-        if not inv.remove(p, column=col):
+        if not inv.remove(p, column=col, held={"psi": -force}):  # psi_r + F moves to the rhs
             raise NumericalError("slip-weakening: a singular update of the inverse")
         if inv.pivot < 0:
             self.neg -= 1
@@ -468,7 +463,7 @@ def weaken(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
         broken_site=np.array([e.site for e in ev], dtype=np.int64),
         stick_at_peak=peak.stick, fx_at_peak=peak.fx,
         converged=bool(st.ok) and not path.message, seconds=time.perf_counter() - t0,
-        method="inverse", slip_law=opt.slip_law, lam=b.lam, n_bonds=b.n, steps=len(ev),
+        method=opt.method_name, slip_law=opt.slip_law, lam=b.lam, n_bonds=b.n, steps=len(ev),
         residual=st.worst, solves=st.refinements, normal_force=b.normal.normal_force,
         message=path.message or (f"exact event path to full sliding, {n_jumps} burst(s), "
                                  f"{st.snaps} bond(s) failed unstably"),

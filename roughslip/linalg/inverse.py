@@ -470,16 +470,24 @@ class UpdatableInverse:
             self.blas_seconds += time.perf_counter() - t0
 
     # -- updates -------------------------------------------------------------------------------
-    def remove(self, unknown: int, column: np.ndarray | None = None) -> bool:
-        """Remove ``unknown`` from the set; False when its pivot is not positive (definite)
+    def remove(self, unknown: int, column: np.ndarray | None = None,
+               held: dict[str, float] | None = None) -> bool:
+        r"""Remove ``unknown`` from the set; False when its pivot is not positive (definite)
         or numerically zero (indefinite, module docstring). ``column``: its current column,
-        when the caller has it."""
+        when the caller has it.
+
+        ``held[name] = h``: in the tracked solution ``name`` the unknown keeps the value
+        :math:`h`, which moves to the right-hand side: the solution becomes
+        :math:`A_{S'S'}^{-1}(b_{S'} - A_{S'r} h) = [x - c\,(x_r - h)/c_r]_{S'}`. The stored
+        right-hand side ``b`` is not updated for it."""
         r = int(self.row[unknown])
         c = self.column(r) if column is None else column
         cr = float(c[r])
         if not (cr > 0 if self.definite else _nonsingular(np.array([cr]), c)):
             return False
         self.pivot = cr
+        for name, h in (held or {}).items():
+            self.tracked[name].x[r] -= h
         for t in self.tracked.values():
             _rank_one(t.x, c, t.x[r] / cr)
             t.x[r] = 0.0
@@ -522,6 +530,18 @@ class UpdatableInverse:
             _rank_one(t.x, c, g * t.x[r])
         self._push((c * math.sqrt(abs(g)))[:, None], -1.0 if g > 0 else 1.0)
         return c / den
+
+    def change_rhs(self, name: str, unknown: int, delta: float,
+                   column: np.ndarray | None = None) -> None:
+        """Add ``delta`` to the entry of ``unknown`` in the right-hand side of the tracked
+        solution ``name``: the solution moves by ``delta`` times the unknown's column
+        (``column``: that column, when the caller has it)."""
+        r = int(self.row[unknown])
+        c = self.column(r) if column is None else column
+        t = self.tracked[name]
+        t.x += delta * c
+        if t.b is not None:
+            t.b[r] += delta
 
     def compact(self, extra: int = 0) -> bool:
         """Drop removed rows; in place when ``extra`` more rows fit, else into a larger buffer

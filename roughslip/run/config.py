@@ -31,7 +31,7 @@ from typing import Any
 
 from roughslip.errors import ConfigError, echo, shorten
 from roughslip.friction.laws import LAWS, LawParameterError
-from roughslip.friction.pull import methods_for
+from roughslip.friction.pull import METHODS, methods_for, single_ok
 from roughslip.run import schema
 from roughslip.run.digest import RENAMED, RETIRED
 from roughslip.run.machine import machine_file, read_machine
@@ -443,20 +443,21 @@ def _check_cross(cfg: RunConfig, ctx: Context, errors: Errors) -> None:
                    "has no exact coupled model (its strength and f_z both vary, a "
                    "bilinear constraint); needs coupling.enabled = false")
     if cfg.pull.enabled and not cfg.coupling.enabled:
-        if not LAWS.get(cfg.pull.slip_law).pull_runs:
+        laws = methods_for(cfg.pull.slip_law)
+        if laws == ["auto"]:
             errors.add("pull.slip_law", cfg.pull.slip_law,
                        "has no decoupled pull method; needs coupling.enabled = true")
-        laws = methods_for(cfg.pull.slip_law)
         if cfg.pull.method not in laws:
             errors.add("pull.method", cfg.pull.method,
                        f"slip_law = {cfg.pull.slip_law!r} needs one of {', '.join(laws)}")
     if cfg.pull.precision == "single" and (
-            cfg.coupling.enabled or not law.single
-            or cfg.pull.method not in ("auto", "inverse")):
+            cfg.coupling.enabled or cfg.pull.method not in METHODS
+            or not single_ok(law, cfg.pull.method)):
         single = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)
-        errors.add("pull.precision", "single", "is the decoupled inverse method of "
-                   f"slip_law {single} only (coupling.enabled = false, method 'auto' or "
-                   "'inverse')")
+        methods = ", ".join(repr(n) for n in METHODS.names() if single_ok(law, n))
+        errors.add("pull.precision", "single", "is the decoupled single-precision matrix of "
+                   f"slip_law {single} only (coupling.enabled = false, method "
+                   f"{methods or repr('auto')})")
     es = cfg.elastic_surface
     tiled = [r for r in ("surface", "elastic_surface") if getattr(cfg, r) is not None
              and getattr(cfg, r).kind == "file" and getattr(cfg, r).tiles]

@@ -12,13 +12,18 @@ from collections.abc import Callable
 from dataclasses import field
 from typing import Any
 
+from roughslip.registry import Registry
+
 Check = Callable[[Any], str | None]
 
 
 def option(default: Any = None, doc: str = "", check: Check | None = None, choices=None, **kw):
-    """A section's field: its default, its description, its check and its choices (any
-    iterable of the allowed values, e.g. a registry's names)."""
-    meta = {"doc": doc, "check": check, "choices": tuple(choices) if choices else None}
+    """A section's field: its default, its description, its check and its choices (a
+    :class:`~roughslip.registry.Registry`, read live, or any iterable of the allowed
+    values)."""
+    live = isinstance(choices, Registry)
+    meta = {"doc": doc, "check": check,
+            "choices": choices if live else tuple(choices) if choices else None}
     if isinstance(default, list | dict):
         return field(default_factory=lambda d=default: type(d)(d), metadata=meta, **kw)
     return field(default=default, metadata=meta, **kw)

@@ -171,7 +171,7 @@ class SqueezeConfig:
                          choices=("length", "rms", "range"))
     force_unit: str = option("force", "forces as totals or as mean pressures in units of E*",
                          choices=("force", "pressure"))
-    method: str = option("pk", SQUEEZE_METHODS.describe(), choices=SQUEEZE_METHODS.names())
+    method: str = option("pk", SQUEEZE_METHODS.describe(), choices=SQUEEZE_METHODS)
     tol: float = option(1e-10, "dimensionless residual tolerance", tol_rule)
     max_iter: int = option(20000, "iteration limit", at_least(1))
     warm_start: bool = option(True, "start each depth from the previous depth's forces")
@@ -187,13 +187,13 @@ class PullConfig:
 
     enabled: bool = option(False, "run the pull stage")
     lam: float = option(0.2, "local friction coefficient lambda", positive)
-    slip_law: str = option("break", LAWS.describe(), choices=LAWS.names())
+    slip_law: str = option("break", LAWS.describe(), choices=LAWS)
     lam_dynamic: float | None = option(None, "slip_law = 'slip-weakening': the residual "
                                    "coefficient lambda_d, 0 <= lam_dynamic <= lam", nonnegative)
     slip_distance: float | None = option(None, "slip_law = 'slip-weakening': the slip d_c "
                                      "(length) over which the strength falls from lam f_z "
                                      "to lam_dynamic f_z", positive)
-    method: str = option("auto", PULL_METHODS.describe(), choices=PULL_METHODS.names())
+    method: str = option("auto", PULL_METHODS.describe(), choices=PULL_METHODS)
     tol: float = option(1e-10, "relative tolerance of the tangential solves", tol_rule)
     batch_size: int = option(16, "sites broken per solve by method = 'batch'", at_least(1))
     error_estimate: bool = option(False, "store pull_error_estimate, the estimated error of the "
@@ -223,7 +223,7 @@ class CouplingConfig:
                      "bonded (a new bond, formed where the surfaces meet)",
                      choices=("unbonded", "bonded"))
     history: str = option("bonded", "how the contacts come to carry their bonds before the pull: "
-                      + HISTORIES.describe(), choices=HISTORIES.names())
+                      + HISTORIES.describe(), choices=HISTORIES)
 
 
 @dataclass(frozen=True)
