@@ -42,6 +42,7 @@ import numpy as np
 
 from roughslip.errors import InputError
 from roughslip.friction.laws import LAWS
+from roughslip.friction.pull import METHODS
 
 PHASES = ("all", "before", "after")
 
@@ -349,17 +350,20 @@ def collect_bursts(paths: list[str | Path]) -> BurstSample:
             raise InputError(f"{path}: has no pull (pull.enabled = false)")
         law = pull.get("slip_law", "break")
         lands = law in LAWS and LAWS.get(law).lands
-        if (law != "break" and not lands) or cfg.get("coupling", {}).get("enabled"):
-            raise InputError(f"{path}: bursts need the decoupled break law or a law whose "
+        sequence = law in LAWS and LAWS.get(law).sequence
+        if not (sequence or lands) or cfg.get("coupling", {}).get("enabled"):
+            raise InputError(f"{path}: bursts need the decoupled break sequence or a law whose "
                              f"pull records where its bursts land (this run has slip_law = "
                              f"{law!r} or coupling.enabled)")
         if "pull_curve" not in cfg.get("output", {}).get("fields", []):
             raise InputError(f"{path}: no pull curves stored; run with 'pull_curve' in "
                              "output.fields")
-        if pull.get("method") == "batch":
+        method = METHODS.get(pull.get("method", "auto"))
+        if not method.exact:
             raise InputError(f"{path}: bursts need an exact pull method (this run has "
-                             "pull.method = 'batch', which breaks several bonds per step)")
-        exhausted = pull.get("method") == "literal" or not pull.get("early_stop", True)
+                             f"pull.method = {method.name!r}, which breaks several bonds per "
+                             "step)")
+        exhausted = not method.early_stop or not pull.get("early_stop", True)
         bad = unconverged_pulls(run)
         with open_file(path) as f:
             for row, s in enumerate(run.sample_index[run.complete]):

@@ -13,6 +13,7 @@ from roughslip.analysis.fit import fit_power_law, pair, quantity
 from roughslip.analysis.summary import axis_unit, length_unit, mean_sem, pixel_size
 from roughslip.errors import InputError, io_failure
 from roughslip.friction.laws import LAWS
+from roughslip.friction.pull import METHODS
 from roughslip.run.store import read_run
 
 
@@ -338,8 +339,9 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
     what = LAWS.get(law).curve if law in LAWS else "events"
     ax.plot(dx, fx, ".", color="0.6", ms=2.5, label=f"{what} $(D_{{x,lim}}, F_{{x,lim}})$")
     i = int(np.argmax(fx))
-    if law == "break" and pull.get("method") != "batch":
-        exhausted = pull.get("method") == "literal" or not pull.get("early_stop", True)
+    method = METHODS.get(pull.get("method", "auto"))
+    if law in LAWS and LAWS.get(law).sequence and method.exact:
+        exhausted = not method.early_stop or not pull.get("early_stop", True)
         c = pull_curve(dx, fx, exhausted=exhausted)
         ax.plot(c.dx, c.fx, "-", color="C0", lw=0.8, label="pull curve, monotone $D_x$")
         big = c.complete & (c.burst_size > 1)

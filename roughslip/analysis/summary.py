@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from roughslip.analysis.fit import PULLED, means, unconverged_pulls
+from roughslip.friction.pull import METHODS
 from roughslip.run.store import read_run
 
 
@@ -233,9 +234,10 @@ def summarize(path: str | Path) -> str:
         bad, total = _count_false(run.scalars["pull_converged"][sel])
         problems.append(f"  pulls not converged: {bad} of {total}"
                         + (" (left out of the friction means and fits)" if bad else ""))
-        if run.config_dict().get("pull", {}).get("method") == "batch":
-            problems.append("  approximate pulls (method 'batch'): biased low, with no error "
-                            "estimate")
+        method = run.config_dict().get("pull", {}).get("method", "auto")
+        if method in METHODS and not METHODS.get(method).exact:
+            problems.append(f"  approximate pulls (method {method!r}): biased low, with no "
+                            "error estimate")
     parts = []
     for name, text in (("residual", "worst squeeze residual: {:.2e}"),
                        ("iterations", "mean iterations {:.1f}"),

@@ -66,6 +66,7 @@ from roughslip.contact.squeeze import NormalResult, squeeze
 from roughslip.coupling.coupled import couple
 from roughslip.errors import VerificationError
 from roughslip.friction.pull import (
+    METHODS,
     SlipResult,
     bond_spectrum,
     coulomb_force_at,
@@ -449,7 +450,7 @@ def _pull_point(normal: NormalResult, ref: SlipResult, kappa: float, method: str
     label = f"N={n}"
     out.points.append(Point("pull", "friction force", method, series, label, n, tol, err,
                             "exact pull", sec, rep, res.converged, res.residual, res.solves))
-    if method == "batch":
+    if not METHODS.get(method).exact:
         out.checks.append(Check("pull", method, series, label, tol, "pull error_estimate",
                                 "none", "friction force", res.error_estimate, abs(err)))
         return out
