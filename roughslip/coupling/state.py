@@ -17,7 +17,7 @@ from scipy import linalg
 from scipy.sparse.linalg import LinearOperator, gmres
 
 from roughslip.errors import NumericalError
-from roughslip.friction.events import TIE, Snapshot, argext, digest, event_table
+from roughslip.friction.events import TIE, EventKind, Snapshot, argext, digest, event_table
 from roughslip.friction.laws import LAWS
 from roughslip.linalg.inverse import refine
 
@@ -336,10 +336,10 @@ class ContactState:
         fscale = max(float(np.max(np.abs(fz))), np.finfo(float).tiny)
         bad = self.C & (fz < -TIE * fscale)
         if bad.any():
-            return "lost", bad, fz, "min", fx
+            return EventKind.LOST, bad, fz, "min", fx
         bad = ~self.C & (g < -TIE * max(self.scale_g, np.finfo(float).tiny))
         if bad.any():
-            return "gained", bad, g, "min", fx
+            return EventKind.GAINED, bad, g, "min", fx
         over = self.law.overload(self.lam, self.S, fz, fx)
         bad = self.S & (over > 1 + TIE)
         if bad.any():
@@ -352,7 +352,7 @@ class ContactState:
         direction of its force."""
         if kind != "slip":
             return kind
-        return "slip+" if fx.ravel()[j] > 0 else "slip-"
+        return EventKind.slip(fx.ravel()[j])
 
     def violation(self, D: float):
         """The first violation to resolve at D, the worst of the first kind
@@ -367,14 +367,14 @@ class ContactState:
     def apply(self, kind: str, j: int, D: float = 0.0) -> None:
         """Update the sets for an event at site ``j`` at pull displacement ``D``."""
         C, S = self.C.ravel(), self.S.ravel()
-        if kind == "lost":
+        if kind == EventKind.LOST:
             C[j] = False
             S[j] = False
             self.sigma.ravel()[j] = 0.0
-        elif kind == "stick":  # a slipping bond sticks again where it is
+        elif kind == EventKind.STICK:  # a slipping bond sticks again where it is
             self._bond_here(j, D)
             self.sigma.ravel()[j] = 0.0
-        elif kind == "gained":
+        elif kind == EventKind.GAINED:
             C[j] = True
             if self.pulling and self.gained == "bonded":
                 self._bond_here(j, D)
@@ -429,8 +429,8 @@ class ContactState:
         gs = max(self.scale_g, np.finfo(float).tiny)
         cons = (
             *self.law.stick_rows(lam, self.S, self.f0, self.f1, fs),
-            ("lost", self.C, fz0, fz1, fs),
-            ("gained", ~self.C, self.g0, self.g1, gs),
+            (EventKind.LOST, self.C, fz0, fz1, fs),
+            (EventKind.GAINED, ~self.C, self.g0, self.g1, gs),
         )
         return event_table(cons, D, Dref, self.Dscale)
 

@@ -22,7 +22,7 @@ from roughslip.contact.squeeze import NormalResult
 from roughslip.elastic.operators import ElasticOperator
 from roughslip.elastic.tables import gather_pairs
 from roughslip.errors import MemoryLimitError, NumericalError
-from roughslip.friction.events import Curve, argext
+from roughslip.friction.events import Curve, EventKind, argext
 from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.restricted import Restricted
@@ -136,7 +136,7 @@ class SlipResult:
         """The pull curve in the vocabulary of the coupled model (:class:`Curve`): one entry
         per event, kind ``"break"`` under the break law; :math:`D_z` is not followed (NaN)."""
         n = self.dx_lim.size
-        kinds = self.kinds if len(self.kinds) == n else ("break",) * n
+        kinds = self.kinds if len(self.kinds) == n else (EventKind.BREAK,) * n
         return Curve(self.dx_lim.copy(), self.fx_lim.copy(), np.full(n, self.normal_force),
                      np.full(n, math.nan), tuple(kinds), self.broken_site.copy())
 

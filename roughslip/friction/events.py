@@ -10,6 +10,7 @@ values within a relative ``TIE`` of the extreme, the lowest flat index.
 
 from __future__ import annotations
 
+import enum
 import functools
 import hashlib
 import math
@@ -30,6 +31,36 @@ RATE_TIE = 1e-9
 VISITS = 3
 
 
+class EventKind(enum.StrEnum):
+    """The kinds of event of the exact models: the one vocabulary of the event loop, the
+    pull curves and the laws (each member is its string, as stored and printed)."""
+
+    #: the state the pull starts from (site -1)
+    START = "start"
+    #: a bond reaches :math:`f_x = +\lambda f_z` (or ``-``) and fails by its slip law
+    SLIP_PLUS = "slip+"
+    SLIP_MINUS = "slip-"
+    #: a bond of the break law's sequence breaks (the decoupled pull's curve)
+    BREAK = "break"
+    #: a slipping bond sticks again where it is (the reversal rule)
+    STICK = "stick"
+    #: a contact's normal force reaches zero, a gap closes (coupled model)
+    LOST = "lost"
+    GAINED = "gained"
+    #: a weakening bond reaches its residual strength, or runs away to it (slip-weakening)
+    RESIDUAL = "residual"
+    SNAP = "snap"
+    #: the state a burst lands in, at the drive that set it off (site -1)
+    JUMP = "jump"
+    #: a driven depth reaches its end (site -1)
+    END = "end"
+
+    @classmethod
+    def slip(cls, force: float) -> EventKind:
+        """The failure of a bond whose tangential force is ``force``: in its direction."""
+        return cls.SLIP_PLUS if force > 0 else cls.SLIP_MINUS
+
+
 @dataclass(frozen=True)
 class Event:
     """One recorded state of the pull."""
@@ -37,8 +68,8 @@ class Event:
     dx: float
     fx: float  # total tangential force F_x
     fz: float  # total normal force F_z at the same D_x
-    kind: str  # "start", "slip+", "slip-", "lost", "gained", "stick" (a slipping bond sticks)
-    site: int  # flat index (-1 for "start")
+    kind: str  # an :class:`EventKind`
+    site: int  # flat index (-1 for START, JUMP and END)
     dz: float = math.nan  # the depth D_z at the same D_x (it moves when the force is held)
 
 
@@ -54,7 +85,7 @@ class Curve:
     fx: np.ndarray  # F_x, the total tangential force
     fz: np.ndarray  # F_z, the total normal force at the same D_x
     dz: np.ndarray  # D_z (NaN where the model does not follow it)
-    kind: tuple[str, ...]  # "start", "break", "slip+", "slip-", "stick", "lost", "gained"
+    kind: tuple[str, ...]  # :class:`EventKind` per event
     site: np.ndarray  # flat index of the event's site (-1: none)
 
     @classmethod
@@ -287,7 +318,7 @@ def follow_events(st: EventState, limit: int, record_states: bool,
         if F_x > path.peak.fx_total:
             path.peak = st.snapshot(at)
 
-    record(0.0, "start", -1)
+    record(0.0, EventKind.START, -1)
     st.pulling = True
     D = 0.0
     first = True
@@ -331,7 +362,7 @@ def follow_events(st: EventState, limit: int, record_states: bool,
         feasible = lo <= hi + tol_d
         if feasible and lo <= D + tol_d and hi >= D - tol_d:
             if falling and landings:  # an avalanche has ended: the state it lands in
-                record(D, "jump", -1)
+                record(D, EventKind.JUMP, -1)
                 peak(D)
             falling = False
             # admissible at D, but a slipping bond would turn back: it sticks again, unless
@@ -340,13 +371,13 @@ def follow_events(st: EventState, limit: int, record_states: bool,
             # turn the whole slip zone back and forth)
             j_back = st.reversal() if hi > D + tol_d else None
             if j_back is not None:
-                record(D, "stick", j_back)
-                st.apply("stick", j_back, D)
+                record(D, EventKind.STICK, j_back)
+                st.apply(EventKind.STICK, j_back, D)
                 st.solve()
                 continue
             if hi > stop or (callable(end) and stop <= D):
                 D = max(D, stop)  # the driven depth reaches its end before the next event
-                record(D, "end", -1)
+                record(D, EventKind.END, -1)
                 break
             if not math.isfinite(hi):
                 path.message = "no further event: the remaining bonds never break"
@@ -373,6 +404,6 @@ def follow_events(st: EventState, limit: int, record_states: bool,
         falling = falling or st.discontinuous
         st.solve()
     if falling and landings and not path.message:  # the last avalanche ends in full sliding
-        record(D, "jump", -1)
+        record(D, EventKind.JUMP, -1)
         peak(D)
     return path

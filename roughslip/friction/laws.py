@@ -32,7 +32,7 @@ import numpy as np
 
 from roughslip.errors import InputError
 from roughslip.friction.breaking import break_sequence
-from roughslip.friction.events import RATE_TIE, TIE
+from roughslip.friction.events import RATE_TIE, TIE, EventKind
 from roughslip.friction.sliding import slide
 from roughslip.friction.weakening import weaken
 from roughslip.registry import Registry
@@ -140,8 +140,8 @@ class SlipLaw:
         r"""The constraints of the stick sites ``S`` for forces :math:`f = f^0 + D f^1`
         (``(f_z, f_x)`` pairs): :math:`\lambda f_z \mp f_x \ge 0`."""
         (fz0, fx0), (fz1, fx1) = f0, f1
-        return [("slip+", S, lam * fz0 - fx0, lam * fz1 - fx1, scale),
-                ("slip-", S, lam * fz0 + fx0, lam * fz1 + fx1, scale)]
+        return [(EventKind.SLIP_PLUS, S, lam * fz0 - fx0, lam * fz1 - fx1, scale),
+                (EventKind.SLIP_MINUS, S, lam * fz0 + fx0, lam * fz1 + fx1, scale)]
 
     def turned_back(self, slipping: np.ndarray, sigma: np.ndarray, rate: np.ndarray,
                     rigid: float) -> int | None:
@@ -187,7 +187,7 @@ class CoulombLaw(SlipLaw):
     when the drive would turn its slip around."""
 
     def failed_sign(self, kind: str) -> float:
-        return 1.0 if kind == "slip+" else -1.0
+        return 1.0 if kind == EventKind.SLIP_PLUS else -1.0
 
 
 @dataclass(frozen=True)
@@ -218,7 +218,7 @@ class SlipWeakeningLaw(SlipLaw):
         return replace(self, lam=float(lam), lam_dynamic=float(ld), slip_distance=float(dc))
 
     def failed_sign(self, kind: str) -> float:
-        return 1.0 if kind == "slip+" else -1.0
+        return 1.0 if kind == EventKind.SLIP_PLUS else -1.0
 
 
 #: the slip laws, by name (the configuration's ``pull.slip_law``)

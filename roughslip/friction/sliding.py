@@ -41,6 +41,7 @@ from roughslip.friction.bonds import (
 )
 from roughslip.friction.events import (
     TIE,
+    EventKind,
     Snapshot,
     argext,
     digest,
@@ -129,7 +130,7 @@ class TangentialState:
         if not bad.any():
             return None
         j = argext(over, bad, "max")
-        return ("slip+" if fx[j] > 0 else "slip-"), self._site(j)
+        return EventKind.slip(fx[j]), self._site(j)
 
     #: no event changes the forces at constant drive
     discontinuous = False
@@ -157,10 +158,10 @@ class TangentialState:
     def apply(self, kind: str, j: int, D: float = 0.0) -> None:
         pos = int(self.position[j])
         self._rate = None
-        if kind == "stick":
+        if kind == EventKind.STICK:
             self._stick_again(pos, j, D)
             return
-        if kind not in ("slip+", "slip-"):
+        if kind not in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
             raise NumericalError(f"decoupled pull: no event {kind!r} (internal error)")
         r = int(self.inv.row[pos])
         s = self.law.failed_sign(kind)
@@ -213,8 +214,8 @@ def slide(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
     every force in the pull's direction)."""
     st = TangentialState(b, opt)
     path = follow_events(st, 20 * b.n + 100, False)
-    ev = [e for e in path.events if e.kind != "start"]
-    sticks = sum(e.kind == "stick" for e in ev)
+    ev = [e for e in path.events if e.kind != EventKind.START]
+    sticks = sum(e.kind == EventKind.STICK for e in ev)
     return SlipResult(
         friction_force=float(st.slip.sum()), peak_index=len(ev) - 1,
         dx_lim=np.array([e.dx for e in ev]), fx_lim=np.array([e.fx for e in ev]),

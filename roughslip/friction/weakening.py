@@ -64,6 +64,7 @@ from roughslip.friction.bonds import Bonds, PullOptions, SlipResult
 from roughslip.friction.events import (
     RATE_TIE,
     TIE,
+    EventKind,
     Snapshot,
     argext,
     digest,
@@ -256,15 +257,16 @@ class WeakeningState:
         S, W = live & (ph == STICK), live & (ph == WEAK)
         sg = self.sigma[ids]
         lam = self.lam_cur[ids]
-        cons = [("slip+", S, lam * fz + psi, -phi, fs), ("slip-", S, lam * fz - psi, phi, fs),
-                ("residual", W, -sg * psi - self.lam_d * fz, sg * phi, fs)]
+        cons = [(EventKind.SLIP_PLUS, S, lam * fz + psi, -phi, fs),
+                (EventKind.SLIP_MINUS, S, lam * fz - psi, phi, fs),
+                (EventKind.RESIDUAL, W, -sg * psi - self.lam_d * fz, sg * phi, fs)]
         return cons, ids, fs
 
     def interval(self, D: float) -> tuple[float, float, str, int]:
         """The admissible interval of the drive and the event ending it
         (:func:`~roughslip.friction.events.event_table`)."""
         if not self.stable():  # a weakening bond runs away: admissible nowhere
-            return math.inf, -math.inf, "snap", -1
+            return math.inf, -math.inf, EventKind.SNAP, -1
         cons, ids, _ = self._cons(D)
         lo, hi, kind, row = event_table(cons, D, max(self.Dscale, abs(D)), self.Dscale)
         return lo, hi, kind, (int(self.b.sites[ids[row]]) if row >= 0 else -1)
@@ -274,7 +276,7 @@ class WeakeningState:
         lowest row), or None. In an unstable state: the weakening bond that slips to its
         residual strength (:meth:`_runaway`)."""
         if not self.stable():
-            return "snap", int(self.b.sites[self._runaway(D)])
+            return EventKind.SNAP, int(self.b.sites[self._runaway(D)])
         cons, ids, _ = self._cons(D)
         best, which = TIE, None
         for name, m, a, b, _ in cons:
@@ -378,8 +380,8 @@ class WeakeningState:
         p = int(self.position[j])
         inv = self.inv
         snaps = self.snaps
-        if kind in ("slip+", "slip-"):
-            s = 1.0 if kind == "slip+" else -1.0
+        if kind in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
+            s = 1.0 if kind == EventKind.SLIP_PLUS else -1.0
             self.sigma[p] = s
             col = inv.column(int(inv.row[p])) if self.k[p] > 0 else None
             if col is not None and self.lam_cur[p] > self.lam_d and \
@@ -393,15 +395,15 @@ class WeakeningState:
                 self.snaps += self.lam_cur[p] > self.lam_d
                 self.delta[p] = max(self.delta[p], self.dc)
                 self._leave(p, s * self.lam_d * self.fz[p], col)
-        elif kind == "residual":
+        elif kind == EventKind.RESIDUAL:
             s = self.sigma[p]
             self.delta[p] += s * (self._slip(p, D) - self.s0[p])
             self._leave(p, s * self.lam_d * self.fz[p])
-        elif kind == "snap":  # a weakening bond runs away to its residual strength
+        elif kind == EventKind.SNAP:  # a weakening bond runs away to its residual strength
             self.snaps += 1
             self.delta[p] = max(self.delta[p], self.dc)
             self._leave(p, self.sigma[p] * self.lam_d * self.fz[p])
-        elif kind == "stick":
+        elif kind == EventKind.STICK:
             s = self.sigma[p]
             slip = self._slip(p, D)
             if self.phase[p] == WEAK:
@@ -456,7 +458,7 @@ def weaken(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
     ev = path.events[1:]
     peak = path.peak
     at = [i for i, e in enumerate(ev) if e.dx == peak.dx and e.fx == peak.fx_total]
-    n_jumps = sum(e.kind == "jump" for e in ev)
+    n_jumps = sum(e.kind == EventKind.JUMP for e in ev)
     return SlipResult(
         friction_force=max(peak.fx_total, 0.0), peak_index=at[0] if at else 0,
         dx_lim=np.array([e.dx for e in ev]), fx_lim=np.array([e.fx for e in ev]),
