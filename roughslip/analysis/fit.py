@@ -2,7 +2,7 @@ r"""Power-law fits :math:`y = c\,x^\alpha` over ensemble means (docs/guide/quick
 
 The means over samples at each depth are fitted in log-log by least squares. A pull that did
 not converge is left out of the means (:func:`pair`): its friction force, and the other
-quantity at the same sample and depth, are not a result (docs/theory/coupled.rst#unconverged).
+quantity at the same sample and depth, are not a result (docs/methods.rst#unconverged).
 Two uncertainties are reported: the regression standard error of :math:`\alpha` (scatter of the
 means about the line) and the standard deviation of :math:`\alpha` over bootstrap resamples of
 the samples (sampling error of the ensemble), with a 95 % percentile interval. The bootstrap is
