@@ -203,6 +203,47 @@ def test_voids_never_touch(tmp_path):
     assert prov["missing"] == "void" and prov["missing_points"] == 16
 
 
+def _scan_with_holes(rms: float = 42.0, missing: int = 7) -> np.ndarray:
+    """A 64 x 64 self-affine scan of rms ``rms`` with ``missing`` NaN points at distinct
+    places (a profilometer's dropouts)."""
+    h = self_affine((64, 64), hurst=0.8, rms_height=rms, rng=sample_rng(11, 0), oversample=2)
+    pick = np.random.default_rng(5).choice(h.size, missing, replace=False)
+    h.ravel()[pick] = np.nan
+    return h
+
+
+@pytest.mark.parametrize(("unit", "per_nm"), [("nm", 1.0), ("m", 1e-9)])
+def test_missing_points_keep_the_scan_s_own_height_prefix(tmp_path, unit, per_nm):
+    """A 42 nm rms scan with 7 missing points, given in nm or in m, is drawn in nm: the
+    colour bar's label says nm and its limits are the scan's extreme heights in nm (the rms
+    of a field with NaN is NaN, which once chose pm and heights 1000 times too large)."""
+    from roughslip.analysis.topography_report import describe, display_unit, stats_figure
+
+    h = _scan_with_holes()
+    p = tmp_path / "holes.npy"
+    np.save(p, h * per_nm)
+    st, shown = describe(p, unit=unit, pixel=50 * per_nm)
+    assert st.unit == "nm" and st.missing == 7
+    assert st.rms_height == pytest.approx(np.sqrt(np.nanmean((h - np.nanmean(h)) ** 2)),
+                                          rel=0.01)  # the harmonic fill moves 7 of 4096
+    fig = stats_figure(st, shown)
+    image, bar = fig.axes[0], fig.axes[2]
+    assert bar.get_ylabel() == "height (nm)"
+    lo, hi = image.images[0].get_clim()
+    # h in nm, scaled to m and back: two roundings, each within 1.1e-16 relative
+    assert lo == pytest.approx(np.nanmin(h), rel=1e-15)
+    assert hi == pytest.approx(np.nanmax(h), rel=1e-15)
+    ticks = [t for t in bar.get_yticks() if lo <= t <= hi]
+    assert ticks and max(abs(t) for t in ticks) < 1000  # ticks in nm, not pm
+    assert "7 missing point(s)" in image.get_title()
+    assert display_unit(float("nan"), "nm") == ("nm", 1.0)
+    png = tmp_path / "t.png"
+    r = CliRunner().invoke(cli, ["topography", str(p), "--unit", unit, "--pixel-size",
+                                 str(50 * per_nm), "--plot", str(png)])
+    assert r.exit_code == 0 and png.stat().st_size > 0, r.output
+    assert "height unit:     nm" in r.output
+
+
 def test_masked_points_of_an_instrument_file(tmp_path, scan):
     mask = np.zeros(scan.shape)
     mask[10:12, 20:25] = 1.0

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,11 +21,19 @@ from roughslip.surfaces.topography import (
     statistics,
 )
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 
 def display_unit(rms: float, unit: str) -> tuple[str, float]:
     """The SI prefix that puts a length ``rms`` in ``unit`` between 1 and 1000 (heights of a
-    scan in metres read in nm or um; its lateral size in um or mm): ``(new unit, factor)``."""
+    scan in metres read in nm or um; its lateral size in um or mm): ``(new unit, factor)``.
+
+    A length that is not a finite positive number (the rms of a flat map, or a NaN from
+    missing points) says nothing about the prefix: ``unit`` is kept, with factor 1."""
     per = metres_per(unit, "height unit")
+    if not (math.isfinite(rms) and rms > 0):
+        return unit, 1.0
     metres = rms * per
     name = next((n for n in ("m", "mm", "um", "nm") if metres >= LENGTH_UNITS[n]), "pm")
     return name, per / LENGTH_UNITS[name]
@@ -134,10 +143,23 @@ def _hurst_lines(st: TopographyStats) -> list[str]:
 
 
 def plot_stats(st: TopographyStats, h: np.ndarray, out: str | Path) -> Path:
-    """Height map and PSD with the fitted power law ``C ~ q^(-2(1+H))``."""
-    from roughslip.analysis.plotting import finish_axes, log_ticks, pyplot, save
+    """Height map and PSD with the fitted power law ``C ~ q^(-2(1+H))``
+    (:func:`stats_figure`), written to ``out``."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    return save(pyplot(), stats_figure(st, h), out)
+
+
+def stats_figure(st: TopographyStats, h: np.ndarray) -> Figure:
+    """The figure of :func:`plot_stats`: the height map, in the prefix that puts the rms
+    height between 1 and 1000 (:func:`display_unit` of ``st.rms_height``, which is taken over
+    the valid points, so missing points do not change it; they are drawn white), and the
+    radially averaged PSD with the fitted power law."""
+    from roughslip.analysis.plotting import finish_axes, log_ticks, pyplot
 
     plt = pyplot()
+    from matplotlib import colormaps
+
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     ax = axes[0]
     unit = st.unit or "length unit"
@@ -149,15 +171,20 @@ def plot_stats(st: TopographyStats, h: np.ndarray, out: str | Path) -> Path:
                   else (unit, 1.0))
         extent = (0.0, h.shape[1] * a * f, 0.0, h.shape[0] * a * f)
         xl, yl = f"x ({lat})", f"y ({lat})"
-    # heights in the prefix that suits them (nm for a 1e-7 m scan), not with an offset
-    hunit, hf = (display_unit(float(np.std(h)), st.unit) if st.unit in LENGTH_UNITS
+    # heights in the prefix that suits them (nm for a 1e-7 m scan), not with an offset; the
+    # rms of the statistics, since that of h is NaN when points are missing
+    hunit, hf = (display_unit(st.rms_height, st.unit) if st.unit in LENGTH_UNITS
                  else (unit, 1.0))
-    im = ax.imshow(h * hf, origin="lower", interpolation="nearest", cmap="viridis",
+    cmap = colormaps["viridis"].with_extremes(bad="white")  # missing points
+    im = ax.imshow(h * hf, origin="lower", interpolation="nearest", cmap=cmap,
                    extent=extent)
     cb = fig.colorbar(im, ax=ax, fraction=0.046, label=f"height ({hunit})")
     cb.formatter.set_useOffset(False)
     cb.update_ticks()
-    ax.set_title(Path(st.path.split(" (")[0]).name, fontsize=9)
+    title = Path(st.path.split(" (")[0]).name
+    if st.missing:
+        title += f" ({st.missing} missing point(s), white)"
+    ax.set_title(title, fontsize=9)
     ax.set_xlabel(xl)
     ax.set_ylabel(yl)
     ax = axes[1]
@@ -175,4 +202,4 @@ def plot_stats(st: TopographyStats, h: np.ndarray, out: str | Path) -> Path:
     log_ticks(ax.yaxis)
     finish_axes(ax, f"wavenumber q (rad per {st.unit or 'length unit'})",
                 f"C(q) ({st.unit or 'length unit'}$^4$)")
-    return save(plt, fig, out)
+    return fig
