@@ -48,6 +48,25 @@ def test_rms_scaling_is_exact(shape):
     assert S.rms_slope_of(h, 0.1) == pytest.approx(0.3, rel=1e-13)
 
 
+def test_statistics_of_a_map_with_missing_points_use_the_valid_ones():
+    """Missing points (NaN) are left out of the rms height and slope, not spread over them;
+    a spectrum, which needs every point, refuses them by name."""
+    y, x = np.mgrid[0:6, 0:8].astype(float)
+    h = 0.5 * x - 0.25 * y  # slopes 0.5 and -0.25 everywhere
+    holes = h.copy()
+    holes[2, 3] = holes[4, 6] = np.nan
+    valid = h[np.isfinite(holes)]
+    # the same arithmetic on the valid points: within a few roundings
+    assert S.rms_height_of(holes) == pytest.approx(np.std(valid), rel=1e-14)
+    assert S.rms_slope_of(holes, a=0.5) == pytest.approx(np.hypot(0.5, 0.25) / 0.5,
+                                                         rel=1e-14)
+    assert np.isnan(S.rms_height_of(np.full((4, 4), np.nan)))
+    with pytest.raises(InputError, match="2 missing"):
+        S.radial_psd(holes)
+    with pytest.raises(InputError, match="missing"):
+        S.hurst_estimate(np.pad(holes, 30))
+
+
 def test_sample_generation_is_order_independent():
     a = [S.self_affine((16, 16), hurst=0.8, rms_height=1, rng=S.sample_rng(7, i))
          for i in range(4)]

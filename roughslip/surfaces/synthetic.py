@@ -368,18 +368,34 @@ def _validate(arr: np.ndarray, name: str, allow_missing: bool = False) -> np.nda
 
 
 def rms_height_of(h: np.ndarray) -> float:
-    """Root mean square of ``h - mean(h)``."""
-    return float(np.sqrt(np.mean((h - h.mean()) ** 2)))
+    r"""Root mean square of ``h - mean(h)`` over the valid points.
+
+    .. math:: h_\mathrm{rms} = \sqrt{\langle (h - \langle h\rangle)^2\rangle}
+
+    Missing points (NaN, as a scan read with ``allow_missing`` holds them) are left out of
+    both means; a map without a valid point gives NaN.
+    """
+    ok = np.isfinite(h)
+    v = h if ok.all() else h[ok]
+    if v.size == 0:
+        return math.nan
+    return float(np.sqrt(np.mean((v - v.mean()) ** 2)))
 
 
 def rms_slope_of(h: np.ndarray, a: float = 1.0) -> float:
     r""":math:`\sqrt{\langle (\partial_x h)^2\rangle + \langle (\partial_y h)^2\rangle}` by forward
-    differences inside the grid (an axis of length 1 contributes nothing)."""
+    differences inside the grid (an axis of length 1 contributes nothing).
+
+    A difference with a missing point (NaN) at either end is left out of its mean; an axis
+    with no valid difference contributes nothing.
+    """
     s = 0.0
-    if h.shape[1] > 1:
-        s += float(np.mean(np.diff(h, axis=1) ** 2))
-    if h.shape[0] > 1:
-        s += float(np.mean(np.diff(h, axis=0) ** 2))
+    for axis in (1, 0):
+        if h.shape[axis] > 1:
+            d = np.diff(h, axis=axis)
+            d = d[np.isfinite(d)]
+            if d.size:
+                s += float(np.mean(d**2))
     return math.sqrt(s) / a
 
 
@@ -399,8 +415,18 @@ def radial_psd(h: np.ndarray, a: float = 1.0, window: str | None = None, nbins: 
     q, C, count : ndarray
         Bin centres (angular wavenumber), the mean of :math:`|\hat h|^2 a^2/(n_y n_x)` in
         each non-empty bin, and the number of Fourier modes in it.
+
+    Raises
+    ------
+    InputError
+        When a height is missing (NaN): fill missing points first
+        (:func:`roughslip.surfaces.topography.harmonic_fill`).
     """
     ny, nx = h.shape
+    if not np.isfinite(h).all():
+        raise InputError(f"{int((~np.isfinite(h)).sum())} missing (non-finite) height(s): "
+                         "a spectrum needs every point; fill them first "
+                         "(roughslip.surfaces.topography.harmonic_fill)")
     hh = h - h.mean()
     if window == "hann":
         w = np.outer(np.hanning(ny), np.hanning(nx))
