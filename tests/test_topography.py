@@ -637,6 +637,20 @@ def test_a_flat_topography_is_refused_naming_the_file(tmp_path):
         read_raw(tmp_path / "masked.gwy")
 
 
+def test_the_config_reference_names_every_format_read_without_the_extra():
+    """``surface.path``'s description, from which the configuration reference is made, names
+    every suffix that is read without SurfaceTopography."""
+    import dataclasses
+
+    from roughslip.run.config import SECTIONS
+    from roughslip.surfaces.topography import BUILTIN_SUFFIXES
+
+    docs = {f.name: f.metadata["doc"] for f in dataclasses.fields(SECTIONS["surface"])}
+    named = set(re.findall(r"\.\w+", docs["path"]))
+    assert {*BUILTIN_SUFFIXES, ".x3p"} <= named, {*BUILTIN_SUFFIXES, ".x3p"} - named
+    assert ".x3p" in docs["key"]
+
+
 def test_surface_path_that_is_missing_or_a_directory(tmp_path):
     (tmp_path / "adir.npy").mkdir()
     for path, words in (("nothere.npy", ["surface.path = \"nothere.npy\": no such file"]),

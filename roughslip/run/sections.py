@@ -124,10 +124,12 @@ class SurfaceConfig:
     # plane
     slope: list[float] | None = option(None, "[dh/dx, dh/dy]", pair)
     # file
-    path: str | None = option(None, "topography file: .npy, .npz, .txt/.csv/.dat/.asc, .h5/.hdf5, "
-                          "or an instrument format (with the topography extra)")
-    key: str | None = option(None, "array name in .npz, dataset path in HDF5, or channel name in "
-                         "an instrument file (default: its only or default channel)")
+    path: str | None = option(None, "topography file: .npy, .npz, .txt/.csv/.dat/.asc, "
+                          ".h5/.hdf5/.hdf, .x3p (ISO 25178-72, both revisions), or an "
+                          "instrument format (with the topography extra)")
+    key: str | None = option(None, "array name in .npz, dataset path in HDF5, layer number in "
+                         ".x3p, or channel name in an instrument file (default: its only or "
+                         "default channel, or layer 0)")
     scale: float = option(1.0, "factor applied to the heights read from the file", positive)
     unit: str | None = option(None, "length unit of a file that carries none (heights and pixel "
                           "size); a file with units is converted to units.length",
