@@ -122,22 +122,42 @@ def format_stats(st: TopographyStats) -> str:
         f"rms curvature:   {st.rms_curvature:.6g} per {st.unit or 'length unit'}",
         *_hurst_lines(st),
     ]
-    return "\n".join(lines)
+    return "\n".join(_wrap(line) for line in lines)
+
+
+#: columns of the plain-text report
+WIDTH = 100
+
+
+def _wrap(line: str) -> str:
+    """A report line folded at :data:`WIDTH` columns, continued under its value."""
+    if len(line) <= WIDTH:
+        return line
+    import textwrap
+
+    indent = " " * 17 if line.startswith(("Hurst", "  how", "file")) else "  "
+    return "\n".join(textwrap.wrap(line, WIDTH, subsequent_indent=indent,
+                                    break_on_hyphens=False))
 
 
 def _hurst_lines(st: TopographyStats) -> list[str]:
     per = st.unit or "length unit"
     if not math.isfinite(st.hurst):
         return ["Hurst exponent:  not estimated", *(f"warning: {w}" for w in st.warnings)]
+    lo, hi = st.hurst_range
+    why_lo = ("4 x the lowest wavenumber, above the window's leakage and the patch size"
+              if st.hurst_rolloff is None else
+              f"above a roll-off found at q = {st.hurst_rolloff:.4g}")
+    why_hi = ("half the Nyquist wavenumber, below the pixel-scale bend" if st.hurst_bend is None
+              else f"below a bend (noise floor or pixel scale) found at q = "
+                   f"{st.hurst_bend:.4g}")
     return [
-        f"Hurst exponent:  {st.hurst:.3f} +- {st.hurst_std:.3f} (one standard deviation of "
-        f"the estimate on this grid); bias on this grid {st.hurst_bias:+.3f}, corrected "
-        f"{st.hurst_corrected:.3f}",
+        f"Hurst exponent:  {st.hurst:.3f} +- {st.hurst_std:.3f} (one standard deviation, with "
+        f"the fit's systematic error: statistical {st.hurst_std_statistical:.3f}, low end of "
+        f"the range {st.hurst_sys_low:.3f}, high end {st.hurst_sys_high:.3f})",
         f"  how:           radially averaged PSD, Hann window, C ~ q^-2(1+H) fitted over "
-        f"q = {st.hurst_range[0]:.4g} .. {st.hurst_range[1]:.4g} rad per {per} "
-        f"({st.hurst_bins} bins: from 4 x the lowest wavenumber, above the window's leakage "
-        "and the patch size, to half the Nyquist wavenumber, below the pixel-scale bend); "
-        "the spread and bias from 32 synthetic surfaces of this shape and H",
+        f"q = {lo:.4g} .. {hi:.4g} rad per {per} ({st.hurst_bins} bins: from {why_lo}, to "
+        f"{why_hi})",
         *(f"warning: {w}" for w in st.warnings),
     ]
 

@@ -466,7 +466,9 @@ def hurst_estimate(h: np.ndarray, a: float = 1.0, *, qmin: float | None = None,
     Fits ``log C`` against ``log q`` over ``qmin <= q <= qmax`` (default: from 4 times the
     lowest wavenumber to half the Nyquist wavenumber, where discretisation bends the spectrum),
     weighting each bin by the square root of its number of modes (the standard error of a
-    bin's log-mean power falls like one over that).
+    bin's log-mean power falls like one over that). The bare estimate over a fixed range; a
+    range chosen from the spectrum and an uncertainty with the fit's systematic error:
+    :func:`roughslip.surfaces.hurst.fit_hurst`.
     """
     q, c, count = radial_psd(h, a, window=window)
     ny, nx = h.shape
@@ -478,47 +480,3 @@ def hurst_estimate(h: np.ndarray, a: float = 1.0, *, qmin: float | None = None,
         raise InputError("too few wavenumbers in the fitting range to estimate H")
     slope = np.polyfit(np.log(q[sel]), np.log(c[sel]), 1, w=np.sqrt(count[sel]))[0]
     return float(-slope / 2 - 1)
-
-
-#: seed of the synthetic surfaces behind :func:`hurst_uncertainty` (a pure function of its
-#: arguments)
-HURST_BOOTSTRAP_SEED = 25178
-
-
-#: the largest grid side :func:`hurst_uncertainty` simulates
-HURST_BOOTSTRAP_MAX = 512
-
-
-def hurst_uncertainty(shape: tuple[int, int], hurst: float, a: float = 1.0, *,
-                      samples: int = 32) -> tuple[float, float]:
-    r"""Standard deviation and bias of :func:`hurst_estimate` (Hann window, default range) for
-    a surface of ``shape`` and exponent ``hurst``: a parametric bootstrap.
-
-    ``samples`` self-affine surfaces of that shape and exponent (clipped to [0.05, 0.95]),
-    cropped from twice larger periodic grids like a measured patch of a larger surface, from
-    the fixed seed :data:`HURST_BOOTSTRAP_SEED`, are estimated like the data; the spread of the
-    estimates is the uncertainty of one estimate, and their mean minus ``hurst`` its bias. The
-    spread grows as the grid shrinks (0.01 at 512 x 512, 0.03 at 256 x 256, 0.09 at 96 x 96,
-    0.1-0.3 at 48 x 64, where the fit range holds few wavenumber bins), and the estimate is
-    biased high on small grids (+0.03 at 96 x 96, +0.1 at 48 x 64). A side longer than
-    :data:`HURST_BOOTSTRAP_MAX` is simulated at that length, which overstates the spread: an
-    upper bound there.
-
-    Returns
-    -------
-    (std, bias) : tuple of float
-    """
-    h0 = min(max(float(hurst), 0.05), 0.95)
-    shape = tuple(min(int(n), HURST_BOOTSTRAP_MAX) for n in shape)
-    est = []
-    for k in range(int(samples)):
-        h = self_affine(shape, hurst=h0, rms_height=1.0, a=a, oversample=2,
-                        rng=sample_rng(HURST_BOOTSTRAP_SEED, k))
-        try:
-            est.append(hurst_estimate(h, a, window="hann"))
-        except InputError:
-            continue
-    if len(est) < 2:
-        return math.nan, math.nan
-    e = np.array(est)
-    return float(e.std(ddof=1)), float(e.mean() - h0)

@@ -482,7 +482,14 @@ def detrend(h: np.ndarray, mode: str) -> np.ndarray:
 
 @dataclass(frozen=True)
 class TopographyStats:
-    """What a user checks before a run."""
+    """What a user checks before a run.
+
+    The Hurst exponent comes from :func:`~roughslip.surfaces.hurst.fit_hurst`: ``hurst_std``
+    is one standard deviation including the fit's systematic error,
+    ``hurst_std_statistical``, ``hurst_sys_low`` and ``hurst_sys_high`` its parts, and
+    ``hurst_rolloff`` and ``hurst_bend`` the wavenumbers of a roll-off and of a noise floor
+    or pixel-scale bend detected in the spectrum and left out of the fit (None: none).
+    """
 
     path: str
     format: str
@@ -496,31 +503,30 @@ class TopographyStats:
     hurst: float
     hurst_range: tuple[float, float]  # wavenumbers of the fit (rad per length unit)
     psd: tuple[np.ndarray, np.ndarray] = field(repr=False)
-    #: one standard deviation of the estimate, and its bias, on this grid
-    #: (:func:`~roughslip.surfaces.synthetic.hurst_uncertainty`)
     hurst_std: float = math.nan
-    hurst_bias: float = math.nan
+    hurst_std_statistical: float = math.nan
+    hurst_sys_low: float = math.nan
+    hurst_sys_high: float = math.nan
+    hurst_rolloff: float | None = None
+    hurst_bend: float | None = None
     hurst_bins: int = 0  # wavenumber bins in the fit
     warnings: tuple[str, ...] = ()
-
-    @property
-    def hurst_corrected(self) -> float:
-        """The estimate less its bias on this grid."""
-        return self.hurst - self.hurst_bias
 
     def as_dict(self) -> dict[str, Any]:
         d = {k: getattr(self, k) for k in ("path", "format", "shape", "pixel_size", "unit",
                                            "missing", "rms_height", "rms_slope",
                                            "rms_curvature", "hurst", "hurst_std",
-                                           "hurst_bias", "hurst_corrected", "hurst_bins",
-                                           "hurst_range")}
+                                           "hurst_std_statistical", "hurst_sys_low",
+                                           "hurst_sys_high", "hurst_bins", "hurst_range",
+                                           "hurst_rolloff", "hurst_bend")}
         d["warnings"] = list(self.warnings)
         d["shape"] = list(self.shape)
         return d
 
 
-#: fewest wavenumber bins in the Hurst fit before the report warns
-HURST_MIN_BINS = 5
+#: fewest wavenumber bins in the Hurst fit before the report warns: 2.5 octaves at the 4 bins
+#: per octave of :func:`~roughslip.surfaces.hurst.spectrum_bins`
+HURST_MIN_BINS = 10
 
 
 def statistics(h: np.ndarray, a: float = 1.0, *, path: str = "", fmt: str = "",
@@ -528,21 +534,13 @@ def statistics(h: np.ndarray, a: float = 1.0, *, path: str = "", fmt: str = "",
                ) -> TopographyStats:
     r"""rms height, slope (:func:`~roughslip.surfaces.synthetic.rms_slope_of`), curvature
     (:math:`\sqrt{\langle(\nabla^2 h/2)^2\rangle}` by central differences inside the grid) and
-    the Hurst exponent from the radially averaged PSD (Hann window; fit from 4 times the lowest
-    wavenumber, above the window's leakage and the sample's finite size, to half the Nyquist
-    wavenumber, below the bend of the pixel scale;
-    :func:`~roughslip.surfaces.synthetic.hurst_estimate`), with its standard deviation and
-    bias on this grid (:func:`~roughslip.surfaces.synthetic.hurst_uncertainty`) and warnings
-    when the exponent leaves (0, 1), the range holds fewer than :data:`HURST_MIN_BINS` bins
-    or the spread exceeds 0.1. Missing points are filled harmonically first (and counted)."""
-    from roughslip.surfaces.synthetic import (
-        hurst_estimate,
-        hurst_fit_range,
-        hurst_uncertainty,
-        radial_psd,
-        rms_height_of,
-        rms_slope_of,
-    )
+    the Hurst exponent with one standard deviation that includes the fit's systematic error,
+    from the radially averaged PSD over a range chosen from the spectrum
+    (:func:`~roughslip.surfaces.hurst.fit_hurst`), with warnings when the exponent leaves
+    (0, 1), the range holds fewer than :data:`HURST_MIN_BINS` bins or the standard
+    deviation exceeds 0.1. Missing points are filled harmonically first (and counted)."""
+    from roughslip.surfaces.hurst import fit_hurst, spectrum_bins
+    from roughslip.surfaces.synthetic import rms_height_of, rms_slope_of
 
     miss = int((~np.isfinite(h)).sum())
     if miss == h.size:
@@ -551,26 +549,33 @@ def statistics(h: np.ndarray, a: float = 1.0, *, path: str = "", fmt: str = "",
     lap = (hh[2:, 1:-1] + hh[:-2, 1:-1] + hh[1:-1, 2:] + hh[1:-1, :-2]
            - 4 * hh[1:-1, 1:-1]) / a**2 if min(h.shape) >= 3 else np.zeros(1)
     ny, nx = h.shape
-    qlo, qhi = hurst_fit_range((ny, nx), a)
-    q, c, _ = radial_psd(hh, a, window="hann")
-    bins = int(((q >= qlo) & (q <= qhi) & (c > 0)).sum())
     warnings = []
     try:
-        hurst = hurst_estimate(hh, a, window="hann")
-        std, bias = hurst_uncertainty((ny, nx), hurst, a)
+        fit = fit_hurst(hh, a)
     except InputError as exc:
-        hurst = std = bias = math.nan
+        fit = None
         warnings.append(f"no Hurst exponent: {exc}")
-    if math.isfinite(hurst):
-        if not 0 < hurst < 1:
-            warnings.append(f"the Hurst exponent {hurst:.3f} lies outside (0, 1): the surface "
-                            "is not self-affine over the fitted wavenumbers (a trend, a form "
-                            "or a filter?)")
-        if bins < HURST_MIN_BINS:
-            warnings.append(f"the fit range holds only {bins} wavenumber bins (fewer than "
-                            f"{HURST_MIN_BINS}): too short for a reliable exponent")
-        if std > 0.1:
-            warnings.append(f"the exponent is uncertain on a {ny} x {nx} grid (+- {std:.2f})")
+    if fit is None:
+        q, c, _ = spectrum_bins(hh, a)
+        hurst_kw: dict[str, Any] = {"hurst": math.nan, "hurst_range": (math.nan, math.nan),
+                                    "psd": (q, c)}
+    else:
+        hurst_kw = {"hurst": fit.hurst, "hurst_range": (fit.qmin, fit.qmax),
+                    "psd": fit.psd[:2], "hurst_std": fit.std,
+                    "hurst_std_statistical": fit.std_statistical,
+                    "hurst_sys_low": fit.sys_low, "hurst_sys_high": fit.sys_high,
+                    "hurst_rolloff": fit.rolloff, "hurst_bend": fit.bend,
+                    "hurst_bins": fit.bins}
+        if not 0 < fit.hurst < 1:
+            warnings.append(f"the Hurst exponent {fit.hurst:.3f} lies outside (0, 1): the "
+                            "surface is not self-affine over the fitted wavenumbers (a trend, "
+                            "a form or a filter?)")
+        if fit.bins < HURST_MIN_BINS:
+            warnings.append(f"the fit range holds only {fit.bins} wavenumber bins (fewer "
+                            f"than {HURST_MIN_BINS}): too short for a reliable exponent")
+        if fit.std > 0.1:
+            warnings.append(f"the exponent is uncertain on a {ny} x {nx} grid "
+                            f"(+- {fit.std:.2f})")
     return TopographyStats(path, fmt, (ny, nx), pixel_size, unit, miss, rms_height_of(hh),
-                           rms_slope_of(hh, a), float(np.sqrt(np.mean((lap / 2) ** 2))), hurst,
-                           (qlo, qhi), (q, c), std, bias, bins, tuple(warnings))
+                           rms_slope_of(hh, a), float(np.sqrt(np.mean((lap / 2) ** 2))),
+                           warnings=tuple(warnings), **hurst_kw)
