@@ -125,8 +125,8 @@ def format_stats(st: TopographyStats) -> str:
     return "\n".join(_wrap(line) for line in lines)
 
 
-#: columns of the plain-text report
-WIDTH = 100
+#: columns of the plain-text report (a 100-column terminal, and the column of the docs)
+WIDTH = 88
 
 
 def _wrap(line: str) -> str:
@@ -218,6 +218,9 @@ def stats_figure(st: TopographyStats, h: np.ndarray) -> Figure:
             qq = q[sel]
             ax.loglog(qq, c0 * qq**slope, "-", color="C3",
                       label=f"fit: H = {st.hurst:.3f} ± {st.hurst_std:.3f}")
+    for qb, what in ((st.hurst_rolloff, "roll-off"), (st.hurst_bend, "bend")):
+        if qb is not None:  # left out of the fit (roughslip.surfaces.hurst)
+            ax.axvline(qb, color="0.4", ls=":", lw=1, label=f"{what} found, left out")
     log_ticks(ax.xaxis)
     log_ticks(ax.yaxis)
     finish_axes(ax, f"wavenumber q (rad per {st.unit or 'length unit'})",
