@@ -20,6 +20,9 @@ writes into ``OUT_DIR``:
   force against Hertz's, and the friction coefficient of the break law, decoupled and
   coupled, against the pixel size.
 
+* ``topography_scan.txt``, ``topography_scan.png``: ``roughslip topography --plot`` on the
+  shipped example scan ``configs/data/scan.x3p`` (``scripts/make_example_scan.py``), as the
+  topographies guide shows it;
 * ``weakening_resolution.png``, ``weakening_resolution.txt``: the same Hertz problem at
   nu = 0.3 under the break law and under slip-weakening (lambda_s = 0.2, lambda_d = 0.1 and
   0, d_c = 5e-4) at a/h = 4 ... 32, and the three pull curves at a/h = 16.
@@ -102,6 +105,20 @@ def quickstart(out: Path) -> None:
             (out / f"quickstart_{name}.txt").write_text(f"$ {command}\n{text}")
         for name in FIGURES:
             shutil.copy(work / "runs" / name, out / name)
+
+
+#: the topographies guide's command, on the shipped example scan
+TOPOGRAPHY = "roughslip topography configs/data/scan.x3p --plot runs/scan.png"
+
+
+def topography(out: Path) -> None:
+    """``roughslip topography --plot`` on the shipped scan: its report and its figure."""
+    with _checkout("demo.toml") as work:
+        (work / "configs" / "data").mkdir()
+        shutil.copy(ROOT / "configs" / "data" / "scan.x3p", work / "configs" / "data")
+        text = _roughslip(TOPOGRAPHY, work)
+        (out / "topography_scan.txt").write_text(f"$ {TOPOGRAPHY}\n{text}")
+        shutil.copy(work / "runs" / "scan.png", out / "topography_scan.png")
 
 
 def hurst_loop(out: Path) -> None:
@@ -259,6 +276,7 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     quickstart(args.out)
+    topography(args.out)
     hurst_loop(args.out)
     hertz_resolution(args.out)
     weakening_resolution(args.out)

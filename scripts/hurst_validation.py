@@ -180,7 +180,8 @@ def summary(rows: list[dict]) -> list[tuple[str, int, float, float, float]]:
 
 def table(rows: list[dict], rst: bool = False) -> str:
     lines = []
-    heads = ("generator", "cases", "truth within 2 sigma", "median sigma", "median |error|")
+    heads = ("generator", "cases", "truth within 2 sigma", "median sigma",
+             "median absolute error")
     for roll, label in ((False, "without roll-off"), (True, "with roll-off"), (None, "all")):
         sel = [r for r in rows if roll is None or (r["rolloff"] is not None) == roll]
         if rst:

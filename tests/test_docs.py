@@ -125,6 +125,7 @@ def test_the_generated_guide_output_is_what_the_script_writes():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     written = ({f"quickstart_{n}.txt" for n, _ in mod.QUICKSTART} | set(mod.FIGURES)
+               | {"topography_scan.txt", "topography_scan.png"}
                | {"hurst_loop.txt", "hurst_fit.png", "hertz_resolution.png",
                   "hertz_resolution.txt", "weakening_resolution.png",
                   "weakening_resolution.txt"})
@@ -136,7 +137,7 @@ def test_the_generated_guide_output_is_what_the_script_writes():
     assert used and used <= written, used - written
     assert {"demo_pull.png", "demo_maps.png", "fit_friction.png", "fit_area.png",
             "bursts.png", "hertz_resolution.png", "hurst_fit.png",
-            "weakening_resolution.png"} <= used
+            "weakening_resolution.png", "topography_scan.png", "topography_scan.txt"} <= used
 
 
 @pytest.mark.slow

@@ -82,6 +82,10 @@ BREAK_CHI2 = 25.0
 #: the range keeps this factor away from a detected break (its knee is not sharp)
 BREAK_MARGIN = math.sqrt(2.0)
 
+#: highest wavenumber of the fit as a fraction of the Nyquist wavenumber pi/a: above it the
+#: pixels bend the spectrum
+HIGH_END = 0.5
+
 #: lowest wavenumber of the fit in units of q_L = 2 pi / L: below it the Hann window's
 #: leakage (main lobe +-2 q_L) and the patch size bend the spectrum
 LOW_START = 4.0
@@ -259,7 +263,7 @@ def fit_hurst(h: np.ndarray, a: float = 1.0) -> HurstFit:
     ny, nx = h.shape
     q, c, n = spectrum_bins(h, a)
     q_low = 2 * np.pi / (max(ny, nx) * a)
-    lo, hi = LOW_START * q_low, 0.5 * np.pi / a
+    lo, hi = LOW_START * q_low, HIGH_END * np.pi / a
     rolloff = bend = None
     while math.log2(hi / lo) >= MIN_OCTAVES:
         sel = (q >= lo) & (q <= hi) & (c > 0)
