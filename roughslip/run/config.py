@@ -32,7 +32,7 @@ from typing import Any
 from roughslip.errors import ConfigError, echo, shorten
 from roughslip.friction.laws import LAWS, LawParameterError
 from roughslip.friction.pull import METHODS, methods_for, single_ok
-from roughslip.run import schema
+from roughslip.run import schema, titles
 from roughslip.run.digest import RENAMED, RETIRED
 from roughslip.run.machine import machine_file, read_machine
 from roughslip.run.messages import Context, Errors
@@ -54,6 +54,7 @@ from roughslip.run.sections import (
     SqueezeConfig,
     SurfaceConfig,
     UnitsConfig,
+    defaults,
 )
 from roughslip.run.tomlio import BARE_KEY, check_nesting, dumps_toml, loads_toml, too_deep
 
@@ -162,10 +163,14 @@ def load_config(path: str | Path | None = None, overrides: Sequence[str] = (),
             mine = data.get(name, {})
             if isinstance(mine, dict):  # else reported as not a table by the checks below
                 data[name] = {**table, **mine}
+    given = _deepcopy(data)
     origin = merge_overrides(data, overrides)
     ctx = Context(source, origin)
     base_dir = Path(path).resolve().parent if path is not None else Path.cwd()
     cfg = _build(data, ctx, base_dir)
+    wrong = titles.check(cfg.title, given, cfg.to_dict(), origin, defaults())
+    if wrong:  # a title that would mislabel the run (roughslip.run.titles)
+        raise ConfigError(f"{ctx.where('title')}: {wrong}")
     return cfg if machine is None else dataclasses.replace(cfg, machine=str(machine))
 
 

@@ -22,15 +22,18 @@ class Context:
         #: retired keys given, with their values (dotted key -> value)
         self.retired: dict[str, Any] = {}
 
+    def where(self, key: str) -> str:
+        """The source of ``key``'s value: the file, and the ``--set`` that gave it if one
+        did."""
+        hit = self.overridden.get(key) or next(
+            (t for k, t in self.overridden.items() if k.startswith(key + ".")), None)
+        return self.source if hit is None else f"{self.source} (--set {shorten(hit)})"
+
     def fail(self, key: str, value: Any = dataclasses.MISSING, rule: str = "") -> ConfigError:
         """The error (returned, not raised) of ``key``, with its value when given, the rule it
         breaks and where it came from; the key, the value and the ``--set`` text each at most
         about :data:`~roughslip.errors.ECHO_LIMIT` characters."""
-        where = self.source
-        hit = self.overridden.get(key) or next(
-            (t for k, t in self.overridden.items() if k.startswith(key + ".")), None)
-        if hit is not None:
-            where = f"{self.source} (--set {shorten(hit)})"
+        where = self.where(key)
         key = shorten(key)
         if value is dataclasses.MISSING:
             return ConfigError(f"{where}: {key}: {rule}")
