@@ -78,7 +78,10 @@ def config_reference() -> list[str]:
                 kinds = [k for k, (allowed, _) in C.SURFACE_KEYS.items() if f.name in allowed]
                 if f.name != "kind" and kinds:
                     text += f" (kind {', '.join(kinds)})"
-            lines += [f"   * - ``{f.name}``", f"     - {_type_name(hints[f.name])}",
+            kind = _type_name(hints[f.name])
+            if meta.get("dimension"):  # roughslip.run.units
+                kind += f", or a {meta['dimension']} with a unit"
+            lines += [f"   * - ``{f.name}``", f"     - {kind}",
                       f"     - {_default(f)}", f"     - {_rule(meta)}", f"     - {text}"]
         lines.append("")
     renamed = ", ".join(f"``{s}.{old}`` (now ``{new}``)" for (s, old), new in

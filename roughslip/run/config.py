@@ -12,8 +12,10 @@ The sections and their fields are in :mod:`roughslip.run.sections`, the rules of
 :mod:`roughslip.run.rules`, digests in :mod:`roughslip.run.digest`; the names a caller needs
 are importable from here.
 
-Units: lengths (pixel size, heights, depths, radii, wavelengths) share one unit of your choice;
-``material.E`` sets the stress unit; forces are stress x length².
+Units: lengths (pixel size, heights, depths, radii, wavelengths) share one unit, and stresses
+(``material.E``) another; ``[units]`` names them, and a value may carry its own unit
+(``E = "70 GPa"``), converted when the file is read (:mod:`roughslip.run.units`). Forces are
+stress x length². A title may quote keys, ``{surface.hurst}`` (:mod:`roughslip.run.titles`).
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from roughslip.run.messages import Context, Errors
 from roughslip.run.sections import (
     FIELD_NAMES,
     LAW_PARAMS,
+    QUANTITY_KEYS,
     SECTIONS,
     SURFACE_KEYS,
     SURFACE_KINDS,
@@ -57,6 +60,7 @@ from roughslip.run.sections import (
     defaults,
 )
 from roughslip.run.tomlio import BARE_KEY, check_nesting, dumps_toml, loads_toml, too_deep
+from roughslip.run.units import resolve as resolve_units
 
 __all__ = ["FIELD_NAMES", "LAW_PARAMS", "SECTIONS", "SURFACE_KEYS", "SURFACE_KINDS",
            "TOP_LEVEL_KEYS", "CouplingConfig", "EnsembleConfig", "ExecutionConfig",
@@ -207,6 +211,10 @@ def _build(data: dict[str, Any], ctx: Context, base_dir: Path) -> RunConfig:
     for required in ("surface",):
         if required not in data:
             errors.add(required, rule="missing section [" + required + "]")
+    before = len(errors.found)
+    quantities = resolve_units(data, QUANTITY_KEYS, ctx, errors)
+    if len(errors.found) > before:  # else each would be reported again as not a number
+        errors.raise_any()
     sections: dict[str, Any] = {}
     for name, cls in SECTIONS.items():
         if name in data and isinstance(data[name], dict):
@@ -226,7 +234,7 @@ def _build(data: dict[str, Any], ctx: Context, base_dir: Path) -> RunConfig:
     given = frozenset(f"{sec}.{k}" for sec, t in data.items() if isinstance(t, dict)
                       for k in t)
     cfg = RunConfig(title=title, source=ctx.source, given=given, retired=dict(ctx.retired),
-                    **sections)
+                    quantities=quantities, **sections)
     _check_cross(cfg, ctx, errors)
     errors.raise_any()
     return cfg

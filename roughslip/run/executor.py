@@ -40,6 +40,8 @@ from roughslip.run.config import RunConfig
 from roughslip.run.scene import Scene
 from roughslip.run.stages import stage_for
 from roughslip.run.store import RunWriter, SampleResult
+from roughslip.run.titles import render
+from roughslip.run.units import Units
 
 Progress = Callable[[dict[str, Any]], None]
 
@@ -157,13 +159,8 @@ def provenance(config: RunConfig, command_line: str) -> dict[str, Any]:
         "threads": config.execution.threads,
         "machine_file": config.machine or "",
         "seed": config.ensemble.seed,
-        "units": {
-            "length": config.length_unit or "the unit of grid.pixel_size (heights, depths, "
-                                             "displacements)",
-            "stress": "the unit of material.E",
-            "force": "stress x length^2 (pixel forces, total forces)",
-            "contact_area": "fraction of the nominal area",
-        },
+        "units": Units(config.length_unit, config.stress_unit).attributes(),
+        **({"title": render(config.title, config.to_dict())} if config.title else {}),
     }
 
 

@@ -17,13 +17,16 @@ from roughslip.registry import Registry
 Check = Callable[[Any], str | None]
 
 
-def option(default: Any = None, doc: str = "", check: Check | None = None, choices=None, **kw):
-    """A section's field: its default, its description, its check and its choices (a
-    :class:`~roughslip.registry.Registry`, read live, or any iterable of the allowed
-    values)."""
+def option(default: Any = None, doc: str = "", check: Check | None = None, choices=None,
+           dimension: str = "", **kw):
+    """A section's field: its default, its description, its check, its choices (a
+    :class:`~roughslip.registry.Registry`, read live, or any iterable of the allowed values)
+    and its dimension (``length``, ``stress`` or ``force``: the value may be a quantity with
+    a unit, :mod:`roughslip.run.units`)."""
     live = isinstance(choices, Registry)
     meta = {"doc": doc, "check": check,
-            "choices": choices if live else tuple(choices) if choices else None}
+            "choices": choices if live else tuple(choices) if choices else None,
+            "dimension": dimension}
     if isinstance(default, list | dict):
         return field(default_factory=lambda d=default: type(d)(d), metadata=meta, **kw)
     return field(default=default, metadata=meta, **kw)

@@ -32,19 +32,23 @@ class Column:
     """A per-(sample, depth) scalar dataset ``/name`` of shape ``(n_samples, n_depths)``.
 
     ``kind`` is ``"value"``, ``"count"`` (an integer, stored as float so that it can be NaN) or
-    ``"flag"`` (1.0 yes, 0.0 no).
+    ``"flag"`` (1.0 yes, 0.0 no). ``dimension`` says which of the run's units it is in
+    (``length``, ``force``, ``fraction``, ``seconds``; empty: a pure number), stored as the
+    dataset's ``unit`` attribute (:meth:`roughslip.run.units.Units.of_dimension`).
     """
 
     name: str
     stage: str
     description: str
     kind: str = "value"
+    dimension: str = ""
 
 
 COLUMNS: tuple[Column, ...] = (
-    Column("depth_length", "squeeze", "penetration D_z in length units"),
-    Column("normal_force", "squeeze", "total normal force F_n"),
-    Column("contact_area", "squeeze", "contact area as a fraction of the grid"),
+    Column("depth_length", "squeeze", "penetration D_z in length units", dimension="length"),
+    Column("normal_force", "squeeze", "total normal force F_n", dimension="force"),
+    Column("contact_area", "squeeze", "contact area as a fraction of the grid",
+           dimension="fraction"),
     Column("iterations", "squeeze", "squeeze solver iterations", "count"),
     Column("residual", "squeeze", "squeeze residual: worst gap error relative to the depth "
            "(coupled model: worst relative residual of the block solves, each certified "
@@ -53,11 +57,14 @@ COLUMNS: tuple[Column, ...] = (
            "by 10^5 in a coupled matrix-free solve whose release order had near-ties)"),
     Column("converged", "squeeze", "1 when the squeeze met its tolerance", "flag"),
     Column("seconds", "squeeze", "squeeze wall-clock time (a measurement, differs between "
-           "runs; coupled model: the part of its solve before the pull starts)"),
-    Column("friction_force", "pull", "static friction force: the peak of the pull curve"),
-    Column("friction_normal_force", "pull", "normal force of the pulled state"),
+           "runs; coupled model: the part of its solve before the pull starts)",
+           dimension="seconds"),
+    Column("friction_force", "pull", "static friction force: the peak of the pull curve",
+           dimension="force"),
+    Column("friction_normal_force", "pull", "normal force of the pulled state",
+           dimension="force"),
     Column("pull_seconds", "pull", "pull wall-clock time (a measurement, differs between "
-           "runs; coupled model: the rest of its solve)"),
+           "runs; coupled model: the rest of its solve)", dimension="seconds"),
     Column("pull_converged", "pull", "1 when every pull solve met its tolerance", "flag"),
     Column("pull_steps", "pull", "bonds broken (or sites slipped, or coupled events) until "
            "the pull stopped", "count"),

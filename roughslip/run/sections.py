@@ -37,6 +37,7 @@ from roughslip.run.rules import (
     tol_rule,
 )
 from roughslip.run.tomlio import dumps_toml
+from roughslip.run.units import STRESS
 from roughslip.surfaces.topography import LENGTH_UNITS
 
 SURFACE_KINDS = ("self-affine", "sphere", "punch", "sinusoid", "plane", "file")
@@ -69,7 +70,7 @@ class GridConfig:
         None, "[ny, nx] for a rectangular grid",
         ruled("two integers >= 1", lambda v: pair(v) or
                (None if min(v) >= 1 else "both lengths must be >= 1")))
-    pixel_size: float = option(1.0, "pixel side a (length)", positive)
+    pixel_size: float = option(1.0, "pixel side a (length)", positive, dimension="length")
     boundary: str = option("open", "; ".join(b.description for b in BOUNDARIES.values()),
                        choices=BOUNDARIES)
     periodic_kernel: str = option("pixel", "periodic symbol: exact pixel images or continuous",
@@ -89,7 +90,8 @@ class GridConfig:
 class MaterialConfig:
     """``[material]``: the elastic half-space."""
 
-    E: float = option(1.0, "Young's modulus (stress unit)", positive)
+    E: float = option(1.0, "Young's modulus (in units.stress; without it, E sets the stress "
+                       "unit)", positive, dimension="stress")
     nu: float = option(0.3, "Poisson ratio", nu_rule)
 
 
@@ -104,21 +106,26 @@ class SurfaceConfig:
     kind: str = option(None, "shape", choices=SURFACE_KINDS)
     # self-affine
     hurst: float | None = option(None, "Hurst exponent H", hurst_rule)
-    rms_height: float | None = option(None, "rms height (length)", positive)
+    rms_height: float | None = option(None, "rms height (length)", positive, dimension="length")
     rms_slope: float | None = option(None, "rms slope", positive)
-    rolloff_wavelength: float | None = option(None, "long-wavelength roll-off (length)", positive)
-    cutoff_wavelength: float | None = option(None, "short-wavelength cut-off (length)", positive)
+    rolloff_wavelength: float | None = option(None, "long-wavelength roll-off (length)", positive,
+                                              dimension="length")
+    cutoff_wavelength: float | None = option(None, "short-wavelength cut-off (length)", positive,
+                                             dimension="length")
     oversample: int = option(1, "generate on an oversample-times larger periodic grid and crop",
                          at_least(1))
     # sphere / punch
-    radius: float | None = option(None, "sphere or punch radius (length)", positive)
+    radius: float | None = option(None, "sphere or punch radius (length)", positive,
+                                  dimension="length")
     center: list[float] | None = option(None, "[x, y] of the apex (length; default grid centre)",
-                                    pair)
+                                    pair, dimension="length")
     step: float | None = option(None, "punch: height of the step at its edge (default grid size)",
-                            positive)
+                            positive, dimension="length")
     # sinusoid
-    amplitude: float | None = option(None, "sinusoid amplitude (length)", positive)
-    wavelength: float | None = option(None, "sinusoid wavelength (length)", positive)
+    amplitude: float | None = option(None, "sinusoid amplitude (length)", positive,
+                                     dimension="length")
+    wavelength: float | None = option(None, "sinusoid wavelength (length)", positive,
+                                      dimension="length")
     direction: str = option("x", "sinusoid varies along x or y", choices=("x", "y"))
     phase: float = option(0.0, "sinusoid phase (radians); 0 puts a crest at x = 0")
     # plane
@@ -166,8 +173,9 @@ class SqueezeConfig:
 
     depths: list[float] | None = option(
         None, "penetration depths D_z measured from first touch, or a table "
-        "{start, stop, num, spacing = 'linear'|'log'}")
-    forces: list[float] | None = option(None, "total normal forces F_n (load control)")
+        "{start, stop, num, spacing = 'linear'|'log'}", dimension="length")
+    forces: list[float] | None = option(None, "total normal forces F_n (load control)",
+                                        dimension="force")
     depth_unit: str = option("length", "depths in length units, in multiples of the composite rms "
                          "height ('rms'), or as fractions of its peak-to-valley ('range')",
                          choices=("length", "rms", "range"))
@@ -194,7 +202,7 @@ class PullConfig:
                                    "coefficient lambda_d, 0 <= lam_dynamic <= lam", nonnegative)
     slip_distance: float | None = option(None, "slip_law = 'slip-weakening': the slip d_c "
                                      "(length) over which the strength falls from lam f_z "
-                                     "to lam_dynamic f_z", positive)
+                                     "to lam_dynamic f_z", positive, dimension="length")
     method: str = option("auto", PULL_METHODS.describe(), choices=PULL_METHODS)
     tol: float = option(1e-10, "relative tolerance of the tangential solves", tol_rule)
     batch_size: int = option(16, "sites broken per solve by method = 'batch'", at_least(1))
@@ -264,11 +272,16 @@ class ExecutionConfig:
 
 @dataclass(frozen=True)
 class UnitsConfig:
-    """``[units]``: the run's length unit (stored in the provenance, used in labels)."""
+    """``[units]``: the run's length and stress units (stored, named in every result)."""
 
     length: str | None = option(None, "the length unit of the run: grid.pixel_size, heights, "
                             "depths and displacements are in it; files with units are "
-                            "converted to it", choices=LENGTH_UNITS)
+                            "converted to it. Set by the first length given with a unit "
+                            "(pixel_size = '0.5 um') when not given", choices=LENGTH_UNITS)
+    stress: str | None = option(None, "the stress unit of the run: material.E is in it, and "
+                                "forces are in stress x length^2 (MPa x um^2 = uN). Set by E "
+                                "given with a unit (E = '70 GPa') when not given",
+                                choices=STRESS)
 
 
 def _fields_rule(v: Sequence[str]) -> str | None:
@@ -295,6 +308,11 @@ SECTIONS: dict[str, type] = {
 }
 TOP_LEVEL_KEYS = ("title",)
 
+#: the keys that may be quantities with units: ``{section: {key: dimension}}``
+QUANTITY_KEYS: dict[str, dict[str, str]] = {
+    name: {f.name: f.metadata["dimension"] for f in dataclasses.fields(cls)
+           if f.metadata.get("dimension")} for name, cls in SECTIONS.items()}
+
 
 @dataclass(frozen=True)
 class RunConfig:
@@ -320,11 +338,18 @@ class RunConfig:
     retired: dict[str, Any] = field(default_factory=dict, compare=False)
     #: the machine file whose execution settings lie beneath the file's (None: none)
     machine: str | None = field(default=None, compare=False)
+    #: the values given as quantities with units, converted: dotted key -> the text given
+    quantities: dict[str, str] = field(default_factory=dict, compare=False)
 
     @property
     def length_unit(self) -> str | None:
         """``units.length``, or None for bare numbers."""
         return None if self.units is None else self.units.length
+
+    @property
+    def stress_unit(self) -> str | None:
+        """``units.stress``, or None when E sets the stress unit."""
+        return None if self.units is None else self.units.stress
 
     def to_dict(self) -> dict[str, Any]:
         """Nested plain dict of all set values (None values omitted), in section order."""

@@ -436,9 +436,12 @@ def _init_file(f: h5py.File, layout: Layout, indices: list[int], n_targets: int,
     rows.make_scale("sample_index")
     for name, text in schema.ROOT.items():
         f[name].attrs["description"] = text
+    units = attrs.get("units", {})  # the unit of each dimension (roughslip.run.units)
     for col in layout.columns:
         ds = f.create_dataset(col.name, shape=(ns, n_targets), dtype="f8", fillvalue=np.nan)
         ds.attrs["description"] = col.description
+        if col.dimension in units:
+            ds.attrs["unit"] = units[col.dimension]
         ds.attrs["kind"] = col.kind
         ds.dims[0].attach_scale(rows)
         ds.dims[1].attach_scale(d)
