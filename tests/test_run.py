@@ -109,6 +109,27 @@ def test_resume_refuses_a_different_config(serial_run, tmp_path):
     assert r.exit_code == 2 and "different configuration" in r.output
 
 
+def test_units_and_methods_are_stored(serial_run, tmp_path):
+    """Each scalar says its unit (dimensionless runs say so), the root attribute units names
+    every kind of result, and each sample records the pull method each depth used."""
+    _cfg, out, _ = serial_run
+    with h5py.File(out, "r") as f:
+        assert f["normal_force"].attrs["unit"].startswith("dimensionless")
+        assert f["contact_area"].attrs["unit"] == "1" and f["seconds"].attrs["unit"] == "s"
+        assert "unit" not in f["iterations"].attrs
+        solvers = json.loads(f["samples/s000000"].attrs["solvers"])
+    assert len(solvers) == 3 and all(s["pull_method"] in ("literal", "inverse", "cg")
+                                     for s in solvers)
+    data = {**CFG, "grid": {"n": 16, "pixel_size": "0.5 um"}, "material": {"E": "200 GPa"},
+            "units": {"stress": "MPa"}, "ensemble": {"samples": 1}}
+    run(load_config(write_cfg(tmp_path, data)), tmp_path / "um.h5")
+    with h5py.File(tmp_path / "um.h5", "r") as f:
+        units = json.loads(f.attrs["units"])
+        assert f["friction_force"].attrs["unit"] == "uN" == units["force"]
+        assert f["depth_length"].attrs["unit"] == "um" and units["area"] == "um^2"
+        assert units["pressure"] == "MPa"
+
+
 def test_resume_of_a_complete_file_does_nothing(serial_run):
     cfg, out, _ = serial_run
     s = run(cfg, out, resume=True)

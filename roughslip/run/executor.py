@@ -96,6 +96,7 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     runner = ctx.stage.start(ctx.problem.with_heights(surf.composite))
     rows = schema.empty(scene.columns, len(targets))
     fields: list[dict[str, np.ndarray]] = []
+    solvers: list[dict[str, str]] = []
     notes = list(scene.notes)
     for k, t in enumerate(targets):
         where = f"sample {sample}, depth index {k}"
@@ -110,12 +111,13 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
             if np.issubdtype(np.asarray(a).dtype, np.floating) and not np.all(np.isfinite(a)):
                 raise NumericalError(f"{where}: non-finite values in field {name!r}")
         fields.append(rec.fields)
+        solvers.append(rec.solvers)
         if progress is not None:
             progress(sample, k)
     surfaces = {"rigid_surface": surf.rigid}
     if surf.elastic is not None:
         surfaces["elastic_surface"] = surf.elastic
-    return SampleResult(sample, rows, fields, surfaces, notes)
+    return SampleResult(sample, rows, fields, surfaces, notes, solvers)
 
 
 def _check_voids(contact: np.ndarray | None, valid: np.ndarray | None, where: str) -> None:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -63,6 +64,21 @@ class RunData:
                                  f"index {depth_index} (stored: output.fields)")
             a = f[key][()]
             return a.astype(bool) if name in BOOL_FIELDS else a
+
+    def sample_attribute(self, name: str) -> dict[int, Any]:
+        """A JSON attribute of each complete sample's group (``notes``: what the run said of
+        it, ``solvers``: per depth, the methods that solved it), by global sample number;
+        samples without it (files of earlier versions) are left out."""
+        out: dict[int, Any] = {}
+        with open_file(self.path) as f:
+            for s in self.sample_index[self.complete]:
+                g = f.get(f"samples/{group_name(int(s))}")
+                if g is not None and name in g.attrs:
+                    try:
+                        out[int(s)] = json.loads(g.attrs[name])
+                    except ValueError:
+                        continue
+        return out
 
     def surface(self, sample: int, name: str = "rigid_surface") -> np.ndarray:
         with open_file(self.path) as f:

@@ -36,6 +36,8 @@ class Record:
     fields: dict[str, np.ndarray] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     contact: np.ndarray | None = None  # the contact set, for the void check
+    #: the methods that solved this target, by role (``pull_method``, ``precision``, ...)
+    solvers: dict[str, str] = field(default_factory=dict)
 
 
 class DecoupledStage:
@@ -101,6 +103,8 @@ class _DecoupledSample:
             raise NumericalError(f"{where}: pull: {exc}") from None
         if cfg.execution.strict and not s.converged:
             raise ConvergenceError(f"{where}: pull did not converge: {s.message}")
+        rec.solvers.update(pull_method=s.method, **({"precision": s.precision}
+                                                    if s.precision else {}))
         rec.scalars.update(friction_force=s.friction_force,
                            friction_normal_force=s.normal_force, pull_seconds=s.seconds,
                            pull_converged=s.converged, pull_steps=s.steps)
@@ -162,7 +166,7 @@ class _CoupledSample:
                          pull_steps=len(r.events), released_bonds=r.released),
             notes=[f"{r.released} bond(s) {failed} at D_x = 0"] + ([r.fallback] if r.fallback
                                                                    else []),
-            contact=r.contact0,
+            contact=r.contact0, solvers={"coupled_solver": r.method},
         )
         if not r.converged:
             rec.notes.append(f"coupled solve not converged ({r.message}); left out of the "

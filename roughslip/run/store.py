@@ -13,7 +13,8 @@ Layout of ``OUT.h5`` (``n_s`` samples, ``n_d`` depths or loads)::
     /force_target  (n_d)     load control: the configured loads, in squeeze.force_unit
     /<column>      (n_s, n_d) one per scalar of the output schema that the run's stages give
     /samples/s000007/        one group per sample (global number), attr complete
-        rigid_surface, elastic_surface (two-surface scenes)
+        rigid_surface, elastic_surface (two-surface scenes); attrs notes and solvers (JSON:
+                             per depth, the methods that solved it)
         d000/ ... d{n_d-1}/  per depth: the fields listed in output.fields, grids (ny, nx)
                              chunked and compressed, pull-curve arrays one entry per event
 
@@ -110,6 +111,8 @@ class SampleResult:
     fields: list[dict[str, np.ndarray]]  # per depth: name -> array
     surfaces: dict[str, np.ndarray]  # rigid_surface, elastic_surface
     notes: list[str] = field(default_factory=list)
+    #: per depth, what solved it (``{"pull_method": "inverse", ...}``): attribute ``solvers``
+    solvers: list[dict[str, str]] = field(default_factory=list)
 
 
 def journal_dir(path: Path) -> Path:
@@ -482,6 +485,8 @@ def _write_sample_group(g: h5py.Group, res: SampleResult, comp: dict[str, Any],
             _write_array(d, name, a, comp)
     if res.notes:
         g.attrs["notes"] = json.dumps(res.notes)
+    if res.solvers:
+        g.attrs["solvers"] = json.dumps(res.solvers)
 
 
 def _read_sample_file(jf: h5py.File) -> SampleResult:
@@ -496,4 +501,5 @@ def _read_sample_file(jf: h5py.File) -> SampleResult:
                        for n in d})
         k += 1
     notes = json.loads(jf.attrs["notes"]) if "notes" in jf.attrs else []
-    return SampleResult(sample, scalars, fields, surfaces, notes)
+    solvers = json.loads(jf.attrs["solvers"]) if "solvers" in jf.attrs else []
+    return SampleResult(sample, scalars, fields, surfaces, notes, solvers)
