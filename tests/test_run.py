@@ -109,6 +109,30 @@ def test_resume_refuses_a_different_config(serial_run, tmp_path):
     assert r.exit_code == 2 and "different configuration" in r.output
 
 
+def test_resume_names_the_keys_that_differ_with_both_values(serial_run, tmp_path):
+    """From the run file, and from the journal of a killed run: the keys that differ, the
+    stored value and the new one, and the way out."""
+    _cfg, out, _ = serial_run
+    r = CliRunner().invoke(cli, ["run", str(write_cfg(tmp_path)), "-o", str(out), "--resume",
+                                 "--set", "pull.lam=0.3", "--set", "material.nu=0.25",
+                                 "--set", "execution.threads=2", "--quiet"])
+    assert r.exit_code == 2
+    assert ("different configuration: material.nu = 0.3 in the file, 0.25 now; pull.lam = "
+            "0.2 in the file, 0.3 now; resume with the stored values, or use --overwrite"
+            in r.output)
+    assert "threads" not in r.output  # settings that never change the numbers are not named
+    cfg_path = _long_cfg(tmp_path)
+    killed = tmp_path / "killed.h5"
+    proc = _start(tmp_path, cfg_path, killed, stop_at=("sample-done", 1, "KILL"))
+    proc.communicate(timeout=300)
+    killed.unlink()  # only the journal is left
+    stored = json.loads((journal_dir(killed) / "run.json").read_text())
+    assert "config" in stored
+    other = load_config(cfg_path, ["ensemble.seed=10"])
+    with pytest.raises(InputError, match=r"ensemble\.seed = 9 in the file, 10 now"):
+        run(other, killed, resume=True)
+
+
 def test_units_and_methods_are_stored(serial_run, tmp_path):
     """Each scalar says its unit (dimensionless runs say so), the root attribute units names
     every kind of result, and each sample records the pull method each depth used."""

@@ -74,6 +74,9 @@ from roughslip.run.reading import (
     open_file,
     read_run,
 )
+from roughslip.run.stamps import check_stamp as _check_stamp
+from roughslip.run.stamps import stored_config
+from roughslip.run.stamps import stored_stamp as _stored_stamp
 
 __all__ = ["Layout", "RunData", "RunWriter", "SampleResult", "journal_dir", "open_file",
            "read_run"]
@@ -140,26 +143,6 @@ def _write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
-def _check_stamp(path: Path, stamp: tuple[str, int | None], layout: Layout) -> None:
-    """Refuse a run whose stored digest is not this configuration's, saying so plainly when
-    it was made under defaults newer than this version knows."""
-    digest, version = stamp
-    if version is not None and version > layout.defaults_version:
-        raise InputError(f"{path}: written by a newer roughslip (configuration defaults "
-                         f"version {version}; this one knows up to {layout.defaults_version})")
-    if not layout.matches(digest, version):
-        raise InputError(f"{path}: was made with a different configuration (stored digest "
-                         f"{str(digest)[:12]}..., now {layout.digest[:12]}...); run "
-                         "`roughslip inspect` to see the stored one, or use --overwrite")
-
-
-def _stored_stamp(attrs: Any) -> tuple[str, int | None]:
-    """The digest and defaults version stored in ``attrs`` (None: written before versioned
-    defaults)."""
-    version = attrs.get("defaults_version")
-    return str(attrs.get("config_digest", "")), None if version is None else int(version)
-
-
 class RunWriter:
     """Creates or resumes ``OUT.h5`` and writes finished samples into it (see the module
     docstring for the journal and the states a resume recovers from)."""
@@ -195,7 +178,7 @@ class RunWriter:
             for old in (jdir, _sibling(jdir, ".done")):
                 shutil.rmtree(old, ignore_errors=True)
             jdir.mkdir()
-            _write_json_atomic(jdir / "run.json", {**layout.stamp,
+            _write_json_atomic(jdir / "run.json", {**layout.stamp, "config": layout.config_text,
                                                    "format_version": FORMAT_VERSION})
             cls._build(path, ".creating", layout, indices, n_targets, attrs, [])
             f = h5py.File(path, "r+")
@@ -252,7 +235,7 @@ class RunWriter:
                              f"journal to rebuild it from ({exc})") from None
         try:
             check_format(f, path)
-            _check_stamp(path, _stored_stamp(f.attrs), layout)
+            _check_stamp(path, _stored_stamp(f.attrs), layout, f.attrs.get("config"))
         except InputError:
             f.close()
             raise
@@ -267,7 +250,7 @@ class RunWriter:
             tmp.unlink(missing_ok=True)
         stored = _journal_digest(jdir, path)
         if stored is not None:
-            _check_stamp(path, stored, layout)
+            _check_stamp(path, stored, layout, stored_config(jdir, path))
         entries = sorted(jdir.glob("s*.h5"))
         try:
             if not (jdir / "run.json").exists():  # journal of an older version
