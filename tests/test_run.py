@@ -133,6 +133,15 @@ def test_resume_names_the_keys_that_differ_with_both_values(serial_run, tmp_path
         run(other, killed, resume=True)
 
 
+def test_resume_of_an_unreadable_file_without_journal_suggests_overwrite(tmp_path):
+    out = tmp_path / "junk.h5"
+    out.write_bytes(b"junk")
+    r = CliRunner().invoke(cli, ["run", str(write_cfg(tmp_path)), "-o", str(out), "--resume",
+                                 "--quiet"])
+    assert r.exit_code == 2 and "not a readable HDF5 file" in r.output
+    assert "use --overwrite to replace it" in r.output and out.read_bytes() == b"junk"
+
+
 def test_units_and_methods_are_stored(serial_run, tmp_path):
     """Each scalar says its unit (dimensionless runs say so), the root attribute units names
     every kind of result, and each sample records the pull method each depth used."""

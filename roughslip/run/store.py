@@ -232,7 +232,8 @@ class RunWriter:
                                    "sample journalled: started it anew")
                 return writer
             raise InputError(f"{path}: cannot be resumed: not a readable HDF5 file and no "
-                             f"journal to rebuild it from ({exc})") from None
+                             f"journal to rebuild it from ({exc}); use --overwrite to replace "
+                             "it") from None
         try:
             check_format(f, path)
             _check_stamp(path, _stored_stamp(f.attrs), layout, f.attrs.get("config"))
