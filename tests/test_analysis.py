@@ -480,3 +480,91 @@ def test_every_plot_command_renders_a_micrometre_run_with_its_units(tmp_path):
         assert r.exit_code == 0 and "Traceback" not in r.output, (args, r.output)
         assert ".png" in r.output  # every command says where the figure went
     assert all(_png_ok(p) for p in tmp_path.glob("*.png"))
+
+
+# ------------------------------------------------------------------------------ what a run was
+
+
+@pytest.fixture(scope="module")
+def model_runs(tmp_path_factory):
+    """Three small runs of the kinds a user inspects: slip-weakening friction, the coupled
+    model with the indentation history, and a measured scan with missing points (under a
+    coupling that nu = 0.5 turns off), each with a note to show."""
+    from roughslip.run.config import dumps_toml
+    from roughslip.run.executor import run
+
+    d = tmp_path_factory.mktemp("model")
+    configs = Path(__file__).parents[1] / "configs"
+    sw = d / "sw.h5"
+    run(load_config(configs / "demo.toml", [
+        "grid.n=24", "ensemble.samples=2", 'squeeze.depths=[1.0, 2.0]',
+        'pull.slip_law="slip-weakening"', "pull.lam=0.3", "pull.lam_dynamic=0.1",
+        "pull.slip_distance=0.05", "execution.workers=1"]), sw)
+    coupled = d / "coupled.h5"
+    run(load_config(configs / "hertz.toml", [
+        "grid.n=24", "squeeze.depths=[0.005, 0.01, 0.02]", "coupling.enabled=true",
+        "material.nu=0.25", 'coupling.history="indent"']), coupled)
+    h = np.loadtxt(configs / "data" / "topography.txt")
+    h[3, 4] = np.nan
+    h[10, 10:16] = np.nan
+    np.savetxt(d / "holes.txt", h)
+    (d / "scan.toml").write_text(dumps_toml({
+        "title": "scan with holes", "units": {"length": "um", "stress": "MPa"},
+        "grid": {"pixel_size": "0.5 um"}, "material": {"E": "200 GPa", "nu": 0.5},
+        "surface": {"kind": "file", "path": "holes.txt", "unit": "um",
+                    "missing": "interpolate"},
+        "squeeze": {"depths": [0.2, 0.5], "depth_unit": "rms"},
+        "pull": {"enabled": True}, "coupling": {"enabled": True}}))
+    scan = d / "scan.h5"
+    run(load_config(d / "scan.toml"), scan)
+    return {"sw": sw, "coupled": coupled, "scan": scan}
+
+
+def _inspect(path) -> str:
+    r = CliRunner().invoke(cli, ["inspect", str(path)])
+    assert r.exit_code == 0, r.output
+    assert max(map(len, r.output.splitlines())) <= 100, "wider than 100 columns"
+    return r.output
+
+
+def test_inspect_says_what_a_slip_weakening_run_was(model_runs):
+    from roughslip import __version__
+
+    text = _inspect(model_runs["sw"])
+    assert "title: demo: friction of rough surfaces (H = 0.8)" in text
+    assert f"  roughslip {__version__}\n  made by:" in text and "BLAS" not in text
+    assert "slip-weakening law: lambda = 0.3, lambda_d = 0.1, d_c = 0.05" in text
+    assert "auto -> inverse" in text  # the method actually used
+    assert "precision" in text
+    assert "units       dimensionless" in text
+    assert "[pull] enabled = true, lam = 0.3, slip_law = \"slip-weakening\"" in text
+    assert "[ensemble] samples = 2, seed = 2003" in text
+    # the machine's BLAS kernel, when the run file records it
+    with h5py.File(model_runs["sw"], "r+") as f:
+        f.attrs["blas"] = "OpenBLAS 0.3.31 (SkylakeX)"
+    try:
+        assert f"roughslip {__version__}; BLAS OpenBLAS 0.3.31 (SkylakeX)\n" in _inspect(
+            model_runs["sw"])
+    finally:
+        with h5py.File(model_runs["sw"], "r+") as f:
+            del f.attrs["blas"]
+
+
+def test_inspect_says_what_a_coupled_indent_run_was(model_runs):
+    text = _inspect(model_runs["coupled"])
+    assert "break law (coupled): lambda = 0.2" in text
+    assert "history indent (the frictional indentation from first touch" in text
+    assert "the pull holds the depth" in text and "block solver dense" in text
+    assert "[coupling] enabled = true, history = \"indent\"" in text
+    # the notes of every depth, once, with the range of their numbers and where
+    assert "released at D_x = 0 (3 states: sample 0, depth indices 0-2)" in text
+
+
+def test_inspect_says_what_a_scan_run_was(model_runs):
+    text = _inspect(model_runs["scan"])
+    assert "read        surface: txt 48 x 64" in text and "missing points 7" in text
+    assert "- holes.txt: 7 missing point(s) interpolated" in text
+    assert "- nu = 0.5: the normal-tangential coupling G_zx vanishes" in text
+    assert "asked for, but nu = 0.5" in text
+    assert "E = 200000 MPa" in text and "units       length um, stress MPa, force uN" in text
+    assert "normal_force (uN)" in text and "nominal area 768 um^2" in text

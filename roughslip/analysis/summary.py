@@ -48,10 +48,15 @@ def length_unit(run) -> str | None:
 
 
 def axis_unit(run) -> str:
-    """The unit of the run's depths or loads (``rms``, a force unit, ...), with ``length``
-    replaced by the run's length unit when it has one; empty when there is none."""
+    """The unit of the run's depths or loads (``rms``, ``range``, ``pressure``), with
+    ``length`` and ``force`` replaced by the run's named units; empty when they have none
+    (a dimensionless run)."""
+    from roughslip.run.units import Units
+
     unit = run.axis_unit
-    return (length_unit(run) or unit) if unit == "length" else unit
+    if unit in ("length", "force"):
+        return Units.of(run.config_dict()).of_dimension(unit)
+    return unit
 
 
 def pixel_size(run) -> float:
@@ -175,36 +180,38 @@ def _format_solves(run, axis_label: str) -> list[str]:
 
 
 def summarize(path: str | Path) -> str:
-    """Config, progress, per-depth means +- standard errors (a single sample's values), and
-    convergence problems."""
+    """What a run was and what it gave, within :data:`~roughslip.analysis.model.WIDTH`
+    columns: title, version, machine and command line; the resolved model (slip law and its
+    parameters, the methods actually used, the coupled history, units); every configuration
+    key that differs from the defaults; the run's notes; progress; per-depth means +-
+    standard errors in named units (a single sample's values); convergence problems and the
+    solves per depth."""
+    from roughslip.analysis import model
+
     run = read_run(path)
     a = run.attrs
-    lines = [
-        f"{run.path}",
-        f"  roughslip {a.get('version', '?')}, made by: {a.get('command_line', '?')}",
-        f"  samples complete: {run.n_complete} of {run.complete.size}",
-    ]
     cfg = run.config_dict()
-    title = cfg.get("title")
+    lines = [f"{run.path}"]
+    title = model.title(run)
     if title:
-        lines.append(f"  title: {title}")
-    s = cfg.get("surface", {})
-    g = cfg.get("grid", {})
-    unit = length_unit(run)
-    shape = g.get("shape") or [g.get("n"), g.get("n")]
-    if run.n_complete:  # file surfaces set the grid; the stored surface has its shape
-        shape = list(run.surface(int(run.sample_index[run.complete][0])).shape)
-    pixel = a.get("pixel_size", g.get("pixel_size"))
-    where = f", from {Path(str(s['path'])).name}" if s.get("kind") == "file" else ""
-    lines.append(f"  surface: {s.get('kind')}{where}"
-                 + (f", H = {s['hurst']}" if "hurst" in s else "")
-                 + f"; grid {shape[0]} x {shape[1]}, a = {pixel}{' ' + unit if unit else ''}, "
-                 f"{g.get('boundary')}; E = {cfg['material']['E']}, nu = {cfg['material']['nu']}")
-    if unit:
-        lines.append(f"  length unit: {unit} (forces in units of E x {unit}^2)")
+        lines += model.wrap("title: ", title, indent=2)
+    lines.append(f"  roughslip {a.get('version', '?')}"
+                 + (f"; BLAS {a['blas']}" if a.get("blas") else ""))
+    lines += model.wrap("made by: ", str(a.get("command_line", "?")), indent=2, cut=True)
+    lines.append(f"  samples complete: {run.n_complete} of {run.complete.size}")
+    lines.append("  model:")
+    lines += model.model_lines(run)
+    lines.append("  configuration (the keys that differ from the defaults):")
+    lines += model.config_lines(run)
+    said = model.notes(run)
+    if said:
+        lines.append("  notes:")
+        for n in said:
+            lines += model.wrap("- ", n)
     if run.n_complete == 0:
         lines.append("  no complete samples yet")
         return "\n".join(lines)
+    u = model.units(run)
     sel = run.complete
     names = ["normal_force", "contact_area"] + (["friction_force"]
                                                  if "friction_force" in run.scalars else [])
@@ -212,8 +219,16 @@ def summarize(path: str | Path) -> str:
     au = axis_unit(run)
     axis_label = f"{axis} ({au})" if au else axis
     one = int(sel.sum()) == 1  # one sample: its values, no standard error
+    dims = {"normal_force": "force", "contact_area": "fraction", "friction_force": "force"}
+    forces = u.of_dimension("force")
+    lines += model.wrap("", ("values of the one sample" if one else
+                             f"means +- standard errors over {int(sel.sum())} samples")
+                        + (f"; forces in {forces}" if forces else "; dimensionless")
+                        + "; contact area: fraction of the nominal area", indent=2)
+    unit_of = {n: u.of_dimension(dims[n]) for n in names}
     head = f"  {axis_label:>12} " + " ".join(
-        f"{n:>30}" if one else f"{n + ' (mean +- sem)':>30}" for n in names)
+        f"{n + (f' ({unit_of[n]})' if unit_of[n] not in ('', '1') else ''):>23}"
+        for n in names)
     lines.append(head)
     out = unconverged_pulls(run)  # left out of the pull's means
 
@@ -226,15 +241,15 @@ def summarize(path: str | Path) -> str:
         row = f"  {x:>12.5g} "
         for n in names:
             m, e = stats[n][0][k], stats[n][1][k]
-            row += f"{m:>30.6g}" if one else f"{m:>17.6g} +- {e:<10.3g}"
-        lines.append(row)
+            row += f"{m:>23.6g} " if one else f"{m:>11.6g} +- {e:<8.2g} "
+        lines.append(row.rstrip())
     bad, total = _count_false(run.scalars["converged"][sel])
     problems = [f"  squeeze solves not converged: {bad} of {total}"]
     if "pull_converged" in run.scalars:
         bad, total = _count_false(run.scalars["pull_converged"][sel])
         problems.append(f"  pulls not converged: {bad} of {total}"
                         + (" (left out of the friction means and fits)" if bad else ""))
-        method = run.config_dict().get("pull", {}).get("method", "auto")
+        method = cfg.get("pull", {}).get("method", "auto")
         if method in METHODS and not METHODS.get(method).exact:
             problems.append(f"  approximate pulls (method {method!r}): biased low, with no "
                             "error estimate")
