@@ -568,3 +568,13 @@ def test_inspect_says_what_a_scan_run_was(model_runs):
     assert "asked for, but nu = 0.5" in text
     assert "E = 200000 MPa" in text and "units       length um, stress MPa, force uN" in text
     assert "normal_force (uN)" in text and "nominal area 768 um^2" in text
+
+
+def test_fit_tables_keep_to_100_columns(model_runs, tmp_path):
+    files = [str(model_runs["sw"]), str(model_runs["scan"])]
+    r = CliRunner().invoke(cli, ["fit", *files, "--x", "normal_force", "--y", "contact_area"])
+    assert r.exit_code == 0, r.output
+    lines = r.output.splitlines()
+    assert max(map(len, lines)) <= 100 and "# the files differ in:" in lines
+    one = CliRunner().invoke(cli, ["fit", files[0]]).output
+    assert "differ" not in one and max(map(len, one.splitlines())) <= 100

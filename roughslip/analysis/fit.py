@@ -246,15 +246,17 @@ def fit_files(paths: list[str | Path], x: str = "normal_force", y: str = "fricti
     return out
 
 
-def format_table(fits: list[FileFit], x: str, y: str) -> str:
-    """Text table, one row per file."""
+def format_table(fits: list[FileFit], x: str, y: str, width: int = 100) -> str:
+    """Text table, one row per file, within ``width`` columns: the configuration keys that
+    differ between the files are columns while they fit, else a block of their own above the
+    fits, a line per file (wrapped between keys)."""
     keys: list[str] = []
     for f in fits:
         keys += [k for k in f.varied if k not in keys]
     left = any(f.fit.excluded for f in fits)  # a column only when a pull is left out
-    head = ["file", *keys, "alpha", "+-boot", "+-reg", "95% CI", "R2", "points", "samples",
-            *(["left out"] if left else [])]
-    rows = []
+    fit_head = ["alpha", "+-boot", "+-reg", "95% CI", "R2", "points", "samples",
+                *(["left out"] if left else [])]
+    names, values, fit_rows = [], [], []
     for f in fits:
         p = f.fit
 
@@ -263,13 +265,34 @@ def format_table(fits: list[FileFit], x: str, y: str) -> str:
 
         ci = (f"[{p.alpha_ci95[0]:.3f}, {p.alpha_ci95[1]:.3f}]"
               if math.isfinite(p.alpha_ci95[0]) else "n/a")
-        rows.append([Path(f.path).name, *(str(f.varied.get(k, "")) for k in keys),
-                     num(p.alpha), num(p.alpha_bootstrap_std), num(p.alpha_stderr), ci,
-                     f"{p.r2:.4f}", str(p.n_points), str(p.n_samples),
-                     *([str(p.excluded)] if left else [])])
-    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
-    line = "  ".join(h.rjust(w) for h, w in zip(head, widths, strict=True))
-    body = ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+        names.append(Path(f.path).name)
+        values.append(["-" if f.varied.get(k) is None else str(f.varied[k]) for k in keys])
+        fit_rows.append([num(p.alpha), num(p.alpha_bootstrap_std), num(p.alpha_stderr), ci,
+                         f"{p.r2:.4f}", str(p.n_points), str(p.n_samples),
+                         *([str(p.excluded)] if left else [])])
+
+    def table(head: list[str], rows: list[list[str]]) -> list[str]:
+        widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
+        return ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True))
+                for r in [head, *rows]]
+
+    lines = table(["file", *keys, *fit_head],
+                  [[n, *v, *r] for n, v, r in zip(names, values, fit_rows, strict=True)])
+    block: list[str] = []
+    if max(map(len, lines)) > width and keys:
+        import textwrap
+
+        w = max(map(len, names))
+        block = ["# the files differ in:"]
+        for n, v in zip(names, values, strict=True):
+            items = [f"{k} = {val}".replace(" ", "\u00a0") for k, val in zip(keys, v,
+                                                                                strict=True)]
+            block += [line.replace("\u00a0", " ") for line in textwrap.wrap(
+                ", ".join(items), width=width, initial_indent=f"{n.rjust(w)}  ",
+                subsequent_indent=" " * (w + 2), break_on_hyphens=False,
+                break_long_words=False)]
+        lines = table(["file", *fit_head], [[n, *r] for n, r in zip(names, fit_rows,
+                                                                    strict=True)])
     note = ("\n# left out: (sample, depth) entries whose pull did not converge; the means at "
             "those depths are over the other samples") if left else ""
-    return f"# {y} = c {x}^alpha\n" + "\n".join([line, *body]) + note
+    return f"# {y} = c {x}^alpha\n" + "\n".join([*block, *lines]) + note
