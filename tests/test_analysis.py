@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import time
@@ -453,7 +454,7 @@ def test_inspect_says_a_batch_run_has_no_estimate_and_hides_estimates_not_asked_
 
 def test_every_plot_command_renders_a_micrometre_run_with_its_units(tmp_path):
     """plot (with --solves), fit --plot, bursts --plot on a run in um: no crash, and the
-    labels carry the unit, depths as values, E x um^2 for forces."""
+    labels carry the unit, depths as values, E x um^2 for forces (E's unit is not named)."""
     pytest.importorskip("matplotlib", reason="the plot extra is not installed")
     from roughslip.analysis.plotting import quantity_label, target_label
     from roughslip.run.config import dumps_toml
@@ -470,8 +471,8 @@ def test_every_plot_command_renders_a_micrometre_run_with_its_units(tmp_path):
     out = tmp_path / "um.h5"
     run(load_config(cfg_path), out)
     data = read_run(out)
-    assert quantity_label(data, "normal_force").endswith("(E $\\times$ um$^2$)")
-    assert quantity_label(data, "depth_length").endswith("(um)")
+    assert quantity_label(data, "normal_force").endswith("(E $\\times$ µm$^2$)")
+    assert quantity_label(data, "depth_length").endswith("(µm)")
     assert target_label(data, 2) == "$D_z$ = 2 rms"
     for args in (["plot", str(out), "-o", str(tmp_path / "p"), "--solves"],
                  ["fit", str(out), "--range", "0.1", "1e9", "--plot", str(tmp_path / "f.png")],
@@ -578,3 +579,137 @@ def test_fit_tables_keep_to_100_columns(model_runs, tmp_path):
     assert max(map(len, lines)) <= 100 and "# the files differ in:" in lines
     one = CliRunner().invoke(cli, ["fit", files[0]]).output
     assert "differ" not in one and max(map(len, one.splitlines())) <= 100
+
+
+# ------------------------------------------------------------------------------ the figures
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """The figures the package writes, kept (drawn as written) for the checks."""
+    pytest.importorskip("matplotlib", reason="the plot extra is not installed")
+    from roughslip.analysis import plotting
+
+    kept: dict[str, object] = {}
+    save = plotting.save
+
+    def keep(plt, fig, path):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        out = save(plt, fig, path)
+        FigureCanvasAgg(fig)  # closing took its canvas: draw it again as written
+        kept[Path(path).name] = fig
+        return out
+
+    monkeypatch.setattr(plotting, "save", keep)
+    return kept
+
+
+def _legend_covers(ax) -> list[tuple[float, float]]:
+    """The plotted points (markers, error bars, line vertices and points along the lines)
+    inside the legend's box, in display coordinates of the drawn figure."""
+    fig = ax.figure
+    fig.canvas.draw()
+    box = ax.get_legend().get_window_extent(fig.canvas.get_renderer())
+    hits = []
+
+    def check(xy, pad):
+        for x, y in np.asarray(xy, float):
+            if np.isfinite(x) and ax.bbox.contains(x, y) and \
+                    box.x0 - pad < x < box.x1 + pad and box.y0 - pad < y < box.y1 + pad:
+                hits.append((x, y))
+
+    for line in ax.get_lines():
+        if not line.get_transform().contains_branch(ax.transData):
+            continue  # a reference line across the axes
+        xy = line.get_transform().transform(line.get_xydata())
+        if line.get_marker() not in ("None", None, ""):
+            check(xy, line.get_markersize() / 2)
+        if line.get_linestyle() not in ("None", ""):
+            for a, b in itertools.pairwise(xy):
+                check(np.linspace(a, b, 25), 0.5)
+    for coll in ax.collections:
+        for seg in getattr(coll, "get_segments", list)():
+            check(np.linspace(*coll.get_transform().transform(seg)[[0, -1]], 25), 0.5)
+    return hits
+
+
+def test_figures_say_the_law_the_units_and_the_closed_form(model_runs, tmp_path, figures):
+    from roughslip.analysis.plotting import plot_run
+
+    plot_run(model_runs["sw"], tmp_path / "sw")
+    friction = figures["sw_friction.png"].axes[0]
+    title = friction.get_title()
+    assert "slip-weakening law" in title and r"$\lambda$ = 0.3" in title
+    assert r"$\lambda_d$ = 0.1" in title and r"$d_c$ = 0.05" in title
+    assert "demo: friction of rough surfaces (H = 0.8)" in title
+    assert friction.get_ylabel().endswith("(dimensionless)")
+    maps = figures["sw_maps.png"]
+    fx = next(ax for ax in maps.axes if "tangential" in ax.get_title())
+    im = fx.get_images()[0]
+    assert im.get_cmap().name == "RdBu_r" and im.norm.vmin == -im.norm.vmax > -np.inf
+    fz = next(ax for ax in maps.axes if "normal force" in ax.get_title())
+    assert fz.get_images()[0].get_cmap().name == "viridis"
+    assert "length" not in maps._suptitle.get_text()  # "D_z = 2 rms", no invented unit
+    # a run in named units labels forces in them
+    plot_run(model_runs["scan"], tmp_path / "scan")
+    ax = figures["scan_normal.png"].axes[0]
+    assert ax.get_ylabel() == "normal force $F_n$ (µN)"
+    assert ax.get_xlabel() == "penetration depth $D_z$ (µm)"
+    # the Hertz scene draws its closed form
+    from roughslip.run.executor import run
+
+    hertz = tmp_path / "hertz.h5"
+    run(load_config(Path(__file__).parents[1] / "configs" / "hertz.toml",
+                    ["grid.n=32", "squeeze.depths=[0.005, 0.01, 0.02]"]), hertz)
+    plot_run(hertz, tmp_path / "hertz")
+    labels = figures["hertz_normal.png"].axes[0].get_legend_handles_labels()[1]
+    assert any(lab.startswith("Hertz, $F_n") for lab in labels)
+
+
+def test_legends_cover_no_data_in_the_fit_of_four_files(model_runs, tmp_path, figures):
+    from roughslip.run.executor import run
+
+    paths = []
+    for h in (0.5, 0.6, 0.7, 0.8):
+        out = tmp_path / f"H{h}.h5"
+        run(load_config(Path(__file__).parents[1] / "configs" / "rough_h08.toml", [
+            f"surface.hurst={h}", "grid.n=16", "ensemble.samples=2",
+            "squeeze.depths={start = 0.3, stop = 2.0, num = 4, spacing = 'log'}"]), out)
+        paths.append(str(out))
+    r = CliRunner().invoke(cli, ["fit", *paths, "--plot", str(tmp_path / "fit.png")])
+    assert r.exit_code == 0, r.output
+    ax = figures["fit.png"].axes[0]
+    assert len(ax.get_legend().get_texts()) == 4
+    assert _legend_covers(ax) == []
+
+
+def test_legends_cover_no_data_in_the_verify_figures(quick_rows, tmp_path, figures):
+    verify.plot(quick_rows[0], tmp_path / "wp")
+    for name, fig in figures.items():
+        for ax in fig.axes:
+            if ax.get_legend() is not None:
+                assert _legend_covers(ax) == [], (name, ax.get_title())
+
+
+def test_a_legend_with_data_everywhere_goes_beside_the_axes(tmp_path, figures):
+    from roughslip.analysis.legends import place_legends
+    from roughslip.analysis.plotting import pyplot, save
+
+    plt = pyplot()
+    fig, ax = plt.subplots()
+    g = np.linspace(0, 1, 15)
+    xx, yy = np.meshgrid(g, g)
+    ax.plot(xx.ravel(), yy.ravel(), "o", label="a grid of points")
+    ax.legend()
+    save(plt, fig, tmp_path / "full.png")
+    ax = figures["full.png"].axes[0]
+    assert _legend_covers(ax) == []
+    assert ax.get_legend().get_window_extent().x0 > ax.bbox.x1  # beside, on the right
+    fig, ax = plt.subplots()
+    ax.plot([0.05, 0.95], [0.95, 0.95], "o", label="two points at the top")
+    ax.legend(loc="upper right")  # covers a point
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    assert _legend_covers(ax)
+    assert place_legends(fig) == {0: "lower right"} and _legend_covers(ax) == []

@@ -43,6 +43,7 @@ import numpy as np
 from roughslip.errors import InputError
 from roughslip.friction.laws import LAWS
 from roughslip.friction.pull import METHODS
+from roughslip.run.units import Units
 
 PHASES = ("all", "before", "after")
 
@@ -323,6 +324,8 @@ class BurstSample:
     files: list[str]
     #: the length unit of the first run (``units.length``), None for bare numbers
     length_unit: str | None = None
+    #: the units of the first run (:class:`roughslip.run.units.Units`)
+    units: Units | None = None
     #: pulls left out because they did not converge (their curves stop short)
     left_out: int = 0
 
@@ -345,6 +348,7 @@ def collect_bursts(paths: list[str | Path]) -> BurstSample:
         cfg = run.config_dict()
         if path == paths[0]:
             out.length_unit = length_unit(run)
+            out.units = Units.of(cfg)
         pull = cfg.get("pull", {})
         if not pull.get("enabled", False):
             raise InputError(f"{path}: has no pull (pull.enabled = false)")

@@ -9,12 +9,15 @@ from pathlib import Path
 
 import numpy as np
 
+from roughslip.analysis import model
 from roughslip.analysis.fit import fit_power_law, pair, quantity
-from roughslip.analysis.summary import axis_unit, length_unit, mean_sem, pixel_size
+from roughslip.analysis.model import units
+from roughslip.analysis.summary import axis_unit, mean_sem, pixel_size
 from roughslip.errors import InputError, io_failure
 from roughslip.friction.laws import LAWS
 from roughslip.friction.pull import METHODS
 from roughslip.run.store import read_run
+from roughslip.run.units import Units
 
 
 def pyplot():
@@ -30,10 +33,16 @@ def pyplot():
 
 
 def save(plt, fig, path: str | Path) -> Path:
-    """Lay out, write at 120 dpi and close a figure (:class:`OutputError` when it cannot be
-    written)."""
-    if fig.get_layout_engine() is None:
+    """Lay out, place the legends where they cover no data
+    (:func:`roughslip.analysis.legends.place_legends`), write at 120 dpi and close a figure
+    (:class:`OutputError` when it cannot be written)."""
+    from roughslip.analysis.legends import place_legends
+
+    engine = fig.get_layout_engine()
+    if engine is None:
         fig.tight_layout()
+    if any(ax.get_legend() is not None for ax in fig.axes):
+        place_legends(fig, fig.tight_layout if engine is None else None)
     try:
         fig.savefig(path, dpi=120)
     except OSError as exc:
@@ -104,40 +113,75 @@ def finish_axes(ax, xlabel: str, ylabel: str, fontsize: int = 8) -> None:
 
 
 def quantity_label(run, name: str) -> str:
-    """Axis label of a quantity of :func:`roughslip.analysis.fit.quantity`, with its unit:
-    the run's length unit (``units.length``; "length" when it has none) and, for forces, E
-    times its square."""
-    unit = length_unit(run) or "length"
-    force = f"E $\\times$ {unit}$^2$"
-    if name == "depth" and run.axis_name == "depth":
-        return f"penetration depth $D_z$ ({axis_unit(run) or unit})"
-    return {"depth": f"penetration depth $D_z$ ({unit})",
-            "depth_length": f"penetration depth $D_z$ ({unit})",
-            "normal_force": f"normal force $F_n$ ({force})",
-            "contact_area": "contact area (fraction of the grid)",
-            "friction_force": f"static friction $F_{{friction}}$ ({force})",
-            "friction_normal_force": f"normal force of the pulled state ({force})"}[name]
+    """Axis label of a quantity of :func:`roughslip.analysis.fit.quantity`, with its unit
+    (:meth:`roughslip.run.units.Units.label`): the run's named units (``um``, ``uN``, or
+    ``E x um^2`` when only the length is named), "(dimensionless)" for a run without units."""
+    u = units(run)
+    if name == "depth" and run.axis_name == "depth" and run.axis_unit != "length":
+        return f"penetration depth $D_z$ ({_axis_tex(run)})"
+    return {"depth": f"penetration depth $D_z${u.label('length')}",
+            "depth_length": f"penetration depth $D_z${u.label('length')}",
+            "normal_force": f"normal force $F_n${u.label('force')}",
+            "contact_area": "contact area (fraction of the nominal area)",
+            "friction_force": f"static friction $F_{{friction}}${u.label('force')}",
+            "friction_normal_force": "normal force of the pulled state"
+                                     + u.label("force")}[name]
+
+
+def _axis_tex(run) -> str:
+    """The unit of the run's depths or loads for a figure (empty: none)."""
+    if run.axis_unit in ("length", "force"):
+        return units(run).tex(run.axis_unit)
+    return {"rms": "rms", "range": "range", "pressure": "E*"}.get(run.axis_unit,
+                                                                  run.axis_unit)
 
 
 def target_label(run, k: int) -> str:
-    """The depth (or load) of target index ``k``, as a value with its unit."""
+    """The depth (or load) of target index ``k``, as a value with its unit (none for a
+    dimensionless run)."""
     name = "$D_z$" if run.axis_name == "depth" else "$F_n$"
-    return f"{name} = {run.axis[k]:.3g} {axis_unit(run)}".rstrip()
+    unit = _axis_tex(run)
+    if run.axis_unit == "pressure":
+        name, unit = "$p$", "$E^*$"
+    return f"{name} = {run.axis[k]:.3g} {unit}".rstrip()
+
+
+def run_title(run, what: str, law: bool = True) -> str:
+    """A figure title: ``what``, the slip law with its parameters when the run pulls (and
+    ``law``), and the run's title (filled from its configuration) on a line of its own."""
+    cfg = run.config_dict()
+    law = model.law_label(cfg, tex=True) if law else ""
+    head = f"{what}, {law}" if law and what else what or law
+    name = model.title(run)
+    return f"{name}\n{head}" if name else head
 
 
 def _loglog_png(plt, stem: Path, suffix: str, x, y, xlabel: str, ylabel: str,
-                label: str) -> Path:
-    """One log-log figure with its fitted power law, written to ``<stem>_<suffix>.png``."""
-    fig, ax = plt.subplots(figsize=(5, 4))
-    _loglog_with_fit(ax, x, y, xlabel, ylabel, label)
+                label: str, exact: tuple[str, np.ndarray] | None = None) -> Path:
+    """One log-log figure with its fitted power law (and the closed form ``exact``, a name
+    and the exact ``y`` per sample and depth), written to ``<stem>_<suffix>.png``."""
+    fig, ax = plt.subplots(figsize=(5.4, 4.4))
+    _loglog_with_fit(ax, x, y, xlabel, ylabel, label, exact)
     return save(plt, fig, stem.parent / f"{stem.name}_{suffix}.png")
 
 
-def _loglog_with_fit(ax, x, y, xlabel, ylabel, title):
-    """Per-sample points, ensemble means with their standard errors and the power-law fit;
-    NaN entries (pulls that did not converge) are left out, and the legend says how many."""
+#: the closed forms of :func:`roughslip.analysis.summary.closed_form`, as figures write them
+CLOSED_FORMS = {"Hertz": r"Hertz, $F_n = \frac{4}{3}E^*R^{1/2}(D_z - h_{max})^{3/2}$",
+                "flat punch": r"Boussinesq, $F_n = 2aE^*D_z$"}
+
+
+def _loglog_with_fit(ax, x, y, xlabel, ylabel, title, exact=None):
+    """Per-sample points, ensemble means with their standard errors, the power-law fit and
+    the closed form ``exact`` where there is one; NaN entries (pulls that did not converge)
+    are left out, and the legend says how many."""
     xm, _ = mean_sem(x)
     ym, ye = mean_sem(y)
+    if exact is not None:
+        ex, _ = mean_sem(exact[1])
+        ok = np.isfinite(ex) & (ex > 0) & (xm > 0)
+        if ok.sum() > 1:
+            ax.loglog(xm[ok], ex[ok], "-", color="0.55", lw=5, alpha=0.55, zorder=1,
+                      solid_capstyle="round", label=CLOSED_FORMS.get(exact[0], exact[0]))
     left = int(np.isnan(x).sum())
     ok = (xm > 0) & (ym > 0)
     for row_x, row_y in zip(x, y, strict=True):
@@ -159,7 +203,7 @@ def _loglog_with_fit(ax, x, y, xlabel, ylabel, title):
     log_ticks(ax.yaxis)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title)
+    ax.set_title(title, fontsize=9)
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8)
 
@@ -225,7 +269,7 @@ def plot_solves(run, stem: Path) -> Path:
         ax.grid(True, which="major", alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=7)
-    title = run.config_dict().get("title") or run.path.name
+    title = model.title(run) or run.path.name
     n = run.n_complete
     fig.suptitle(f"{title}: the solves of {n} sample{'s' if n != 1 else ''}"
                  + (" (points: each sample)" if n > 1 else ""), fontsize=10)
@@ -248,20 +292,26 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
     stem = Path(out) if out else Path(path).with_suffix("")
     make_folder(stem.parent)
     written = []
+    from roughslip.analysis.summary import closed_form
+
     fn = quantity(run, "normal_force")
     depth = quantity(run, "depth_length")
-    unit = length_unit(run)
+    cfg = run.config_dict()
+    squeeze = ("coupled squeeze, history " + model.completed(cfg)["coupling"]["history"]
+               if model.coupled(cfg) else "")
     written.append(_loglog_png(plt, stem, "normal", depth, fn,
                                quantity_label(run, "depth_length"),
                                quantity_label(run, "normal_force"),
-                               "$F_n \\propto D_z^{\\beta}$"))
+                               run_title(run, "$F_n \\propto D_z^{\\beta}$"
+                                         + (f", {squeeze}" if squeeze else ""), law=False),
+                               closed_form(run)))
     has_pull = "friction_force" in run.scalars
     if has_pull:
         fn_pulled, ff, _ = pair(run, "normal_force", "friction_force")
         written.append(_loglog_png(plt, stem, "friction", fn_pulled, ff,
                                    quantity_label(run, "normal_force"),
                                    quantity_label(run, "friction_force"),
-                                   "$F_{friction} \\propto F_n^{\\alpha}$"))
+                                   run_title(run, "$F_{friction} \\propto F_n^{\\alpha}$")))
     s = int(run.sample_index[run.complete][0]) if sample is None else int(sample)
     if s not in set(run.sample_index[run.complete].tolist()):
         raise InputError(f"{run.path}: sample {s} is not complete")
@@ -286,8 +336,7 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
         except InputError:
             dx = fx = None
         if dx is not None and dx.size:
-            cfg = run.config_dict()
-            written.append(_pull_figure(plt, stem, cfg, dx, fx, where, unit, site))
+            written.append(_pull_figure(plt, stem, cfg, dx, fx, where, units(run), site))
     if solves:
         written.append(plot_solves(run, stem))
     return written
@@ -298,9 +347,8 @@ def _maps_figure(plt, stem: Path, run, panels: list, where: str) -> Path:
     for the sets), all panels of one size."""
     from matplotlib.colors import ListedColormap
 
-    unit = length_unit(run)
+    u = units(run)
     pixel = pixel_size(run)
-    force = f"E $\\times$ {unit or 'length'}$^2$"
     fig, axes = plt.subplots(1, len(panels), figsize=(3.9 * len(panels), 3.7),
                              squeeze=False, layout="constrained")
     for ax, (name, title, a) in zip(axes[0], panels, strict=True):
@@ -316,22 +364,38 @@ def _maps_figure(plt, stem: Path, run, panels: list, where: str) -> Path:
             title = f"{title}: {int(a.sum())} sites"
         else:
             im = ax.imshow(a, origin="lower", interpolation="nearest", extent=extent,
-                           cmap="viridis")
+                           **field_colours(name, a))
             cb = fig.colorbar(im, ax=ax, fraction=0.046)
-            cb.set_label(f"pixel force ({force})", fontsize=8)
+            cb.set_label("pixel force" + u.label("force"), fontsize=8)
         ax.set_title(title, fontsize=9)
-        ax.set_xlabel(f"x, pull direction ({unit or 'length'})")
-        ax.set_ylabel(f"y ({unit or 'length'})")
-    fig.suptitle(where, fontsize=10)
+        ax.set_xlabel("x, pull direction" + u.label("length"))
+        ax.set_ylabel("y" + u.label("length"))
+    fig.suptitle(run_title(run, where), fontsize=10)
     return save(plt, fig, stem.parent / f"{stem.name}_maps.png")
 
 
+#: fields with a sign (a direction): drawn on a diverging colour map centred on zero
+SIGNED = ("fx", "ux")
+
+
+def field_colours(name: str, a: np.ndarray) -> dict:
+    """``imshow`` colours of a stored field: a diverging map centred on zero (symmetric
+    limits) for the signed fields (:data:`SIGNED`), the sequential viridis for the others."""
+    if name in SIGNED:
+        top = float(np.nanmax(np.abs(a))) if a.size and np.isfinite(a).any() else 0.0
+        top = top or 1.0
+        return {"cmap": "RdBu_r", "vmin": -top, "vmax": top}
+    return {"cmap": "viridis"}
+
+
 def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
-                 where: str, unit: str | None = None, site: np.ndarray | None = None) -> Path:
+                 where: str, u: Units | None = None, site: np.ndarray | None = None) -> Path:
     """The pull curve under monotone D_x (a sawtooth for the break law, with its bursts; the
-    stable path and the landings of its bursts for slip-weakening), over the events."""
+    stable path and the landings of its bursts for slip-weakening), over the events; titled
+    with the slip law and its parameters."""
     from roughslip.analysis.bursts import landing_curve, pull_curve
 
+    u = u or Units.of(cfg)
     pull = cfg.get("pull", {})
     coupled = bool(cfg.get("coupling", {}).get("enabled"))
     law = "coupled" if coupled else pull.get("slip_law", "break")
@@ -348,7 +412,6 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
         if np.any(big):
             ax.plot(c.burst_dx[big], fx[c.burst_start[big]], "v", color="C1", ms=3,
                     label=f"bursts of 2+ breaks ({int(big.sum())})")
-        title = "pull curve (break law)"
     elif law in LAWS and LAWS.get(law).lands and site is not None:
         c = landing_curve(dx, fx, site)
         i = c.peak_break  # the peak of the stable path (a state inside a burst never is)
@@ -356,17 +419,17 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
         if c.burst_dx.size:
             ax.plot(c.burst_dx, fx[c.burst_start], "v", color="C1", ms=3,
                     label=f"bursts ({c.burst_dx.size})")
-        title = f"pull curve ({law})"
     else:
         # Coulomb law (affine between slip events, no drops) and the coupled model's events
         order = np.argsort(dx, kind="stable")
         ax.plot(np.r_[0.0, dx[order]], np.r_[0.0, fx[order]], "-", color="C0", lw=0.8,
                 label="pull curve between events")
-        title = f"pull curve ({law})"
-    ax.plot(dx[i], fx[i], "o", color="C3", label=f"$F_{{friction}}$ = {fx[i]:.4g}")
-    ax.set_xlabel(f"pull displacement $D_x$ ({unit or 'length'})")
-    ax.set_ylabel(f"pull force $F_x$ (E $\\times$ {unit or 'length'}$^2$)")
-    ax.set_title(f"{title}: {where}", fontsize=10)
+    force = u.of_dimension("force")
+    ax.plot(dx[i], fx[i], "o", color="C3", label=f"$F_{{friction}}$ = {fx[i]:.4g}"
+            + (f" {u.tex('force')}" if force else ""))
+    ax.set_xlabel("pull displacement $D_x$" + u.label("length"))
+    ax.set_ylabel("pull force $F_x$" + u.label("force"))
+    ax.set_title(f"pull curve, {model.law_label(cfg, tex=True)}\n{where}", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
     return save(plt, fig, stem.parent / f"{stem.name}_pull.png")
@@ -378,7 +441,7 @@ def plot_bursts(sample, fits, out: str | Path) -> Path:
     from roughslip.analysis.bursts import log_binned
 
     plt = pyplot()
-    force = f"E $\\times$ {sample.length_unit or 'length'}$^2$"  # the pull force's unit
+    force = (sample.units or Units(sample.length_unit)).label("force")  # of the pull force
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     for ax, name, data, discrete in ((axes[0], "size", sample.sizes, True),
                                      (axes[1], "drop", sample.drops, False)):
@@ -400,7 +463,7 @@ def plot_bursts(sample, fits, out: str | Path) -> Path:
                     yy = frac * (fit.alpha - 1) / fit.xmin * (xx / fit.xmin) ** -fit.alpha
                 ax.loglog(xx, yy, "-", color=f"C{j}",
                           label=f"{bf.phase}: $\\alpha$ = {fit.alpha:.2f} ± {fit.sigma:.2f}")
-        ref = {"size": "burst size (breaks)", "drop": f"force drop $\\Delta F_x$ ({force})"}[name]
+        ref = {"size": "burst size (breaks)", "drop": f"force drop $\\Delta F_x${force}"}[name]
         finish_axes(ax, ref, "probability density", fontsize=7)
     fig.suptitle(f"bursts of {sample.pulls} pulls (log bins; fits from x_min)", fontsize=10)
     return save(plt, fig, out)
@@ -451,5 +514,8 @@ def plot_fits(paths: list[str], fits, x: str, y: str, out: str | Path) -> Path:
     if excluded:
         ax.plot([], [], "o", mfc="none", color="0.3", label="not fitted (outside --range)")
     ax.legend(fontsize=8)
-    ax.set_title("ensemble means ± standard error, with the fits", fontsize=10)
+    laws = {model.law_label(read_run(p).config_dict(), tex=True) for p in paths}
+    law = laws.pop() if len(laws) == 1 else ""
+    ax.set_title("ensemble means ± standard error, with the fits"
+                 + (f"\n{law}" if law and y in ("friction_force",) else ""), fontsize=10)
     return save(plt, fig, out)
