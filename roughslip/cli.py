@@ -87,7 +87,10 @@ def show_config(config: str, overrides: tuple[str, ...]) -> None:
 
 
 class _Progress:
-    """Turns run events into a tqdm bar (terminal) or periodic log lines (otherwise)."""
+    """Turns run events into a tqdm bar (terminal) or log lines (otherwise): one when the
+    first solve is done (after the set-up), one per quarter of the work (at least a second
+    apart), one at least every ``every`` seconds, and one at the last solve, so that a short
+    run shows its progress and a long one does not flood its log."""
 
     def __init__(self, quiet: bool, every: float = 10.0):
         self.quiet = quiet
@@ -103,12 +106,19 @@ class _Progress:
     def eta(self, now: float) -> str:
         """Remaining time from the rate since the first finished solve (set-up excluded);
         empty until at least 3 solves and 5 % of the work have followed that one."""
-        if self.first is None:
+        if self.first is None or self.done >= self.total:
             return ""
         since = self.done - 1
         if since < max(3, 0.05 * self.total) or now <= self.first:
             return ""
         return f", ETA {(now - self.first) / since * (self.total - self.done):.0f} s"
+
+    def _due(self, now: float) -> bool:
+        """Whether a log line is due at this solve (class docstring)."""
+        if self.done in (1, self.total) or now - self.last >= self.every:
+            return True
+        quarter = max(1, self.total // 4)
+        return self.done % quarter == 0 and now - self.last >= min(1.0, self.every)
 
     def __call__(self, e: dict[str, Any]) -> None:
         kind = e["kind"]
@@ -132,7 +142,7 @@ class _Progress:
                 self.first = now
             if self.bar is not None:
                 self.bar.update(1)
-            elif not self.quiet and now - self.last >= self.every:
+            elif not self.quiet and self._due(now):
                 self.last = now
                 click.echo(f"roughslip: {self.done}/{self.total} solves (sample {e['sample']}, "
                            f"depth {e['depth_index']}), {now - self.t0:.0f} s elapsed"

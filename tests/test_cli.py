@@ -79,6 +79,35 @@ def test_progress_lines_give_no_eta_until_it_means_something(monkeypatch, capsys
     assert lines[4].endswith("ETA 35 s")
 
 
+def test_a_short_run_shows_its_progress_and_a_long_one_does_not_flood(monkeypatch, capsys):
+    """Away from a terminal: a line after the first solve (set-up included), one per quarter
+    of the work at least a second apart, one every 10 s, and one at the last solve without an
+    ETA. A 12 s run of 96 solves after 10 s of set-up gets five lines, not one."""
+    from roughslip import cli as cli_mod
+
+    clock = {"t": 0.0}
+    monkeypatch.setattr(cli_mod.time, "monotonic", lambda: clock["t"])
+
+    def lines(total: int, setup: float, per: float) -> list[str]:
+        clock["t"] = 0.0
+        progress = cli_mod._Progress(quiet=False)
+        progress.tty = False
+        progress({"kind": "start", "total": total, "samples": total, "depths": 1,
+                  "skipped": 0})
+        for k in range(total):
+            clock["t"] = setup + (k + 1) * per
+            progress({"kind": "depth", "sample": k, "depth_index": 0})
+        return capsys.readouterr().err.strip().splitlines()
+
+    short = lines(96, 10.0, 12.0 / 96)
+    assert [line.split()[1] for line in short] == ["1/96", "24/96", "48/96", "72/96", "96/96"]
+    assert short[0].endswith("10 s elapsed") and "ETA" not in short[-1]
+    long = lines(1000, 5.0, 1.0)  # 1000 s: every 10 s, and the quarters
+    assert 95 <= len(long) <= 110
+    fast = lines(8, 0.0, 0.01)  # a fraction of a second: first and last only
+    assert [line.split()[1] for line in fast] == ["1/8", "8/8"]
+
+
 def _one_line_error(r) -> str:
     """The message of a failed command: exactly one line on stderr, no traceback."""
     lines = r.output.strip().splitlines()
