@@ -35,10 +35,12 @@ docs: $(STAMP)
 	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
 	@echo "docs: docs/_build/html/index.html"
 
-# The main job on a shipped config, then its summary.
+# The main job on a shipped config, its summary, and its figures (results/demo_*.png: the
+# friction and load laws, the maps and the pull curve of one sample).
 demo: $(STAMP)
 	$(VENV)/bin/roughslip run configs/demo.toml -o results/demo.h5 --overwrite
 	$(VENV)/bin/roughslip inspect results/demo.h5
+	$(VENV)/bin/roughslip plot results/demo.h5 -o results/demo
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check roughslip tests scripts

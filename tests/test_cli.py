@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 from click.testing import CliRunner
 
@@ -106,6 +107,14 @@ def test_a_short_run_shows_its_progress_and_a_long_one_does_not_flood(monkeypatc
     assert 95 <= len(long) <= 110
     fast = lines(8, 0.0, 0.01)  # a fraction of a second: first and last only
     assert [line.split()[1] for line in fast] == ["1/8", "8/8"]
+
+
+def test_make_demo_draws_the_figures():
+    """`make demo` runs, inspects and plots: the figures are written beside the run file."""
+    make = (Path(__file__).parents[1] / "Makefile").read_text()
+    recipe = make.split("\ndemo:", 1)[1].split("\n\n", 1)[0]
+    assert "roughslip run configs/demo.toml -o results/demo.h5" in recipe
+    assert "roughslip plot results/demo.h5 -o results/demo" in recipe
 
 
 def _one_line_error(r) -> str:
