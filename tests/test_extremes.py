@@ -476,7 +476,7 @@ def test_worker_crash_keeps_completed_samples(tmp_path, monkeypatch):
     (hook / "sitecustomize.py").write_text(
         "import os\n"
         "if os.environ.get('ROUGHSLIP_CRASH_SAMPLE'):\n"
-        "    import roughslip.run.executor as e\n"
+        "    import roughslip.run.pool as e\n"
         "    real = e._pool_task\n"
         "    def task(config, sample):\n"
         "        if sample == int(os.environ['ROUGHSLIP_CRASH_SAMPLE']):\n"

@@ -1,6 +1,6 @@
 """The stages that compute one sample of a run, target by target.
 
-A stage knows its solvers; the run loop (:func:`roughslip.run.executor.run_sample`) knows only
+A stage knows its solvers; the run loop (:func:`roughslip.run.sample.run_sample`) knows only
 stages and the output schema (:mod:`roughslip.run.schema`). Two stages exist:
 
 * :class:`DecoupledStage`: the squeeze at each depth or load, then (with ``pull.enabled``) the
