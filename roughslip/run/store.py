@@ -49,7 +49,6 @@ without ``h5clear``. The journal, not the format, guarantees integrity.
 
 from __future__ import annotations
 
-import errno
 import json
 import os
 import shutil
@@ -74,6 +73,7 @@ from roughslip.run.reading import (
     open_file,
     read_run,
 )
+from roughslip.run.space import check_space
 from roughslip.run.stamps import check_stamp as _check_stamp
 from roughslip.run.stamps import stored_config
 from roughslip.run.stamps import stored_stamp as _stored_stamp
@@ -277,12 +277,13 @@ class RunWriter:
     def write_sample(self, res: SampleResult) -> None:
         """Journal the sample atomically, then write it into the run file and flush.
 
-        The free space is checked first (:func:`_check_space`): HDF5 does not recover from a
-        write that fails half-way, and a run file it was writing into can be left unusable,
-        so a full disk is found before anything is written.
+        The free space is checked first (:func:`~roughslip.run.space.check_space`): HDF5
+        does not recover from a write that fails half-way, and a run file it was writing into
+        can be left unusable, so a full disk is found before anything is written.
         """
         try:
-            _check_space(self.path, res)
+            check_space(self.path, [*res.scalars.values(), *res.surfaces.values(),
+                                    *(a for f in res.fields for a in f.values())])
             self.journal.mkdir(exist_ok=True)
             final = self.journal / f"{group_name(res.sample)}.h5"
             tmp = final.with_suffix(".tmp")
@@ -347,28 +348,6 @@ class RunWriter:
                 self.f.close()
             except (OSError, RuntimeError):
                 pass
-
-
-#: room for HDF5's metadata beside a sample's arrays (object headers, chunk indices)
-_SPACE_MARGIN = 1 << 18
-
-
-def _sample_bytes(res: SampleResult) -> int:
-    """The bytes of a sample's arrays, uncompressed: an upper bound on what one copy of it
-    (the journal entry, or its group in the run file) adds, before metadata."""
-    arrays = [*res.scalars.values(), *res.surfaces.values(),
-              *(a for fields in res.fields for a in fields.values())]
-    return sum(np.asarray(a).nbytes for a in arrays)
-
-
-def _check_space(path: Path, res: SampleResult) -> None:
-    """``OSError(ENOSPC)`` when the file system of ``path`` has less room than two copies of
-    the sample (journal entry and run file) and :data:`_SPACE_MARGIN` take."""
-    need = 2 * _sample_bytes(res) + _SPACE_MARGIN
-    free = shutil.disk_usage(path.parent).free
-    if free < need:
-        raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} (this sample needs up to "
-                      f"{need / 2**20:.1f} MiB, {free / 2**20:.1f} MiB are free)")
 
 
 def _journal_digest(jdir: Path, path: Path) -> tuple[str, int | None] | None:
