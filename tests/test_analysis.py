@@ -103,7 +103,8 @@ def _fake_run(path, hurst: float, alpha: float, n_samples=6, seed=0, unconverged
               "friction_force": ff, "iterations": np.ones(5, np.int64),
               "residual": np.zeros(5), "converged": np.ones(5, np.uint8),
               "seconds": np.zeros(5), "pull_converged": ok}
-        w.write_sample(SampleResult(s, sc, [{} for _ in d], {"rigid_surface": np.zeros((8, 8))}))
+        w.write_sample(SampleResult(s, sc, [{} for _ in d], {"rigid_surface": np.zeros((8, 8))},
+                                    digest=cfg.digest()))
     w.finish()
 
 

@@ -9,6 +9,7 @@ its result to the single writer of :mod:`roughslip.run.store`.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -26,10 +27,14 @@ from roughslip.run.store import SampleResult
 Progress = Callable[[dict[str, Any]], None]
 
 
-class _Context:
-    """What a process keeps between the samples of one configuration: the scene, the problem
+class _Context(threading.local):
+    """What a thread keeps between the samples of one configuration: the scene, the problem
     whose operator (and kernels) every sample shares, and the stage. One configuration at a
-    time: another one replaces it, so nothing has to be reset by hand."""
+    time: another one replaces it, so nothing has to be reset by hand.
+
+    One per thread: a Dask worker runs tasks in several threads at once, of one run or of
+    several runs that share the scheduler, and a task must neither see another
+    configuration's scene nor share the FFT plans of a problem another thread is solving."""
 
     def __init__(self) -> None:
         self.key: str | None = None
@@ -61,6 +66,11 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
         Global sample number (its surfaces come from ``SeedSequence(seed, spawn_key=(sample,))``).
     progress : callable ``(sample, depth_index)``, optional
         Called after each target.
+
+    Returns
+    -------
+    SampleResult
+        With the digest of ``config``, which the writer checks against its own run's.
 
     Raises
     ------
@@ -97,7 +107,8 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     surfaces = {"rigid_surface": surf.rigid}
     if surf.elastic is not None:
         surfaces["elastic_surface"] = surf.elastic
-    return SampleResult(sample, rows, fields, surfaces, notes, solvers)
+    return SampleResult(sample, rows, fields, surfaces, notes, solvers,
+                        digest=config.digest())
 
 
 def _check_voids(contact: np.ndarray | None, valid: np.ndarray | None, where: str) -> None:

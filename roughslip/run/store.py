@@ -60,7 +60,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from roughslip.errors import InputError, io_failure
+from roughslip.errors import InputError, OutputError, io_failure
 from roughslip.run import schema
 from roughslip.run.checkpoints import reached
 from roughslip.run.reading import (
@@ -116,6 +116,8 @@ class SampleResult:
     notes: list[str] = field(default_factory=list)
     #: per depth, what solved it (``{"pull_method": "inverse", ...}``): attribute ``solvers``
     solvers: list[dict[str, str]] = field(default_factory=list)
+    #: the digest of the configuration that computed it (checked by the writer)
+    digest: str = ""
 
 
 def journal_dir(path: Path) -> Path:
@@ -280,7 +282,20 @@ class RunWriter:
         The free space is checked first (:func:`~roughslip.run.space.check_space`): HDF5
         does not recover from a write that fails half-way, and a run file it was writing into
         can be left unusable, so a full disk is found before anything is written.
+
+        Raises
+        ------
+        OutputError
+            When the sample was computed for another configuration (its digest is not this
+            run's: results of another run sharing a scheduler), before anything is written;
+            or when it cannot be written.
         """
+        if res.digest != self.layout.digest:
+            raise OutputError(
+                f"{self.path}: sample {res.sample} was computed for configuration "
+                f"{res.digest[:12] or '(none)'}..., not for this run's {self.layout.digest[:12]}"
+                "...; it is not written (a result of another run?); the samples completed "
+                "before are kept: run again with --resume")
         try:
             check_space(self.path, [*res.scalars.values(), *res.surfaces.values(),
                                     *(a for f in res.fields for a in f.values())])
@@ -465,4 +480,5 @@ def _read_sample_file(jf: h5py.File) -> SampleResult:
         k += 1
     notes = json.loads(jf.attrs["notes"]) if "notes" in jf.attrs else []
     solvers = json.loads(jf.attrs["solvers"]) if "solvers" in jf.attrs else []
-    return SampleResult(sample, scalars, fields, surfaces, notes, solvers)
+    return SampleResult(sample, scalars, fields, surfaces, notes, solvers,
+                        digest=str(jf.attrs.get("config_digest", "")))

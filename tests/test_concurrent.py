@@ -1,0 +1,116 @@
+"""Runs beside other runs: two configurations on one Dask scheduler keep their own samples,
+and the writer refuses a sample of another configuration."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import pytest
+
+from roughslip.errors import OutputError
+from roughslip.run.config import load_config
+from roughslip.run.executor import run
+from roughslip.run.sample import run_sample
+from roughslip.run.store import journal_dir, read_run
+from roughslip.testing import differences
+
+BASE = {
+    "grid": {"n": 16},
+    "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1.0},
+    "squeeze": {"depths": [0.5, 1.5], "depth_unit": "rms"},
+    "pull": {"enabled": True, "lam": 0.2},
+    "ensemble": {"samples": 6, "seed": 17},
+    "output": {"fields": ["contact", "fz", "pull_curve"]},
+}
+#: another configuration of the same shape: same sample numbers, other numbers in them
+OTHER = {**BASE, "surface": {**BASE["surface"], "hurst": 0.6}, "ensemble": {"samples": 6,
+                                                                            "seed": 18}}
+
+
+@pytest.fixture(scope="module")
+def references(tmp_path_factory):
+    """Each configuration run in this process, alone."""
+    d = tmp_path_factory.mktemp("alone")
+    out = []
+    for name, data in (("a", BASE), ("b", OTHER)):
+        cfg = load_config(data=data)
+        ref = d / f"{name}.h5"
+        run(cfg, ref, workers=1)
+        out.append((cfg, ref))
+    return out
+
+
+def run_side_by_side(jobs: list[tuple], address: str) -> list[BaseException]:
+    """``run(cfg, out, scheduler=address)`` for each ``(cfg, out)`` in its own thread; the
+    runs submit their samples together (a barrier at their start events). Returns the errors
+    raised."""
+    barrier = threading.Barrier(len(jobs), timeout=60)
+    errors: list[BaseException] = []
+
+    def progress(event: dict) -> None:
+        if event["kind"] == "start":
+            barrier.wait()
+
+    def one(cfg, out) -> None:
+        try:
+            run(cfg, out, scheduler=address, progress=progress)
+        except BaseException as exc:  # reported by the test
+            errors.append(exc)
+            barrier.abort()
+
+    threads = [threading.Thread(target=one, args=job) for job in jobs]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=300)
+    return errors
+
+
+def test_two_configurations_on_one_scheduler_keep_their_own_samples(references, tmp_path):
+    """Two runs of different configurations with the same sample numbers, submitted together
+    to one scheduler whose two workers share this process: each file holds its own
+    configuration's samples, bitwise those of the run alone."""
+    distributed = pytest.importorskip("distributed", reason="the dask extra is not installed")
+    (cfg_a, ref_a), (cfg_b, ref_b) = references
+    out_a, out_b = tmp_path / "a.h5", tmp_path / "b.h5"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        errors = run_side_by_side([(cfg_a, out_a), (cfg_b, out_b)], cluster.scheduler_address)
+    assert errors == []
+    assert differences(ref_a, out_a) == []
+    assert differences(ref_b, out_b) == []
+    assert read_run(out_a).complete.all() and read_run(out_b).complete.all()
+
+
+def test_the_writer_refuses_a_sample_of_another_configuration(references, tmp_path,
+                                                               monkeypatch):
+    """A sample computed for another configuration reaches the writer: the run stops with an
+    error naming the sample and both digests, and nothing of that sample is written."""
+    import roughslip.run.executor as executor
+
+    (cfg_a, _), (cfg_b, _) = references
+    monkeypatch.setattr(executor, "run_sample",
+                        lambda config, sample, progress=None: run_sample(cfg_b, sample))
+    out = tmp_path / "mixed.h5"
+    with pytest.raises(OutputError) as info:
+        run(cfg_a, out, workers=1)
+    message = str(info.value)
+    assert "\n" not in message
+    assert f"{out}: sample 0 " in message
+    assert cfg_a.digest()[:12] in message and cfg_b.digest()[:12] in message
+    assert not list(journal_dir(out).glob("s*"))
+    assert read_run(out).n_complete == 0
+
+
+def test_task_keys_name_the_configuration_and_the_output(references, tmp_path):
+    from roughslip.run.cluster import output_identity, task_prefix
+
+    (cfg_a, _), (cfg_b, _) = references
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    assert cfg_a.digest()[:16] in task_prefix(cfg_a, a)
+    assert output_identity(a) in task_prefix(cfg_a, a)
+    assert output_identity(a) != output_identity(b)
+    assert output_identity(a) == output_identity(Path(tmp_path / "." / "a.h5"))
+    assert task_prefix(cfg_a, a) != task_prefix(cfg_b, a)
+    assert task_prefix(cfg_a, a) != task_prefix(cfg_a, a)  # each run its own tasks
