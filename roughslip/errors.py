@@ -14,6 +14,7 @@ NumericalError         1     a NaN or inf appeared inside a computation
 MemoryLimitError       2     the estimated peak memory exceeds what is available
 SizeLimitError         2     a problem too large for a library's index range (32-bit LAPACK)
 WorkerError            1     a worker process died (killed, out of memory)
+OutputBusyError        2     another run is writing the output file (it holds its lock)
 VerificationError      1     ``verify``: an estimate broke the relation it claims
 =====================  ====  ==========================================================
 """
@@ -78,6 +79,13 @@ class WorkerError(RoughslipError):
     """A worker process died; completed samples are kept."""
 
     exit_code = 1
+
+
+class OutputBusyError(RoughslipError):
+    """Another run holds the lock of the output file (:mod:`roughslip.run.lock`); the message
+    names the file and the holder's PID and host."""
+
+    exit_code = 2
 
 
 class VerificationError(RoughslipError):

@@ -1,12 +1,20 @@
 """Runs beside other runs, repeated: what each trial must give, and how many did.
 
     python scripts/concurrent_runs.py dask -n 10      # two configurations, one Dask scheduler
+    python scripts/concurrent_runs.py one-file -n 10  # two runs, one output file
 
 ``dask``: one Dask scheduler in this process (one worker with two threads, reached over TCP)
 serves two ``roughslip run --scheduler`` commands of different configurations with the same
 sample numbers, started together. Each file must hold its own configuration's samples,
 bitwise those of a run of that configuration alone (timings excepted), and both commands must
 exit with 0.
+
+``one-file``: two ``roughslip run`` commands of one configuration on one output file, started
+together, with the options of the trial (in turn: none; ``--overwrite`` for both over a
+finished file; ``--resume`` for both; none and ``--overwrite``; ``--resume`` and
+``--overwrite``). Exactly one must be refused, with exit code 2 and one line naming the file and
+the run holding it; the other must exit with 0 and leave every sample, bitwise those of an
+undisturbed run, and no lock file, journal or temporary file.
 
 Prints one line per failed trial and a summary line; exits 1 when a trial failed.
 """
@@ -77,15 +85,62 @@ def dask_trials(n: int, work: Path) -> tuple[int, list[str]]:
     return n - len(failures), failures
 
 
+#: the options of the two runs, trial by trial (in turn), and whether the file exists before
+VARIANTS = [([], [], False), (["--overwrite"], ["--overwrite"], True),
+            (["--resume"], ["--resume"], False), ([], ["--overwrite"], False),
+            (["--resume"], ["--overwrite"], False)]
+#: the runs of one-file trials: long enough that both have started before either ends
+LONGER = ["grid.n=48", "ensemble.samples=8",
+          "squeeze.depths={start = 0.3, stop = 1.5, num = 3, spacing = 'log'}"]
+
+
+def one_file_trials(n: int, work: Path) -> tuple[int, list[str]]:
+    """Two runs on one output, ``n`` times."""
+    ref = work / "ref.h5"
+    code, err = together([command(ref, LONGER, "--workers", "1")])[0]
+    if code != 0:
+        raise SystemExit(f"concurrent_runs: the reference run failed: {err}")
+    failures = []
+    for i in range(n):
+        first, second, exists = VARIANTS[i % len(VARIANTS)]
+        out = work / f"t{i:03d}.h5"
+        if exists:
+            shutil.copyfile(ref, out)
+        results = together([command(out, LONGER, "--workers", "1", *first),
+                            command(out, LONGER, "--workers", "1", *second)])
+        codes = sorted(code for code, _ in results)
+        refused = [err for code, err in results if code == 2]
+        wrong = []
+        if codes != [0, 2]:
+            wrong.append(f"exit codes {[c for c, _ in results]}: "
+                         + " | ".join(err for _, err in results))
+        elif len(refused[0].splitlines()) != 1 or \
+                f"{out}: another run is writing this file (PID " not in refused[0]:
+            wrong.append(f"the refusal is not one line naming the file and holder: "
+                         f"{refused[0]!r}")
+        else:
+            diff = differences(ref, out)
+            left = [q.name for q in work.iterdir() if q.name.startswith(out.name + ".")]
+            if diff or left:
+                wrong.append(f"differs in {diff[:3]}, leftovers {left}")
+        if wrong:
+            failures.append(f"trial {i} ({' '.join(first) or 'plain'} and "
+                            f"{' '.join(second) or 'plain'}): " + "; ".join(wrong))
+        else:
+            out.unlink()
+    return n - len(failures), failures
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("mode", choices=["dask"])
+    p.add_argument("mode", choices=["dask", "one-file"])
     p.add_argument("-n", type=int, default=10, help="number of trials")
     p.add_argument("--keep", action="store_true", help="keep the work folder")
     args = p.parse_args()
     work = Path(tempfile.mkdtemp(prefix="concurrent_runs_"))
     t0 = time.monotonic()
-    ok, failures = dask_trials(args.n, work)
+    trials = dask_trials if args.mode == "dask" else one_file_trials
+    ok, failures = trials(args.n, work)
     for line in failures:
         print("concurrent_runs:", line)
     print(f"concurrent_runs {args.mode}: {ok}/{args.n} trials as required "

@@ -1,19 +1,31 @@
 """Runs beside other runs: two configurations on one Dask scheduler keep their own samples,
-and the writer refuses a sample of another configuration."""
+the writer refuses a sample of another configuration, and a second run on a file that a run
+is writing is refused at once."""
 
 from __future__ import annotations
 
+import os
+import signal
+import socket
+import subprocess
+import sys
 import threading
+import time
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 
-from roughslip.errors import OutputError
-from roughslip.run.config import load_config
+from roughslip.cli import cli
+from roughslip.errors import OutputBusyError, OutputError
+from roughslip.run.config import dumps_toml, load_config
 from roughslip.run.executor import run
+from roughslip.run.lock import RunLock, holding, lock_path
 from roughslip.run.sample import run_sample
 from roughslip.run.store import journal_dir, read_run
 from roughslip.testing import differences
+
+INJECT = str(Path(__file__).with_name("inject.py"))
 
 BASE = {
     "grid": {"n": 16},
@@ -114,3 +126,78 @@ def test_task_keys_name_the_configuration_and_the_output(references, tmp_path):
     assert output_identity(a) == output_identity(Path(tmp_path / "." / "a.h5"))
     assert task_prefix(cfg_a, a) != task_prefix(cfg_b, a)
     assert task_prefix(cfg_a, a) != task_prefix(cfg_a, a)  # each run its own tasks
+
+
+# -- one writer per file ---------------------------------------------------------------------
+
+
+def _stopped(pid: int, timeout: float = 120.0) -> bool:
+    """Wait until process ``pid`` is stopped (SIGSTOP); False if it ended first."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            stat = Path(f"/proc/{pid}/stat").read_text()
+        except OSError:
+            return False
+        state = stat[stat.rindex(")") + 2]
+        if state in "tT":
+            return True
+        if state in "ZX":
+            return False
+        time.sleep(0.01)
+    return False
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_second_run_on_a_file_being_written_is_refused_in_one_line(references, tmp_path):
+    """A run holds its output's lock from start to end. Stopped (SIGSTOP) after its first
+    sample, it still holds it: a second run on the same file, plain, with --overwrite or with
+    --resume, is refused at once with one line naming the file and the holder, exit code 2,
+    and touches nothing. Continued, the first run completes every sample, bitwise those of an
+    undisturbed run, and removes its lock file."""
+    (_, ref), _ = references
+    cfg_path = tmp_path / "run.toml"
+    cfg_path.write_text(dumps_toml(BASE))
+    out = tmp_path / "shared.h5"
+    first = subprocess.Popen(
+        [sys.executable, INJECT, "--signal", "STOP", "sample-done", "1", "run", str(cfg_path),
+         "-o", str(out), "--workers", "1", "--quiet"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        assert _stopped(first.pid), first.communicate()[1].decode()
+        assert lock_path(out).exists()
+        journal = sorted(p.name for p in journal_dir(out).iterdir())
+        for extra in ([], ["--overwrite"], ["--resume"]):
+            r = CliRunner().invoke(cli, ["run", str(cfg_path), "-o", str(out), "--workers", "1",
+                                         *extra])
+            assert r.exit_code == 2, r.output
+            assert r.output.count("\n") == 1, r.output
+            assert r.output.startswith(f"roughslip: error: {out}: another run is writing this "
+                                       f"file (PID {first.pid} on {socket.gethostname()}, ")
+            assert sorted(p.name for p in journal_dir(out).iterdir()) == journal
+    finally:
+        os.kill(first.pid, signal.SIGCONT)
+        _, err = first.communicate(timeout=300)
+    assert first.returncode == 0, err.decode()
+    assert differences(ref, out) == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.toml", "shared.h5"]
+
+
+def test_the_lock_is_exclusive_released_and_not_blocked_by_a_stale_file(references,
+                                                                          tmp_path):
+    """In one process too, a second lock on a file is refused and names this process; after
+    the release the file can be locked again and the lock file is gone. A lock file that a
+    killed run left (naming a process that has ended) blocks nothing."""
+    out = tmp_path / "x.h5"
+    with holding(out) as lock:
+        assert lock.note == "" and lock_path(out).exists()
+        with pytest.raises(OutputBusyError, match=rf"PID {os.getpid()} on "):
+            RunLock.acquire(out)
+    assert not lock_path(out).exists()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    lock_path(out).write_text(f'{{"pid": {dead}, "host": "{socket.gethostname()}", '
+                              '"since": "2000-01-01 00:00:00"}\n')
+    (cfg, ref), _ = references
+    run(cfg, out, workers=1)
+    assert differences(ref, out) == [] and not lock_path(out).exists()

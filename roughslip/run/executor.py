@@ -22,6 +22,7 @@ from roughslip.errors import InputError, MemoryLimitError
 from roughslip.linalg import memory
 from roughslip.run.cluster import run_dask
 from roughslip.run.config import RunConfig
+from roughslip.run.lock import holding
 from roughslip.run.pool import run_pool
 from roughslip.run.sample import Progress, run_sample
 from roughslip.run.scene import Scene
@@ -126,6 +127,12 @@ def run(
         Receives events ``{"kind": "start"|"depth"|"sample"|"done", ...}``.
     command_line : str, optional
         Stored in the file's provenance; default: this process's ``sys.argv``.
+
+    Raises
+    ------
+    OutputBusyError
+        When another run is writing ``out`` (it holds the file's lock,
+        :mod:`roughslip.run.lock`); nothing is touched.
     """
     t0 = time.perf_counter()
     scene = Scene.from_config(config)  # validates files before any output is touched
@@ -155,30 +162,33 @@ def _run(config: RunConfig, scene: Scene, out: Path, workers: int, resume: bool,
         attrs["topography"] = scene.topography
     nd = scene.n_targets
     layout = scene.layout()
-    if resume:
-        writer = RunWriter.resume(out, layout, indices, nd, attrs)
-    else:
-        writer = RunWriter.create(out, layout, indices, nd, attrs, overwrite=overwrite)
-    notes = list(scene.notes) + ([writer.recovery] if writer.recovery else [])
-    done = set(writer.completed())
-    pending = [s for s in indices if s not in done]
-    emit({"kind": "start", "total": len(pending) * nd, "samples": len(pending),
-          "depths": nd, "skipped": len(done), "notes": notes})
-    try:
-        if scheduler:
-            run_dask(config, pending, writer, emit, scheduler)
-        elif workers == 1 or len(pending) <= 1:
-            for s in pending:
-                res = run_sample(config, s, lambda si, k: emit(
-                    {"kind": "depth", "sample": si, "depth_index": k}))
-                writer.write_sample(res)
-                emit({"kind": "sample", "sample": s})
+    # one writer per file: the lock comes before anything touches the output (a new file,
+    # --overwrite, --resume, the journal) and goes after the last of it, on every way out
+    with holding(out) as lock:
+        if resume:
+            writer = RunWriter.resume(out, layout, indices, nd, attrs)
         else:
-            run_pool(config, pending, writer, emit, workers)
-    except BaseException:
-        writer.close()
-        raise
-    writer.finish()
+            writer = RunWriter.create(out, layout, indices, nd, attrs, overwrite=overwrite)
+        notes = [*scene.notes, *(n for n in (lock.note, writer.recovery) if n)]
+        done = set(writer.completed())
+        pending = [s for s in indices if s not in done]
+        emit({"kind": "start", "total": len(pending) * nd, "samples": len(pending),
+              "depths": nd, "skipped": len(done), "notes": notes})
+        try:
+            if scheduler:
+                run_dask(config, pending, writer, emit, scheduler)
+            elif workers == 1 or len(pending) <= 1:
+                for s in pending:
+                    res = run_sample(config, s, lambda si, k: emit(
+                        {"kind": "depth", "sample": si, "depth_index": k}))
+                    writer.write_sample(res)
+                    emit({"kind": "sample", "sample": s})
+            else:
+                run_pool(config, pending, writer, emit, workers)
+        except BaseException:
+            writer.close()
+            raise
+        writer.finish()
     emit({"kind": "done"})
     return RunSummary(out, len(indices), len(pending), len(done), time.perf_counter() - t0,
                       notes)

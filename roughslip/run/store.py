@@ -24,7 +24,8 @@ that was not computed (or a sample that is not complete) is NaN: read ``/complet
 ``/sample_index`` and ``/depth`` (or ``/force_target``) are HDF5 dimension scales attached to
 the two axes of every per-depth dataset, so generic HDF5 tools label them.
 
-Writing is single-writer and crash-safe. The journal folder ``OUT.h5.journal/`` is the
+Writing is single-writer (a run holds the lock of :mod:`roughslip.run.lock`, on
+``OUT.h5.lock``, while it writes) and crash-safe. The journal folder ``OUT.h5.journal/`` is the
 record of a run until it ends: it is made first (with ``run.json``, the configuration digest),
 and every finished sample is written to it atomically (a temporary file, flushed to disk, then
 renamed) before it goes into ``OUT.h5``, which is flushed after each sample. When every sample
