@@ -1,7 +1,8 @@
 """The ``roughslip`` command line: each command parses, loads, calls one library function.
 
-Exit codes: 0 ok, 1 failure (I/O, numerical), 2 usage or configuration error, 3 a solve missed
-its tolerance in strict mode, 130 interrupted.
+Exit codes: 0 ok, 1 failure (I/O, numerical), 2 usage or configuration error (and an output
+file that another run is writing), 3 a solve missed its tolerance in strict mode; a run stopped
+by a signal gives 128 + its number: 130 SIGINT (Ctrl-C), 143 SIGTERM, 129 SIGHUP.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import click
 
 from roughslip._version import __version__
 from roughslip.errors import RoughslipError, VerificationError
+from roughslip.run.signals import exit_code, interruptible, resume_command, signal_of
 
 
 def _fail(message: str, code: int) -> None:
@@ -46,9 +48,9 @@ def handle_errors(fn: Callable[..., Any]) -> Callable[..., Any]:
                 click.echo("".join(traceback.format_exception(exc.__cause__)).rstrip(),
                            err=True)
             _fail(str(exc), exc.exit_code)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
             click.echo("roughslip: interrupted", err=True)
-            sys.exit(130)
+            sys.exit(exit_code(signal_of(exc)))
 
     return wrapper
 
@@ -155,37 +157,6 @@ class _Progress:
             self.bar.close()
 
 
-@contextlib.contextmanager
-def _interruptible(progress: Callable[[dict[str, Any]], None]):
-    """Ctrl-C that cannot be lost: the handler also sets a flag, which the progress callback
-    (called after every depth, and every 0.25 s while workers compute) turns into a
-    KeyboardInterrupt if Python swallowed the first one (e.g. inside a weakref callback)."""
-    flag = {"set": False}
-
-    def handler(signum, frame):
-        flag["set"] = True
-        raise KeyboardInterrupt
-
-    def emit(event: dict[str, Any]) -> None:
-        progress(event)
-        if flag["set"]:
-            raise KeyboardInterrupt
-
-    default_hook = sys.unraisablehook
-
-    def hook(unraisable) -> None:
-        if unraisable.exc_type is not KeyboardInterrupt:
-            default_hook(unraisable)
-
-    old = signal.signal(signal.SIGINT, handler)
-    sys.unraisablehook = hook
-    try:
-        yield emit
-    finally:
-        signal.signal(signal.SIGINT, old)
-        sys.unraisablehook = default_hook
-
-
 @cli.command("run")
 @click.argument("config", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", "out", type=click.Path(dir_okay=False),
@@ -211,13 +182,17 @@ def run_cmd(config, out, overrides, workers, resume, overwrite, scheduler, stric
     out = out or str(Path("results") / (Path(config).stem + ".h5"))
     progress = _Progress(quiet)
     try:
-        with _interruptible(progress) as emit:
+        with interruptible(progress) as emit:
             summary = run(cfg, out, workers=workers, resume=resume, overwrite=overwrite,
                           scheduler=scheduler, progress=emit)
-    except KeyboardInterrupt:  # what the run finished is on disk
-        click.echo("roughslip: interrupted; completed samples are kept (continue with "
-                   "--resume)", err=True)
-        sys.exit(130)
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP: what the run finished is kept
+        signum = signal_of(exc)
+        again = resume_command(config, out, overrides, workers=workers, scheduler=scheduler,
+                               strict=strict, quiet=quiet)
+        with contextlib.suppress(OSError):  # after SIGHUP there may be no terminal to write to
+            click.echo(f"roughslip: interrupted ({signal.Signals(signum).name}); completed "
+                       f"samples are kept; continue with: {again}", err=True)
+        sys.exit(exit_code(signum))
     finally:
         progress.close()
     if not quiet:

@@ -1,7 +1,8 @@
 """The exception hierarchy of roughslip.
 
 Every error a user can provoke is a :class:`RoughslipError`. The command line maps each
-class to one line on stderr and an exit code (see :data:`EXIT_CODES`):
+class to one line on stderr and an exit code (see :data:`EXIT_CODES`; a run stopped by
+SIGINT, SIGTERM or SIGHUP exits with 128 + the signal's number: 130, 143, 129):
 
 =====================  ====  ==========================================================
 class                  code  meaning
@@ -148,6 +149,10 @@ EXIT_CODES = {
     "failure": 1,
     "usage": 2,
     "nonconvergence": 3,
+    # a run stopped by a signal: 128 + its number (roughslip.run.signals)
+    "interrupted": 130,  # SIGINT, Ctrl-C
+    "hangup": 129,  # SIGHUP
+    "terminated": 143,  # SIGTERM
 }
 
 

@@ -9,7 +9,8 @@ excepted.
 
 The process helpers read Linux's ``/proc``: :func:`session_processes` lists every process of a
 session (a run started with ``start_new_session=True`` keeps its workers and helpers in the
-session of its main process, even after they are re-parented), which is how orphans are found.
+session of its main process, even after they are re-parented), which is how orphans are found;
+:func:`wait_stopped` waits for a process to stop (a run that stopped itself at a checkpoint).
 """
 
 from __future__ import annotations
@@ -69,6 +70,25 @@ def wait_gone(sid: int, timeout: float) -> list[int]:
         if not alive or time.monotonic() > deadline:
             return alive
         time.sleep(0.05)
+
+
+def wait_stopped(pid: int, timeout: float) -> bool:
+    """Wait up to ``timeout`` seconds for process ``pid`` to be stopped (SIGSTOP); False if it
+    ended first or did not stop in time."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as fh:
+                stat = fh.read()
+        except OSError:
+            return False
+        state = stat[stat.rindex(")") + 2]
+        if state in "tT":
+            return True
+        if state in "ZX":
+            return False
+        time.sleep(0.01)
+    return False
 
 
 def datasets(path: str | Path) -> dict[str, np.ndarray]:

@@ -10,7 +10,6 @@ import socket
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -23,7 +22,7 @@ from roughslip.run.executor import run
 from roughslip.run.lock import RunLock, holding, lock_path
 from roughslip.run.sample import run_sample
 from roughslip.run.store import journal_dir, read_run
-from roughslip.testing import differences
+from roughslip.testing import differences, wait_stopped
 
 INJECT = str(Path(__file__).with_name("inject.py"))
 
@@ -131,23 +130,6 @@ def test_task_keys_name_the_configuration_and_the_output(references, tmp_path):
 # -- one writer per file ---------------------------------------------------------------------
 
 
-def _stopped(pid: int, timeout: float = 120.0) -> bool:
-    """Wait until process ``pid`` is stopped (SIGSTOP); False if it ended first."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            stat = Path(f"/proc/{pid}/stat").read_text()
-        except OSError:
-            return False
-        state = stat[stat.rindex(")") + 2]
-        if state in "tT":
-            return True
-        if state in "ZX":
-            return False
-        time.sleep(0.01)
-    return False
-
-
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_a_second_run_on_a_file_being_written_is_refused_in_one_line(references, tmp_path):
     """A run holds its output's lock from start to end. Stopped (SIGSTOP) after its first
@@ -164,7 +146,7 @@ def test_a_second_run_on_a_file_being_written_is_refused_in_one_line(references,
          "-o", str(out), "--workers", "1", "--quiet"],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        assert _stopped(first.pid), first.communicate()[1].decode()
+        assert wait_stopped(first.pid, 120), first.communicate()[1].decode()
         assert lock_path(out).exists()
         journal = sorted(p.name for p in journal_dir(out).iterdir())
         for extra in ([], ["--overwrite"], ["--resume"]):

@@ -1,5 +1,6 @@
 """Runs against kills: every state a SIGKILL can leave resumes to the same numbers, bitwise,
-with one and two workers, and no process outlives a killed run.
+with one and two workers, and no process outlives a killed run; SIGTERM, SIGHUP and SIGINT
+stop a run in one line that says how to continue it.
 
 Kills happen at named checkpoints of the writer (:mod:`roughslip.run.checkpoints`, armed by
 ``tests/inject.py``), so each state is reached at a fixed moment, whatever the machine's
@@ -9,6 +10,7 @@ speed.
 from __future__ import annotations
 
 import os
+import shlex
 import signal
 import subprocess
 import sys
@@ -23,8 +25,9 @@ from roughslip.run import checkpoints
 from roughslip.run.checkpoints import CHECKPOINTS
 from roughslip.run.config import dumps_toml, load_config
 from roughslip.run.executor import run
+from roughslip.run.lock import lock_path
 from roughslip.run.store import journal_dir, read_run
-from roughslip.testing import differences, session_processes, wait_gone
+from roughslip.testing import differences, session_processes, wait_gone, wait_stopped
 
 INJECT = str(Path(__file__).with_name("inject.py"))
 
@@ -199,3 +202,48 @@ def test_workers_die_with_a_killed_manager(tmp_path):
     for pid in alive:  # do not leave them behind on failure
         os.kill(pid, signal.SIGKILL)
     assert alive == []
+
+
+@pytest.mark.parametrize(("name", "workers", "group"), [
+    ("TERM", 1, False), ("TERM", 2, True), ("HUP", 2, True), ("INT", 2, True)])
+def test_a_signal_stops_the_run_in_one_line_and_the_resume_gives_the_same_numbers(
+        reference, tmp_path, name, workers, group):
+    """SIGTERM (a cluster scheduler at the wall time), SIGHUP (a closed terminal) and SIGINT,
+    sent to the main process, or to every process of the job as schedulers and terminals do,
+    once a sample is journalled: the run exits with 128 + the signal's number and one line
+    that gives the command to continue it; no process is left, nor the lock; that command
+    completes the run, bitwise like an uninterrupted one.
+
+    The run stops itself (SIGSTOP) after its first sample, the signal is sent while it is
+    stopped and reaches it when it continues: it comes mid-run on any machine, and never after
+    the run's end."""
+    cfg_path, ref = reference
+    signum = getattr(signal, "SIG" + name)
+    out = tmp_path / "signalled.h5"
+    log = tmp_path / "stderr.txt"  # a file, not a pipe: a survivor could hold a pipe
+    with open(log, "wb") as err:
+        proc = subprocess.Popen(
+            [sys.executable, INJECT, "--signal", "STOP", "sample-done", "1", "run",
+             str(cfg_path), "-o", str(out), "--workers", str(workers), "--quiet"],
+            start_new_session=True, stdout=subprocess.DEVNULL, stderr=err)
+        try:
+            assert wait_stopped(proc.pid, 120), log.read_text()
+            assert len(list(journal_dir(out).glob("s*.h5"))) == 1
+            (os.killpg if group else os.kill)(proc.pid, signum)
+        finally:
+            os.kill(proc.pid, signal.SIGCONT)
+        proc.wait(timeout=120)
+    said = log.read_text()
+    assert proc.returncode == 128 + signum, said
+    lines = said.splitlines()
+    assert len(lines) == 1, said
+    assert lines[0].startswith(f"roughslip: interrupted (SIG{name}); completed samples are "
+                               "kept; continue with: roughslip run ")
+    assert wait_gone(proc.pid, ORPHAN_DEADLINE) == []
+    assert not lock_path(out).exists()
+    assert read_run(out).n_complete == 1
+    command = shlex.split(lines[0].split("continue with: ", 1)[1])
+    assert command[:2] == ["roughslip", "run"] and command[-1] == "--resume"
+    r = CliRunner().invoke(cli, command[1:])
+    assert r.exit_code == 0, r.output
+    _assert_finished_like(ref, out)

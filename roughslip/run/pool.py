@@ -8,24 +8,29 @@ that ends.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import multiprocessing as mp
 import os
 import queue as queue_mod
 import signal
 import sys
 import time
+from collections.abc import Iterator
 
 from roughslip.errors import WorkerError, io_cause
 from roughslip.linalg import memory
 from roughslip.run.config import RunConfig
 from roughslip.run.sample import Progress, run_sample
+from roughslip.run.signals import STOP_SIGNALS
 from roughslip.run.store import RunWriter, SampleResult
 
 
 def _worker_init(budget: int, q, parent: int) -> None:
-    # Ctrl-C reaches the whole process group: only the main process handles it (it stops the
-    # pool and keeps what is done)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Ctrl-C, a closed terminal and a scheduler's SIGTERM reach every process of the job: only
+    # the main process acts on them (it ends the workers itself and keeps what is done)
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)  # blocked by the main process
     die_with_parent(parent)
     memory.set_limit(budget / 2**30)
     global _QUEUE
@@ -75,6 +80,21 @@ def _pool_task(config: RunConfig, sample: int) -> SampleResult:
     return run_sample(config, sample, report)
 
 
+def _hold_stop_signals() -> None:
+    """Block the stop signals in this thread (they wait until they are unblocked)."""
+    signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+
+
+@contextlib.contextmanager
+def _stop_signals_held() -> Iterator[None]:
+    """Block the stop signals inside the block; the previous mask after it."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Progress,
              workers: int) -> None:
     """Compute ``pending`` samples in ``workers`` spawned processes; write each as it finishes.
@@ -98,22 +118,29 @@ def run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pro
     """
     ctx = mp.get_context("spawn")  # no fork: OpenBLAS and FFTW threads do not survive it
     budget = memory.available_bytes() // workers
-    # progress (sample, depth index) from the workers; a plain queue, no server process that
-    # could outlive this one
-    try:
-        q = ctx.Queue()
-    except OSError as exc:  # no semaphores or no resource tracker in this environment
-        raise WorkerError(f"cannot start worker processes: {io_cause(exc)} (in "
-                          "multiprocessing's set-up); run with --workers 1 to compute in "
-                          "this process") from exc
     before = {p.pid for p in mp.active_children()}
-    pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=ctx,
-                                  initializer=_worker_init,
-                                  initargs=(budget, q, os.getpid()))
+    pool: cf.ProcessPoolExecutor | None = None
     futures: dict[cf.Future, int] = {}
     try:
-        for s in pending:
-            futures[pool.submit(_pool_task, config, s)] = s
+        # The processes started here (multiprocessing's resource tracker, the workers) start
+        # with the stop signals blocked, so that a Ctrl-C, SIGTERM or SIGHUP sent to the whole
+        # job cannot end one before it ignores them; one sent meanwhile reaches this process
+        # when the block ends.
+        with _stop_signals_held():
+            # progress (sample, depth index) from the workers; a plain queue, no server
+            # process that could outlive this one
+            try:
+                q = ctx.Queue()
+            except OSError as exc:  # no semaphores or no resource tracker in this environment
+                raise WorkerError(f"cannot start worker processes: {io_cause(exc)} (in "
+                                  "multiprocessing's set-up); run with --workers 1 to compute "
+                                  "in this process") from exc
+            _hold_stop_signals()  # starting the resource tracker unblocked SIGINT and SIGTERM
+            pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(pending)),
+                                          mp_context=ctx, initializer=_worker_init,
+                                          initargs=(budget, q, os.getpid()))
+            for s in pending:
+                futures[pool.submit(_pool_task, config, s)] = s
         while futures:
             finished, _ = cf.wait(futures, timeout=0.25, return_when=cf.FIRST_COMPLETED)
             _drain(q, emit)
@@ -133,6 +160,8 @@ def run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pro
                     f"{broken} were running; completed samples are kept: run again with "
                     "--resume")
     except BaseException:
+        if pool is None:
+            raise
         # Stop now: cancel what has not started and end every process this pool started,
         # whether it is computing or still starting up (one left running could wait forever
         # on a queue lock held by a worker that was ended, and this process with it). Their
@@ -143,7 +172,7 @@ def run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pro
         thread = getattr(pool, "_executor_manager_thread", None)
         pool.shutdown(wait=False, cancel_futures=True)
         for proc in procs:
-            proc.terminate()
+            proc.kill()  # they ignore SIGTERM
         for proc in procs:
             proc.join(timeout=10)
         # A worker ended while it sent a result leaves half a message in the result pipe, and
