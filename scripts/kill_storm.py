@@ -10,6 +10,12 @@ moments come from a seeded generator (``--seed``).
 
     python scripts/kill_storm.py                  # 20 kills, 2 workers, demo scene at 48^2
     python scripts/kill_storm.py -n 50 --workers 1
+    python scripts/kill_storm.py -n 50 --window 0.5 2   # kills 0.5 to 2 s after the start
+
+``--window LO HI`` draws the kill moments from [LO, HI] seconds instead: early kills hit the
+workers while they start up. The summary also gives the longest time the processes of a
+killed run took to end (the kernel ends workers at once once they are armed; a slow end means
+a worker was not armed yet).
 
 Prints one summary line (and one line per failed trial); exits 1 when a trial failed.
 """
@@ -43,9 +49,11 @@ def start(args: argparse.Namespace, out: Path, *extra: str) -> subprocess.Popen:
         start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
 
 
-def kill_at(proc: subprocess.Popen, moment: float, deadline: float) -> tuple[bool, list[int]]:
+def kill_at(proc: subprocess.Popen, moment: float, deadline: float
+            ) -> tuple[bool, list[int], float]:
     """SIGKILL ``proc`` ``moment`` seconds after it started (if it is still running); return
-    whether it was killed and the pids of its session still alive after ``deadline``."""
+    whether it was killed, the pids of its session still alive after ``deadline`` and the
+    seconds its session took to end."""
     try:
         proc.wait(timeout=moment)
         killed = False
@@ -53,13 +61,15 @@ def kill_at(proc: subprocess.Popen, moment: float, deadline: float) -> tuple[boo
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
         killed = True
+    t0 = time.monotonic()
     alive = wait_gone(proc.pid, deadline)
+    ended = time.monotonic() - t0
     for pid in alive:  # clean up, counted as orphans
         try:
             os.kill(pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
-    return killed, alive
+    return killed, alive, ended
 
 
 def main() -> int:
@@ -72,6 +82,8 @@ def main() -> int:
     p.add_argument("--seed", type=int, default=0, help="seed of the kill moments")
     p.add_argument("--deadline", type=float, default=5.0,
                    help="seconds the processes of a killed run may take to end")
+    p.add_argument("--window", type=float, nargs=2, metavar=("LO", "HI"),
+                   help="kill LO to HI seconds after the start (default: over the whole run)")
     p.add_argument("--keep", action="store_true", help="keep the work folder")
     args = p.parse_args()
     if args.set is None:
@@ -86,19 +98,23 @@ def main() -> int:
     if proc.returncode != 0:
         print(f"kill_storm: the reference run failed: {err.decode().strip()}")
         return 1
+    lo, hi = args.window or (0.0, wall)
     identical = orphans = killed = second = 0
+    slowest = 0.0
     failures = []
     for i in range(args.n):
         out = work / f"t{i:03d}.h5"
-        moment = float(rng.uniform(0.0, wall))
-        k, alive = kill_at(start(args, out), moment, args.deadline)
+        moment = float(rng.uniform(lo, hi))
+        k, alive, ended = kill_at(start(args, out), moment, args.deadline)
         killed += k
         orphans += len(alive)
+        slowest = max(slowest, ended)
         if rng.uniform() < 1 / 3:  # a second kill, during the resume
-            k2, alive2 = kill_at(start(args, out, "--resume"), float(rng.uniform(0, wall)),
-                                 args.deadline)
+            k2, alive2, ended2 = kill_at(start(args, out, "--resume"),
+                                         float(rng.uniform(lo, hi)), args.deadline)
             second += k2
             orphans += len(alive2)
+            slowest = max(slowest, ended2)
         res = start(args, out, "--resume")
         _, err = res.communicate()
         if res.returncode != 0:
@@ -115,10 +131,12 @@ def main() -> int:
         out.unlink()
     for line in failures:
         print("kill_storm:", line)
+    when = (f"kills uniform in {lo:g} to {hi:g} s of the {wall:.1f} s run" if args.window
+            else f"kills uniform over the {wall:.1f} s run")
     print(f"kill_storm: {identical}/{args.n} resumed identical, {orphans} orphaned processes "
           f"(workers {args.workers}, {killed} killed mid-run, {second} resumes killed too, "
-          f"kills uniform over the {wall:.1f} s run, seed {args.seed}, {os.cpu_count()} cores, "
-          f"{time.monotonic() - t0:.0f} s)")
+          f"{when}, the slowest killed run's processes ended after {slowest:.2f} s, seed "
+          f"{args.seed}, {os.cpu_count()} cores, {time.monotonic() - t0:.0f} s)")
     if not args.keep and not failures:
         shutil.rmtree(work, ignore_errors=True)
     elif failures:

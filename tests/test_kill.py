@@ -247,3 +247,51 @@ def test_a_signal_stops_the_run_in_one_line_and_the_resume_gives_the_same_number
     r = CliRunner().invoke(cli, command[1:])
     assert r.exit_code == 0, r.output
     _assert_finished_like(ref, out)
+
+
+#: makes the spawned workers (their command line ends in --multiprocessing-fork) slow to import
+#: roughslip: at that import each one writes its pid into the folder named by
+#: ROUGHSLIP_SLOW_IMPORT, then sleeps
+SLOW_IMPORT = """
+import os, sys, time
+if os.environ.get("ROUGHSLIP_SLOW_IMPORT") and "--multiprocessing-fork" in sys.argv:
+    class SlowImport:
+        @staticmethod
+        def find_spec(name, path=None, target=None):
+            if name == "roughslip":
+                folder = os.environ["ROUGHSLIP_SLOW_IMPORT"]
+                open(os.path.join(folder, str(os.getpid())), "w").close()
+                time.sleep(60)
+            return None
+    sys.meta_path.insert(0, SlowImport)
+"""
+
+
+def test_workers_die_with_a_manager_killed_while_they_start(tmp_path):
+    """SIGKILL to the main process while both workers are still importing roughslip (made
+    slow here, as on a busy machine): the workers end at once. They are armed (parent-death
+    signal, parent check) before that import, with the standard library only."""
+    hook = tmp_path / "hook"
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(SLOW_IMPORT)
+    starting = tmp_path / "starting"
+    starting.mkdir()
+    env = {**os.environ, "ROUGHSLIP_SLOW_IMPORT": str(starting),
+           "PYTHONPATH": os.pathsep.join([str(hook), os.environ.get("PYTHONPATH", "")])}
+    cfg_path = tmp_path / "run.toml"
+    cfg_path.write_text(dumps_toml(CFG))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "roughslip", "run", str(cfg_path), "-o", str(tmp_path / "r.h5"),
+         "--workers", "2", "--quiet"], start_new_session=True, env=env,
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    while len(list(starting.iterdir())) < 2:
+        assert proc.poll() is None, proc.stderr.read().decode()
+        assert time.monotonic() < deadline, "the workers did not start"
+        time.sleep(0.02)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    alive = wait_gone(proc.pid, ORPHAN_DEADLINE)
+    for pid in alive:  # do not leave them behind on failure
+        os.kill(pid, signal.SIGKILL)
+    assert alive == []

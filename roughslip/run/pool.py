@@ -24,14 +24,33 @@ from roughslip.run.sample import Progress, run_sample
 from roughslip.run.signals import STOP_SIGNALS
 from roughslip.run.store import RunWriter, SampleResult
 
+#: What a worker runs first: the pool's initializer is Python's ``exec`` of this text, with the
+#: names it uses given as its globals. An initializer of roughslip's own would reach the worker
+#: by import, of the whole package (about a second, several on a busy machine), before a line of
+#: it could run; a worker whose main process was killed in that time lived on until its import
+#: ended. This text uses the standard library only, so the worker is armed about 50 ms after its
+#: start: the kernel's parent-death signal (Linux), then the check that the parent is still the
+#: one that started it (it may have died between the fork and the arming; the worker then
+#: belongs to init or a subreaper), then the stop signals, which the main process blocked for
+#: the worker's start, set to be ignored (see run_pool). Only then is roughslip imported.
+_BOOT = """
+import os, signal, sys
+if sys.platform.startswith("linux"):
+    import ctypes
+    ctypes.CDLL(None).prctl(1, int(signal.SIGKILL), 0, 0, 0)  # PR_SET_PDEATHSIG
+if os.getppid() != parent:
+    os._exit(1)
+for signum in stop_signals:
+    signal.signal(signum, signal.SIG_IGN)
+signal.pthread_sigmask(signal.SIG_UNBLOCK, stop_signals)
+from roughslip.run.pool import _worker_init
+_worker_init(budget, q, parent)
+"""
+
 
 def _worker_init(budget: int, q, parent: int) -> None:
-    # Ctrl-C, a closed terminal and a scheduler's SIGTERM reach every process of the job: only
-    # the main process acts on them (it ends the workers itself and keeps what is done)
-    for signum in STOP_SIGNALS:
-        signal.signal(signum, signal.SIG_IGN)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)  # blocked by the main process
-    die_with_parent(parent)
+    """The rest of a worker's set-up, once :data:`_BOOT` has armed it."""
+    die_with_parent(parent)  # on Linux armed already; elsewhere, the watching thread
     memory.set_limit(budget / 2**30)
     global _QUEUE
     _QUEUE = q
@@ -43,7 +62,13 @@ def die_with_parent(parent: int) -> None:
     On Linux the kernel delivers SIGKILL when the parent exits (``prctl(PR_SET_PDEATHSIG)``;
     the pool's workers are started from the main thread, whose end is the process's end).
     Elsewhere a daemon thread checks the parent every half second. Either way a parent that
-    died before this call is caught by comparing ``os.getppid()``.
+    died before this call is caught by comparing ``os.getppid()``. (The pool's workers arm the
+    signal earlier, before they import roughslip: :data:`_BOOT`.)
+
+    Parameters
+    ----------
+    parent : int
+        The PID of the process that started this one.
     """
     armed = False
     if sys.platform.startswith("linux"):
@@ -136,9 +161,11 @@ def run_pool(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pro
                                   "multiprocessing's set-up); run with --workers 1 to compute "
                                   "in this process") from exc
             _hold_stop_signals()  # starting the resource tracker unblocked SIGINT and SIGTERM
+            boot = {"parent": os.getpid(), "budget": budget, "q": q,
+                    "stop_signals": tuple(int(s) for s in STOP_SIGNALS)}
             pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(pending)),
-                                          mp_context=ctx, initializer=_worker_init,
-                                          initargs=(budget, q, os.getpid()))
+                                          mp_context=ctx, initializer=exec,
+                                          initargs=(_BOOT, boot))
             for s in pending:
                 futures[pool.submit(_pool_task, config, s)] = s
         while futures:
