@@ -65,7 +65,7 @@ def test_layout_and_contents(serial_run):
     assert np.all(r.scalars["converged"] == 1) and np.all(r.scalars["pull_converged"] == 1)
     with h5py.File(out, "r") as f:
         assert f.attrs["format"] == "roughslip-run"
-        for key in ("version", "command_line", "config", "config_digest", "libraries",
+        for key in ("version", "command_line", "config", "config_digest", "libraries", "blas",
                     "fft_backend", "threads", "seed", "units"):
             assert key in f.attrs, key
         g = f["samples/s000002"]
@@ -79,6 +79,29 @@ def test_layout_and_contents(serial_run):
     # the sample is the pure function of (config, sample)
     again = run_sample(cfg, 2)
     assert np.array_equal(again.fields[1]["fz"], r.field(2, 1, "fz"))
+
+
+def test_the_blas_and_its_kernel_are_recorded_and_shown_by_inspect(serial_run):
+    """The run file records each BLAS library of the process that wrote it (library, version,
+    the kernel OpenBLAS chose for the CPU), as threadpoolctl finds them once numpy and
+    scipy.linalg are loaded; `roughslip inspect` shows them in one line."""
+    import scipy.linalg  # noqa: F401
+    from threadpoolctl import threadpool_info
+
+    _cfg, out, _ = serial_run
+    with h5py.File(out, "r") as f:
+        blas = json.loads(f.attrs["blas"])
+    found = [i for i in threadpool_info() if i["user_api"] == "blas"]
+    assert found and [(b["library"], b["version"], b["architecture"]) for b in blas] == \
+        [(i["internal_api"], i["version"], i.get("architecture") or "") for i in found]
+    assert all(b["file"] for b in blas)
+    r = CliRunner().invoke(cli, ["inspect", str(out)])
+    assert r.exit_code == 0, r.output
+    lines = [line for line in r.output.splitlines() if line.lstrip().startswith("BLAS: ")]
+    assert len(lines) == 1 and len(lines[0]) <= 120, lines
+    for b in blas:
+        assert " ".join(w for w in (b["library"], b["version"], b["architecture"]) if w) \
+            in lines[0]
 
 
 def test_workers_two_equals_one_bitwise(serial_run, tmp_path):

@@ -9,6 +9,7 @@ import numpy as np
 
 from roughslip.analysis.fit import PULLED, means, unconverged_pulls
 from roughslip.friction.pull import METHODS
+from roughslip.run.blas import blas_line
 from roughslip.run.store import read_run
 
 
@@ -195,8 +196,8 @@ def summarize(path: str | Path) -> str:
     title = model.title(run)
     if title:
         lines += model.wrap("title: ", title, indent=2)
-    lines.append(f"  roughslip {a.get('version', '?')}"
-                 + (f"; BLAS {a['blas']}" if a.get("blas") else ""))
+    lines.append(f"  roughslip {a.get('version', '?')}")
+    lines += model.wrap("BLAS: ", blas_line(a.get("blas")), indent=2)
     lines += model.wrap("made by: ", str(a.get("command_line", "?")), indent=2, cut=True)
     lines.append(f"  samples complete: {run.n_complete} of {run.complete.size}")
     lines.append("  model:")

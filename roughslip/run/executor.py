@@ -20,6 +20,7 @@ from roughslip.elastic.fft import library_versions, resolve_backend
 from roughslip.elastic.operators import ElasticOperator
 from roughslip.errors import InputError, MemoryLimitError
 from roughslip.linalg import memory
+from roughslip.run.blas import blas_libraries
 from roughslip.run.cluster import run_dask
 from roughslip.run.config import RunConfig
 from roughslip.run.lock import holding
@@ -47,7 +48,21 @@ class RunSummary:
 
 
 def provenance(config: RunConfig, command_line: str) -> dict[str, Any]:
-    """Root attributes describing how a run file was made."""
+    """Root attributes describing how a run file was made: the version, the command, the
+    libraries and their versions, the BLAS and its kernel (``blas``,
+    :func:`~roughslip.run.blas.blas_libraries`), the FFT backend, threads, machine file, seed
+    and units.
+
+    Parameters
+    ----------
+    config : RunConfig
+    command_line : str
+
+    Returns
+    -------
+    dict
+        Attribute name to value (dicts and lists are stored as JSON).
+    """
     import h5py
     import scipy
 
@@ -58,6 +73,7 @@ def provenance(config: RunConfig, command_line: str) -> dict[str, Any]:
         "version": __version__,
         "command_line": command_line,
         "libraries": libs,
+        "blas": blas_libraries(),
         "fft_backend": resolve_backend(config.execution.fft),
         "threads": config.execution.threads,
         "machine_file": config.machine or "",

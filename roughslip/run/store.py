@@ -6,6 +6,7 @@ Layout of ``OUT.h5`` (``n_s`` samples, ``n_d`` depths or loads)::
     /                        attrs: format, format_version (2), version, command_line, config
                                     (resolved TOML), config_digest, defaults_version (of the
                                     digest, :mod:`roughslip.run.digest`), control, libraries (JSON),
+                                    blas (JSON, :mod:`roughslip.run.blas`),
                                     fft_backend, threads, seed, units (JSON), notes (JSON)
     /sample_index  (n_s)     global sample numbers (ensemble.first_sample + i)
     /complete      (n_s)     1 once a sample is fully written (the last thing written)
