@@ -183,3 +183,29 @@ def test_the_lock_is_exclusive_released_and_not_blocked_by_a_stale_file(referenc
     (cfg, ref), _ = references
     run(cfg, out, workers=1)
     assert differences(ref, out) == [] and not lock_path(out).exists()
+
+
+def test_a_file_system_without_locks_runs_on_with_a_note(references, tmp_path, monkeypatch):
+    """Where flock is refused (ENOLCK: NFS without its lock manager), the run goes on and its
+    notes say that a second run would not be refused."""
+    import errno
+
+    import roughslip.run.lock as lock
+
+    class NoLocks:
+        LOCK_EX, LOCK_NB = 2, 4
+
+        @staticmethod
+        def flock(fd: int, operation: int) -> None:
+            raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
+
+    monkeypatch.setattr(lock, "fcntl", NoLocks)
+    (cfg, ref), _ = references
+    out = tmp_path / "unlocked.h5"
+    events: list[dict] = []
+    run(cfg, out, workers=1, progress=events.append)
+    notes = events[0]["notes"]
+    assert [n for n in notes if "lock" in n] == [
+        f"{lock_path(out)}: the file system does not lock files ({os.strerror(errno.ENOLCK)}); "
+        "a second run on unlocked.h5 would not be refused"]
+    assert differences(ref, out) == [] and not lock_path(out).exists()

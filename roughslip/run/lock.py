@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import json
 import os
 import socket
@@ -43,6 +42,11 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from roughslip.errors import OutputBusyError, io_cause, io_failure
+
+try:
+    import fcntl
+except ImportError:  # a platform without flock: runs go on unlocked, with a note
+    fcntl = None
 
 #: the errors of a file system that has no locks at all
 _NO_LOCKS = {errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOTSUP, errno.ENOSYS}
@@ -108,6 +112,8 @@ class RunLock:
                 raise io_failure(path, f"cannot create the lock file {file.name}",
                                  exc) from exc
             try:
+                if fcntl is None:
+                    raise OSError(errno.ENOSYS, "this platform has no flock")
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 holder = _holder(fd)

@@ -42,7 +42,8 @@ if os.getppid() != parent:
     os._exit(1)
 for signum in stop_signals:
     signal.signal(signum, signal.SIG_IGN)
-signal.pthread_sigmask(signal.SIG_UNBLOCK, stop_signals)
+if hasattr(signal, "pthread_sigmask"):
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, stop_signals)
 from roughslip.run.pool import _worker_init
 _worker_init(budget, q, parent)
 """
@@ -107,12 +108,17 @@ def _pool_task(config: RunConfig, sample: int) -> SampleResult:
 
 def _hold_stop_signals() -> None:
     """Block the stop signals in this thread (they wait until they are unblocked)."""
-    signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
 
 
 @contextlib.contextmanager
 def _stop_signals_held() -> Iterator[None]:
-    """Block the stop signals inside the block; the previous mask after it."""
+    """Block the stop signals inside the block; the previous mask after it (where the
+    platform has signal masks)."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
     old = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     try:
         yield
