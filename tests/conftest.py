@@ -2,7 +2,8 @@
 
 * Hypothesis runs derandomized (examples are a function of the test) and keeps no example
   database, so a run does not depend on earlier runs.
-* The process-wide memory cap is restored after every test.
+* The process-wide memory cap is restored after every test, and the BLAS thread counts after
+  the tests that run a Dask worker in this process (``blas_restored``).
 * No machine file (per-machine execution settings) is read: ``ROUGHSLIP_MACHINE`` is empty
   for the suite and the runs it starts.
 * Test order is shuffled by pytest-randomly (``-p no:randomly`` turns it off; the seed is
@@ -37,6 +38,16 @@ def _restore_memory_cap():
     old = memory._LIMIT
     yield
     memory._LIMIT = old
+
+
+@pytest.fixture
+def blas_restored():
+    """The BLAS thread counts of the test process, restored after the test: a Dask worker
+    inside this process sets them for good (:mod:`roughslip.run.cluster`)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=None, user_api="blas"):
+        yield
 
 
 @pytest.fixture(scope="session")

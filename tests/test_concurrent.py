@@ -78,7 +78,8 @@ def run_side_by_side(jobs: list[tuple], address: str) -> list[BaseException]:
     return errors
 
 
-def test_two_configurations_on_one_scheduler_keep_their_own_samples(references, tmp_path):
+def test_two_configurations_on_one_scheduler_keep_their_own_samples(references, tmp_path,
+                                                                    blas_restored):
     """Two runs of different configurations with the same sample numbers, submitted together
     to one scheduler whose two workers share this process: each file holds its own
     configuration's samples, bitwise those of the run alone."""

@@ -284,7 +284,7 @@ def test_fixed_shape_runs_one_sample_with_a_note(tmp_path):
     assert read_run(tmp_path / "s.h5").complete.shape == (1,)
 
 
-def test_dask_local_cluster_equals_serial(serial_run, tmp_path):
+def test_dask_local_cluster_equals_serial(serial_run, tmp_path, blas_restored):
     distributed = pytest.importorskip("distributed", reason="the dask extra is not installed")
     cfg, out, _ = serial_run
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
