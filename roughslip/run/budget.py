@@ -2,7 +2,7 @@
 key sets the grid's size, and what would fit.
 
 :func:`check_budget` refuses a run whose estimated peak memory
-(:func:`roughslip.run.executor.estimate_memory`, per worker) times the number of workers
+(:func:`estimate_memory`, per worker) times the number of workers
 exceeds the budget (:func:`roughslip.linalg.memory.available_bytes` under
 ``execution.memory_limit_gb``). Its one line names the key that sets the size (``grid.n``,
 ``grid.shape``, or the topography file and ``surface.downsample``) and gives a hint that
@@ -17,7 +17,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 
-from roughslip.elastic.operators import Grid, Material
+from roughslip.elastic.operators import ElasticOperator, Grid, Material
 from roughslip.errors import MemoryLimitError
 from roughslip.linalg import memory
 from roughslip.run.scene import Scene
@@ -35,8 +35,6 @@ def _gib(n: float) -> str:
 
 def _per_worker(config: RunConfig) -> Callable[[tuple[int, int]], int]:
     """Bytes one worker of ``config`` needs on a grid of a given shape."""
-    from roughslip.run.executor import estimate_memory  # the executor's own estimate
-
     material = Material(config.material.E, config.material.nu)
 
     def need(shape: tuple[int, int]) -> int:
@@ -45,6 +43,22 @@ def _per_worker(config: RunConfig) -> Callable[[tuple[int, int]], int]:
         return estimate_memory(Scene(config, grid, material))
 
     return need
+
+
+def estimate_memory(scene: Scene) -> int:
+    """Bytes one worker needs: its operator (:meth:`ElasticOperator.footprint`), the solver's
+    work arrays and one sample's fields.
+
+    The pull's own memory is checked when it starts (it depends on the bond count); each
+    worker gets ``budget / workers`` so parallel pulls cannot overcommit together.
+    """
+    ny, nx = scene.grid.shape
+    n = ny * nx
+    ops = ElasticOperator.footprint(scene.grid.shape, scene.grid.boundary, scene.components)
+    work = 8 * n * 16
+    nfields = max(1, len(scene.config.output.fields))
+    stored = 8 * n * nfields * scene.n_targets + 8 * n * 3
+    return int(ops + work + stored)
 
 
 def _largest(fits: Callable[[int], bool], below: int) -> int:

@@ -17,10 +17,10 @@ from typing import Any
 
 from roughslip._version import __version__
 from roughslip.elastic.fft import library_versions, resolve_backend
-from roughslip.elastic.operators import ElasticOperator
-from roughslip.errors import InputError, MemoryLimitError
+from roughslip.errors import InputError
 from roughslip.linalg import memory
 from roughslip.run.blas import blas_libraries
+from roughslip.run.budget import check_budget, estimate_memory
 from roughslip.run.cluster import run_dask
 from roughslip.run.config import RunConfig
 from roughslip.run.lock import holding
@@ -83,34 +83,12 @@ def provenance(config: RunConfig, command_line: str) -> dict[str, Any]:
     }
 
 
-def estimate_memory(scene: Scene) -> int:
-    """Bytes one worker needs: its operator (:meth:`ElasticOperator.footprint`), the solver's
-    work arrays and one sample's fields.
-
-    The pull's own memory is checked when it starts (it depends on the bond count); each
-    worker gets ``budget / workers`` so parallel pulls cannot overcommit together.
-    """
-    ny, nx = scene.grid.shape
-    n = ny * nx
-    ops = ElasticOperator.footprint(scene.grid.shape, scene.grid.boundary, scene.components)
-    work = 8 * n * 16
-    nfields = max(1, len(scene.config.output.fields))
-    stored = 8 * n * nfields * scene.n_targets + 8 * n * 3
-    return int(ops + work + stored)
-
-
 def check_memory(scene: Scene, workers: int) -> None:
-    """Refuse a run whose estimated peak memory exceeds the budget."""
-    per = estimate_memory(scene)
-    need = per * workers
-    have = memory.available_bytes()
-    if need > have:
-        fewer = max(1, have // max(per, 1))
-        hint = (f"use --workers {fewer}" if fewer < workers
-                else "use a smaller grid or an output.fields list with fewer fields")
-        raise MemoryLimitError(
-            f"the run needs ~{need / 2**30:.2f} GiB ({workers} worker(s) x "
-            f"{per / 2**30:.2f} GiB) but {have / 2**30:.2f} GiB are available; {hint}")
+    """Refuse a run whose estimated peak memory exceeds the budget, in one line that names the
+    key that sets the size and a hint that holds
+    (:func:`~roughslip.run.budget.check_budget`, with the resolved scene: a grid that a
+    topography file sets is checked too)."""
+    check_budget(scene.config, workers, scene)
 
 
 def run(
