@@ -17,6 +17,10 @@ from roughslip.errors import InputError
 T = TypeVar("T")
 
 
+#: the choice that asks a family to choose by itself (by size, memory and capabilities)
+AUTO = "auto"
+
+
 class Registry(Generic[T]):
     """Named strategies of one family.
 

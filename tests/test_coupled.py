@@ -12,7 +12,7 @@ from roughslip.contact.squeeze import squeeze
 from roughslip.coupling.coupled import squeeze_pull_coupled
 from roughslip.coupling.histories import HISTORIES
 from roughslip.errors import InputError
-from roughslip.friction.events import VISITS, Snapshot, digest, follow_events
+from roughslip.friction.events import VISITS, Progress, Snapshot, digest, follow_events
 from roughslip.friction.pull import pull
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
 
@@ -467,7 +467,8 @@ def test_a_slow_rate_is_flat_only_on_the_scale_of_the_pull_so_far():
     st = object.__new__(_State)
     st.C = np.array([[True, True, False]])
     st.S = np.array([[True, False, False]])
-    st.lam, st.Dscale, st.scale_g, st.slope = 0.2, 8.6e-6, 2.0, True
+    st.lam, st.scale_g, st.slope = 0.2, 2.0, True
+    st.progress = Progress(scale=8.6e-6)
     st.law = LAWS.get("break")
     st.f0 = (np.array([[0.4, 0.3, 0.0]]), np.array([[0.01, 0.0, 0.0]]))
     st.f1 = (np.array([[0.0, 0.01, 0.0]]), np.array([[0.1, 0.0, 0.0]]))
@@ -787,7 +788,7 @@ class _Flipper:
     def __init__(self) -> None:
         self.C = np.ones((2, 2), bool)
         self.S = self.C.copy()
-        self.Dscale, self.pulling, self.discontinuous = 1.0, False, False
+        self.progress, self.discontinuous = Progress(), False
 
     def interval(self, D):
         kind = "lost" if self.C[0, 0] else "gained"
@@ -837,3 +838,49 @@ def test_the_event_loop_stops_when_a_state_comes_back_at_one_drive():
     assert kinds == ["start"] + ["lost", "gained"] * (VISITS - 1)
     assert path.message.startswith("the events cycle") and "'gained' event at site 0" in (
         path.message)
+
+
+def _block_solver_uses() -> dict[str, set[str]]:
+    """Attributes read on a block solver by the coupled model's states, histories and
+    driver: on ``solver``, ``s`` and ``self.solver``."""
+    import ast
+    from pathlib import Path
+
+    import roughslip
+
+    pkg = Path(roughslip.__file__).parent / "coupling"
+    out = {}
+    for name in ("state.py", "histories.py", "coupled.py"):
+        used = set()
+        for node in ast.walk(ast.parse((pkg / name).read_text())):
+            if isinstance(node, ast.Attribute):
+                v = node.value
+                if (isinstance(v, ast.Name) and v.id in ("solver", "s")) or (
+                        isinstance(v, ast.Attribute) and v.attr == "solver"):
+                    used.add(node.attr)
+        out[name] = used
+    return out
+
+
+def test_the_block_solver_protocol_is_what_the_coupled_model_uses():
+    """The protocol lists every member its callers read, and every registered solver has every
+    member of it (by introspection): a new solver that implements the protocol runs."""
+    import inspect
+
+    from roughslip.coupling.blocksolvers import SOLVERS, BlockSolver
+
+    members = {n for n in dir(BlockSolver) if not n.startswith("_")}
+    members |= set(BlockSolver.__annotations__)
+    for name, used in _block_solver_uses().items():
+        assert used <= members, f"{name}: {sorted(used - members)}"
+    pb = Problem.from_arrays(np.zeros((4, 4)), nu=0.25)
+    for method in SOLVERS.names():
+        solver = SOLVERS.get(method)(pb)
+        for m in members:
+            assert hasattr(solver, m), f"{method}: {m}"
+        for n, f in inspect.getmembers(BlockSolver, inspect.isfunction):
+            if not n.startswith("_"):
+                want = list(inspect.signature(f).parameters)
+                have = list(inspect.signature(getattr(type(solver), n)).parameters)
+                assert have[: len(want)] == want, f"{method}: {n}"
+

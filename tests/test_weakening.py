@@ -89,7 +89,7 @@ def _check_state(st: weakening.WeakeningState, D: float, G: np.ndarray) -> None:
     s = D - G @ f  # slip of the rigid surface over the half-space at each bond
     fz, sig, ph = st.fz, st.sigma, st.phase
     fs = fz.max()
-    scale = max(st.Dscale, D)
+    scale = max(st.progress.scale, D)
     stick, weak, res = ph == weakening.STICK, ph == weakening.WEAK, ph == weakening.RESIDUAL
     assert np.all(np.abs(s[stick] - st.s0[stick]) <= 1e-7 * scale)
     delta = st.delta[weak] + sig[weak] * (s[weak] - st.s0[weak])

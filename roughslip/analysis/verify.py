@@ -417,20 +417,24 @@ def rough_contact(n: int, tol: float = 1e-12) -> NormalResult:
 SQUEEZE_TOLS = (1e-4, 1e-6, 1e-8, 1e-10)
 
 
+#: the pulls whose whole error estimate is checked on loose squeezes: per law, the (method,
+#: tolerance, label) of each
+ESTIMATED_PULLS = {"break": (("inverse", 1e-10, "inverse"), ("cg", 1e-6, "cg")),
+                   "coulomb": (("inverse", 1e-10, "inverse/coulomb"),)}
+
+
 def _pull_on_loose_squeezes(n: int) -> Study:
     """Checks of the whole ``error_estimate`` (the squeeze's part and the pull's): pulls on
     squeezes at tolerances 1e-4 to 1e-10 against the pull at 1e-13 on the squeeze at 1e-13."""
     out = Study()
     tight = rough_contact(n, REF_TOL)
-    for law in ("break", "coulomb"):
+    for law, pulls in ESTIMATED_PULLS.items():
         ref = _reference(lambda law=law: pull(tight, method="inverse", tol=REF_TOL,
                                               slip_law=law), f"the {law} pull at N={n}")
         for stol in SQUEEZE_TOLS:
             loose = rough_contact(n, stol)
-            for method, tol in ((("inverse", 1e-10), ("cg", 1e-6)) if law == "break"
-                                else (("inverse", 1e-10),)):
+            for method, tol, name in pulls:
                 r = pull(loose, method=method, tol=tol, slip_law=law, estimate_error=True)
-                name = method if law == "break" else f"{method}/coulomb"
                 out.checks.append(Check("pull", name, "squeeze tolerance", f"N={n}", stol,
                                         "pull error_estimate", "estimate", "friction force",
                                         r.error_estimate,

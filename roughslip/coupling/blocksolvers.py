@@ -26,35 +26,84 @@ from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
 import numpy as np
+from scipy import linalg
+from scipy.sparse.linalg import LinearOperator, gmres
 
 from roughslip.contact.problem import Problem
 from roughslip.elastic.tables import gather_pairs
 from roughslip.errors import MemoryLimitError, NumericalError
 from roughslip.linalg.cg import cg
-from roughslip.linalg.inverse import BYTES_PER_ORDER2, Tracked, UpdatableInverse, submatrix
+from roughslip.linalg.inverse import (
+    BYTES_PER_ORDER2,
+    Tracked,
+    UpdatableInverse,
+    refine,
+    submatrix,
+)
 from roughslip.linalg.memory import available_bytes
-from roughslip.registry import Registry
+from roughslip.registry import AUTO, Registry
 
 # ------------------------------------------------------------------------------------------------
 # Linear solvers for the reduced block
 # ------------------------------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class Components:
+    """How the block's unknowns are numbered: one per site and force component, site-major,
+    ``unknown = len(names) * site + names.index(component)``. The coupled model's components
+    are ``("z", "x")``; a tangential force vector adds ``"y"``."""
+
+    names: tuple[str, ...] = ("z", "x")
+
+    @property
+    def n(self) -> int:
+        """Components per site."""
+        return len(self.names)
+
+    def unknowns(self, sites: np.ndarray, component: str) -> np.ndarray:
+        """The unknowns of ``component`` at the flat indices ``sites``."""
+        return self.n * np.asarray(sites, dtype=np.int64) + self.names.index(component)
+
+    def site(self, ids: np.ndarray) -> np.ndarray:
+        """The site of each unknown."""
+        return ids // self.n
+
+    def component(self, ids: np.ndarray) -> np.ndarray:
+        """The component index of each unknown (an index of :attr:`names`)."""
+        return ids % self.n
+
+    def kernel(self, a: int, b: int, tables: dict) -> tuple[str, bool]:
+        """The pair table of the displacement component ``a`` due to the force component
+        ``b``, and whether it is read with its offsets negated: a table holds
+        :math:`G_{ab}` or the symmetric :math:`G_{ba}(j - i) = G_{ab}(i - j)`."""
+        name = self.names[a] + self.names[b]
+        return (name, False) if name in tables else (name[::-1], True)
+
+
+#: the unknowns of the coupled model: f_z and f_x per site
+COMPONENTS = Components()
+
+
 class BlockSolver(Protocol):
     """A linear solver for the reduced block on the contact set C and the stick set S: the
-    contract the event loop uses, and all of it."""
+    contract the coupled model's states and histories use, and all of it
+    (``tests/test_coupled.py`` reads their code to check). A class that derives from it
+    inherits the matrix-free slip solves (:meth:`solve_slip`)."""
 
     #: solves so far (:meth:`add_solves` counts those the caller does on the solver's behalf)
     solves: int
     #: seconds in dense linear algebra
     blas_seconds: float
-    #: why the solver went on matrix-free (the dense inverse did not fit), else ""
-    note: str
-    #: the dense test reference: every state factorised afresh, displacements by dense sums
-    reference: bool
-    #: whether the current state is solved through an explicit inverse (then
-    #: :meth:`apply_inverse` is available), else matrix-free
-    dense: bool
+    #: GMRES iterations of the solves with slip forces (:meth:`solve_slip`)
+    slip_iterations: int
+    #: the registered name of the solver that solved the last state (:data:`SOLVERS`)
+    method: str
+    #: why the solver went on with another method (a dense inverse that did not fit), else ""
+    fallback: str
+    #: the relative residual every solve is certified to, and the worst one so far
+    tol: float
+    worst: float
 
     def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
         """Set the unknowns: f_z on C, f_x on S. ``bulk``: the sets are about to change by
@@ -72,9 +121,19 @@ class BlockSolver(Protocol):
     def displacements(self, fz: np.ndarray, fx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(u_z, u_x) on the grid for the force fields (f_z, f_x)."""
 
-    def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(f_z, f_x): the current inverse times a right-hand side, uncertified (only while
-        :attr:`dense`)."""
+    def solve_slip(self, rhs: list[tuple[np.ndarray, np.ndarray, str]], C: np.ndarray,
+                   S: np.ndarray, P: np.ndarray, w: np.ndarray
+                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        r"""(f_z, f_x, u_z, u_x) on the grid for each ``(rz, rx, key)`` with slip forces: on
+        the slip sites ``P`` (contact sites off the stick set) a bond carries
+        :math:`f_x = w f_z`, so the system is not symmetric. Every solution is certified
+        against the FFT operator on the whole system (:func:`certified_slip_solves`).
+
+        The default, matrix-free: GMRES on the whole system, one FFT product per iteration,
+        warm-started from the last solution of the same right-hand side
+        (:func:`free_slip_solve`)."""
+        return certified_slip_solves(self, rhs, C, S, P, w,
+                                     lambda *a: free_slip_solve(self, C, S, *a))
 
     def residual(self) -> float:
         """The worst relative residual of the solves so far."""
@@ -90,16 +149,82 @@ class BlockSolver(Protocol):
 #: the coupled block solvers, by name (``method`` of :func:`couple`)
 SOLVERS: Registry[type] = Registry("coupled solver")
 
+
+def certified_slip_solves(solver: BlockSolver, rhs: list[tuple[np.ndarray, np.ndarray, str]],
+                          C: np.ndarray, S: np.ndarray, P: np.ndarray, w: np.ndarray,
+                          solve: Callable[..., tuple[np.ndarray, np.ndarray]]
+                          ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    r"""The solves with slip forces of :meth:`BlockSolver.solve_slip`, each certified: the
+    residual of the whole system against the FFT operator (``solver.displacements``), and
+    above the solver's ``tol`` a correction by ``solve`` on the residual, at most twice
+    (:func:`~roughslip.linalg.inverse.refine`). ``solve(rz, rx, key, P, w)`` gives the forces
+    for one right-hand side (``key`` ``"refine"``: a correction). The worst residual goes
+    into the solver's."""
+    out = []
+    for rz, rx, key in rhs:
+        scale = max(float(np.linalg.norm(np.concatenate([rz[C], rx[S]]))),
+                    np.finfo(float).tiny)
+        last: list[np.ndarray] = []
+
+        def residual(f, rz=rz, rx=rx, scale=scale, last=last):
+            uz, ux = solver.displacements(*f)
+            last[:] = [uz, ux]
+            ez, ex = np.where(C, rz - uz, 0.0), np.where(S, rx - ux, 0.0)
+            res = float(np.linalg.norm(np.concatenate([ez[C], ex[S]]))) / scale
+            return (ez, ex), res
+
+        def correct(f, e):
+            dz, dx = solve(*e, "refine", P, w)
+            return f[0] + dz, f[1] + dx
+
+        (fz, fx), res, _ = refine(solve(rz, rx, key, P, w), residual, correct, solver.tol, 2)
+        solver.worst = max(solver.worst, res)
+        out.append((fz, fx, last[0], last[1]))
+    return out
+
+
+def free_slip_solve(solver: BlockSolver, C: np.ndarray, S: np.ndarray, rz: np.ndarray,
+                    rx: np.ndarray, key: str, P: np.ndarray, w: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Matrix-free: GMRES on the whole non-symmetric system, one FFT product per iteration,
+    warm-started from the last solution of the same right-hand side (kept by the solver in
+    ``slip_warm``)."""
+    nc, n = int(C.sum()), int(C.sum() + S.sum())
+    shape = rz.shape
+
+    def fields(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        fz, fx = np.zeros(shape), np.zeros(shape)
+        fz[C] = y[:nc]
+        fx[S] = y[nc:]
+        fx[P] = w * fz[P]
+        return fz, fx
+
+    def matvec(y: np.ndarray) -> np.ndarray:
+        solver.slip_iterations += 1
+        uz, ux = solver.displacements(*fields(np.ravel(y)))
+        return np.concatenate([uz[C], ux[S]])
+
+    b = np.concatenate([rz[C], rx[S]])
+    prev = solver.slip_warm.get(key)
+    x0 = None if prev is None else np.concatenate([prev[0][C], prev[1][S]])
+    bnorm = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
+    y, _ = gmres(LinearOperator((n, n), matvec=matvec, dtype=float), b, x0=x0, rtol=0.0,
+                 atol=0.1 * solver.tol * bnorm, restart=min(n, 200), maxiter=50)
+    solver.add_solves(1)
+    fz, fx = fields(y)
+    solver.slip_warm[key] = (fz, fx)
+    return fz, fx
+
 #: the name of the dense solver's tracked block of slip responses
 _SLIP = "slip response"
 
 
 @SOLVERS.register("dense", "the reduced block's inverse, updated at every event")
-class DenseBlockSolver:
+class DenseBlockSolver(BlockSolver):
     r"""Reduced block assembled from the operator's kernel tables, solved through its inverse.
 
-    The unknowns are numbered ``2 i`` (:math:`f_z` at site ``i``) and ``2 i + 1``
-    (:math:`f_x`). The explicit inverse of the block on the current unknowns is an
+    The unknowns are :math:`f_z` and :math:`f_x` per site, numbered by :data:`COMPONENTS`.
+    The explicit inverse of the block on the current unknowns is an
     :class:`~roughslip.linalg.inverse.UpdatableInverse`: updated when the contact or stick set
     changes (downdates, bordered additions, blocked BLAS-3 folding, compaction), never
     recomputed for it, and kept solutions of unchanged right-hand sides are updated with it.
@@ -139,15 +264,19 @@ class DenseBlockSolver:
     inner_every = 16
 
     def __init__(self, problem: Problem, *, reference: bool = False, tol: float = 1e-12,
-                 fallback: bool = False, threads: int = 1, **_: object) -> None:
+                 may_fall_back: bool = False, threads: int = 1, **_: object) -> None:
         # The factorisation and the folding of pending terms (BLAS-3) get ``threads``; the
         # event loop runs with one BLAS thread: its products are matrix-vector, and idle BLAS
         # threads spinning beside the FFTs cost more than they gain (measured: N = 128, 5 %
         # contact, 2.0 s with one thread, 4.9 s with two).
-        #: when an inverse does not fit in memory: go on matrix-free (True, with a :attr:`note`)
-        #: or refuse (False, :class:`MemoryLimitError`)
-        self.fallback = fallback
-        self.note = ""
+        #: when an inverse does not fit in memory: go on matrix-free (True, recorded in
+        #: :attr:`fallback`) or refuse (False, :class:`MemoryLimitError`)
+        self.may_fall_back = may_fall_back
+        #: why the solver went on matrix-free for good, else ""
+        self.fallback = ""
+        self.slip_iterations = 0
+        #: the last forces (f_z, f_x) with slip forces by right-hand side: GMRES's start
+        self.slip_warm: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         op = problem.operator("zz", "zx", "xx").with_threads(1)
         self.problem = problem
         self.ny, self.nx = op.shape
@@ -159,8 +288,9 @@ class DenseBlockSolver:
         self.worst = 0.0
         #: the matrix-free solver of the bulk passes, when used
         self.bulk: MatrixFreeBlockSolver | None = None
-        #: the updated inverse of the block (unknowns ``2 i``: f_z, ``2 i + 1``: f_x)
-        self.inverse = UpdatableInverse(self.entries, 2 * self.ny * self.nx, room=self._room,
+        #: the updated inverse of the block (unknowns numbered by :data:`COMPONENTS`)
+        self.inverse = UpdatableInverse(self.entries, COMPONENTS.n * self.ny * self.nx,
+                                        room=self._room,
                                         threads=threads, block=self.block)
         self.dense = True  # False while the bulk passes or the fallback solve matrix-free
         #: the displacements of the kept solutions, by right-hand side (:class:`_Fields`)
@@ -185,6 +315,12 @@ class DenseBlockSolver:
         """Seconds in dense linear algebra (factorisation, products, updates)."""
         return self.inverse.blas_seconds
 
+    @property
+    def method(self) -> str:
+        """``"cg"`` once the solver went on matrix-free for good (:attr:`fallback`), else
+        ``"dense"``."""
+        return "cg" if self.fallback else "dense"
+
     # -- assembly ------------------------------------------------------------------------------
     def _lin(self, sites: np.ndarray, comp: str) -> np.ndarray:
         """The index of each site in the pair table of ``comp``."""
@@ -197,18 +333,19 @@ class DenseBlockSolver:
         from the kernels' pair tables (:func:`~roughslip.elastic.tables.gather_pairs`)."""
         ids_i, ids_j = np.asarray(ids_i, dtype=np.int64), np.asarray(ids_j, dtype=np.int64)
         out = np.empty((ids_i.size, ids_j.size), order=order)
-        for a in (0, 1):  # 0: z, 1: x
-            ri = np.flatnonzero((ids_i & 1) == a)
-            si = ids_i[ri] >> 1
-            for b in (0, 1):
-                cj = np.flatnonzero((ids_j & 1) == b)
+        ci, cj_all = COMPONENTS.component(ids_i), COMPONENTS.component(ids_j)
+        for a in range(COMPONENTS.n):
+            ri = np.flatnonzero(ci == a)
+            si = COMPONENTS.site(ids_i[ri])
+            for b in range(COMPONENTS.n):
+                cj = np.flatnonzero(cj_all == b)
                 if not ri.size or not cj.size:
                     continue
-                sj = ids_j[cj] >> 1
-                comp = "zx" if a != b else ("zz" if a == 0 else "xx")
+                sj = COMPONENTS.site(ids_j[cj])
+                comp, flipped = COMPONENTS.kernel(a, b, self.tables)
                 T, _, off = self.tables[comp]
                 li, lj = self._lin(si, comp), self._lin(sj, comp)
-                if (a, b) == (1, 0):  # G_xz(i - j) = G_zx(j - i)
+                if flipped:  # G_ab(i - j) = G_ba(j - i)
                     li, lj = -li, -lj
                 gather_pairs(T, li, lj, off, out, ri, cj)
         return out
@@ -216,17 +353,18 @@ class DenseBlockSolver:
     # -- the inverse ---------------------------------------------------------------------------
     def _room(self, m: int) -> bool:
         """Whether an inverse for ``m`` unknowns fits in memory (:func:`dense_memory_bytes`).
-        If not: refuse, or with :attr:`fallback` drop the inverse and leave a :attr:`note`."""
+        If not: refuse, or with :attr:`may_fall_back` drop the inverse and record why in
+        :attr:`fallback`."""
         need, have = _inverse_bytes(m), available_bytes()
         if need <= have:
             return True
         msg = (f"needs ~{need / 2**30:.2f} GiB for {m} unknowns (contact and stick sites) but "
                f"{have / 2**30:.2f} GiB are available")
-        if not self.fallback:
+        if not self.may_fall_back:
             raise MemoryLimitError(
                 f"coupled model, method 'dense': {msg}; use method 'cg' (matrix-free) or "
                 "'auto', a smaller depth or grid, or raise execution.memory_limit_gb")
-        self.note = f"auto chose cg: the dense solver {msg}"
+        self.fallback = f"auto chose cg: the dense solver {msg}"
         self.inverse.reset()
         return False
 
@@ -239,9 +377,9 @@ class DenseBlockSolver:
 
     def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
         bulk = bulk and not self.reference and int(C.sum() + S.sum()) > self.bulk_min
-        if not (self.note or bulk):
+        if not (self.fallback or bulk):
             self._update(C, S)
-            if not self.note:
+            if not self.fallback:
                 return
         # matrix-free: the bulk passes, or for good once an inverse did not fit
         if self.bulk is None:
@@ -256,8 +394,8 @@ class DenseBlockSolver:
         self.dense = True
         inv = self.inverse
         want = np.zeros(inv.row.size, dtype=bool)
-        want[2 * np.flatnonzero(C)] = True
-        want[2 * np.flatnonzero(S) + 1] = True
+        want[COMPONENTS.unknowns(np.flatnonzero(C), "z")] = True
+        want[COMPONENTS.unknowns(np.flatnonzero(S), "x")] = True
         have = inv.row >= 0
         gone = np.flatnonzero(have & ~want)
         new = np.flatnonzero(want & ~have)
@@ -268,7 +406,7 @@ class DenseBlockSolver:
         ok = ok and all(self._remove(int(u)) for u in gone)
         ok = ok and (not new.size or inv.add(new) is not False)
         if not ok:
-            self._factor(np.concatenate([2 * np.flatnonzero(C), 2 * np.flatnonzero(S) + 1]))
+            self._factor(_unknowns(C, S))
         elif (~inv.live).sum() > 0.25 * inv.m:
             kept = [(key, f) for key, t in inv.tracked.items()
                     if (f := self._fields.get(key)) is not None and f.x is t.x]
@@ -325,7 +463,7 @@ class DenseBlockSolver:
         if self._layout_of is None or self._layout_of[0] != inv.version:
             rows = np.flatnonzero(inv.live)
             ids = inv.ids[rows]
-            sites, isx = ids >> 1, (ids & 1).astype(bool)
+            sites, isx = COMPONENTS.site(ids), COMPONENTS.component(ids) == _X
             self._layout_of = (inv.version, _Layout(rows, sites, isx, sites[~isx], rows[~isx],
                                                     sites[isx], rows[isx]))
         return self._layout_of[1]
@@ -349,10 +487,11 @@ class DenseBlockSolver:
         if not self.reference:
             return self.op.apply_block(fz, fx)
         n = self.ny * self.nx
-        src = np.concatenate([2 * np.flatnonzero(fz.ravel()), 2 * np.flatnonzero(fx.ravel()) + 1])
-        val = np.where(src % 2 == 1, fx.ravel()[src >> 1], fz.ravel()[src >> 1])
-        uz = self.entries(2 * np.arange(n), src) @ val
-        ux = self.entries(2 * np.arange(n) + 1, src) @ val
+        src = _unknowns(fz.ravel() != 0, fx.ravel() != 0)
+        val = _values(src, fz, fx)
+        every = np.arange(n)
+        uz = self.entries(COMPONENTS.unknowns(every, "z"), src) @ val
+        ux = self.entries(COMPONENTS.unknowns(every, "x"), src) @ val
         return uz.reshape(fz.shape), ux.reshape(fz.shape)
 
     def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = ""
@@ -510,7 +649,7 @@ class DenseBlockSolver:
         layout = self._layout()
         if new.size:
             B = np.zeros((inv.m, new.size), order="F")
-            B[layout.rows] = self.entries(inv.ids[layout.rows], 2 * new + 1)
+            B[layout.rows] = self.entries(inv.ids[layout.rows], COMPONENTS.unknowns(new, "x"))
             Z[:, q:] = inv.apply(B)
             Z[~inv.live, q:] = 0.0
             have = np.concatenate([have, new])
@@ -528,9 +667,100 @@ class DenseBlockSolver:
             w[cols] = v
             return self._to_fields(Z @ w, layout, shape)
 
-        E = submatrix(Z, inv.row[2 * sites], cols)
+        E = submatrix(Z, inv.row[COMPONENTS.unknowns(sites, "z")], cols)
         self._slip_memo = ((inv.version, inv.shifts), sites.copy(), (E, fields))
         return E, fields
+
+    def solve_slip(self, rhs: list[tuple[np.ndarray, np.ndarray, str]], C: np.ndarray,
+                   S: np.ndarray, P: np.ndarray, w: np.ndarray
+                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        r"""The solves with slip forces (:meth:`BlockSolver.solve_slip`). Through the inverse:
+        the solution is :math:`y = y_0 - K^{-1}H w t` with :math:`y_0 = K^{-1} r` and
+        :math:`t = f_z(P)` the solution of the :math:`|P|`-sized system
+        :math:`(I + E_P^T K^{-1} H w)\,t = E_P^T y_0` (:math:`H` the displacements on the
+        unknowns of tangential forces on :math:`P`), solved by GMRES warm-started from the
+        last state's slip forces. The iteration matrix is of the order of :math:`\lambda`
+        times the coupling :math:`G_{zx}/G_{zz}`, so a few iterations suffice, and
+        :math:`K^{-1}H` is the tracked block :meth:`slip_response`, so an iteration is a
+        product with the :math:`|P| 	imes |P|` matrix :math:`E_P^T K^{-1} H w`. While
+        matrix-free (the bulk passes, a fallback): the default. The reference solves the
+        non-symmetric system directly."""
+        if self.reference:
+            return self._slip_direct(rhs, C, S, P, w)
+        if not self.dense:
+            return BlockSolver.solve_slip(self, rhs, C, S, P, w)
+        return certified_slip_solves(self, rhs, C, S, P, w, self._slip_solve)
+
+    def _slip_solve(self, rz: np.ndarray, rx: np.ndarray, key: str, P: np.ndarray,
+                    w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The forces with the slip law on P for one right-hand side, through the inverse
+        (:meth:`solve_slip`)."""
+        fz0, fx0 = self.solve_inner(rz, rx, key)
+        block = self.slip_response(np.flatnonzero(P))
+        if block is not None:
+            E, fields = block
+            T = E * w  # E_P^T K^{-1} H w
+
+            def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                return fields(w * t)
+
+            def product(t: np.ndarray) -> np.ndarray:
+                return T @ t
+        else:  # no room for the block: an FFT product and a product with the inverse
+            zero = np.zeros(rz.shape)
+
+            def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                fxs = np.zeros(rz.shape)
+                fxs[P] = w * t
+                return self.apply_inverse(*self.displacements(zero, fxs))
+
+            def product(t: np.ndarray) -> np.ndarray:
+                return correction(t)[0][P]
+
+        n = int(P.sum())
+        b = fz0[P]
+
+        def matvec(t: np.ndarray) -> np.ndarray:
+            self.slip_iterations += 1
+            return t + product(np.ravel(t))
+
+        A = LinearOperator((n, n), matvec=matvec, dtype=float)
+        prev = self.slip_warm.get(key)
+        x0 = prev[0][P] if prev is not None else b
+        bnorm = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
+        # a GMRES that stops short shows in the certified residual of the whole solution
+        t, _ = gmres(A, b, x0=x0, rtol=0.0, atol=0.1 * self.tol * bnorm,
+                     restart=min(n, 50), maxiter=max(20, n))
+        fz1, fx1 = correction(t)
+        fz, fx = fz0 - fz1, fx0 - fx1
+        fx[P] = w * fz[P]
+        self.slip_warm[key] = (fz, fx)
+        return fz, fx
+
+    def _slip_direct(self, rhs: list[tuple[np.ndarray, np.ndarray, str]], C: np.ndarray,
+                     S: np.ndarray, P: np.ndarray, w: np.ndarray
+                     ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        """The reference: the non-symmetric system with the slip forces, assembled by dense
+        sums and solved directly (LU)."""
+        self.add_solves(len(rhs))
+        ids = _unknowns(C, S)
+        A = self.entries(ids, ids)
+        pz = np.flatnonzero(P)
+        # f_z(P) among the unknowns
+        cols = np.searchsorted(ids[: int(C.sum())], COMPONENTS.unknowns(pz, "z"))
+        A[:, cols] += self.entries(ids, COMPONENTS.unknowns(pz, "x")) * w
+        sites, isx = COMPONENTS.site(ids), COMPONENTS.component(ids) == _X
+        B = np.column_stack([_values(ids, rz, rx) for rz, rx, _ in rhs])
+        Y = linalg.solve(A, B, check_finite=False)
+        out = []
+        for k, (rz, _, _) in enumerate(rhs):
+            fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
+            fz.ravel()[sites[~isx]] = Y[~isx, k]
+            fx.ravel()[sites[isx]] = Y[isx, k]
+            fx[P] = w * fz[P]
+            uz, ux = self.displacements(fz, fx)
+            out.append((fz, fx, uz, ux))
+        return out
 
     def _slip_columns(self, Z: np.ndarray, q: int, keep: np.ndarray | None = None
                       ) -> np.ndarray | None:
@@ -557,7 +787,7 @@ class DenseBlockSolver:
     def _slip_values(self) -> Callable[[np.ndarray], np.ndarray]:
         """The slip block's right-hand sides on unknowns added later (:meth:`slip_response`;
         dead columns are bordered too, as their sites give them)."""
-        return lambda ids: self.entries(ids, 2 * self._slip_sites + 1)
+        return lambda ids: self.entries(ids, COMPONENTS.unknowns(self._slip_sites, "x"))
 
 
 class _Layout(NamedTuple):
@@ -585,16 +815,33 @@ class _Fields:
     age: int
 
 
+#: the index of the tangential component among :data:`COMPONENTS`
+_X = COMPONENTS.names.index("x")
+
+
+def _unknowns(C: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """The unknowns of the sets: f_z on C, then f_x on S (boolean grids or flat masks)."""
+    return np.concatenate([COMPONENTS.unknowns(np.flatnonzero(C), "z"),
+                           COMPONENTS.unknowns(np.flatnonzero(S), "x")])
+
+
+def _values(ids: np.ndarray, rz: np.ndarray, rx: np.ndarray) -> np.ndarray:
+    """The entries of the fields ``rz`` (on f_z unknowns) and ``rx`` (on f_x unknowns) at
+    the unknowns ``ids``."""
+    sites = COMPONENTS.site(ids)
+    return np.where(COMPONENTS.component(ids) == _X, rx.ravel()[sites], rz.ravel()[sites])
+
+
 def _rhs_values(rz: np.ndarray, rx: np.ndarray):
-    """The right-hand side of unknowns (``2 i``: rz at site i, ``2 i + 1``: rx), for the
+    """The right-hand side of unknowns (:func:`_values` of ``rz`` and ``rx``), for the
     bordering of a tracked solution."""
     def values(ids: np.ndarray) -> np.ndarray:
-        return np.where((ids & 1).astype(bool), rx.ravel()[ids >> 1], rz.ravel()[ids >> 1])
+        return _values(ids, rz, rx)
     return values
 
 
 @SOLVERS.register("cg", "matrix-free: warm-started CG on the restricted FFT block operator")
-class MatrixFreeBlockSolver:
+class MatrixFreeBlockSolver(BlockSolver):
     """Conjugate gradients (:func:`roughslip.linalg.cg.cg`) on the restricted block operator,
     warm-started from the previous solution of the same right-hand side."""
 
@@ -604,9 +851,12 @@ class MatrixFreeBlockSolver:
         self.op = problem.operator("zz", "zx", "xx")
         self.solves = 0
         self.worst = 0.0
-        self.blas_seconds, self.note = 0.0, ""  # no dense linear algebra, no fallback
-        self.reference, self.dense = False, False
+        self.blas_seconds, self.fallback = 0.0, ""  # no dense linear algebra, no fallback
+        self.method = "cg"
         self.prev: dict[str, np.ndarray] = {}
+        self.slip_iterations = 0
+        #: the last forces (f_z, f_x) with slip forces by right-hand side: GMRES's start
+        self.slip_warm: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
     def prepare(self, C: np.ndarray, S: np.ndarray, bulk: bool = False) -> None:
         self.A = self.problem.restricted_block(C, S)
@@ -619,9 +869,6 @@ class MatrixFreeBlockSolver:
 
     def add_solves(self, n: int) -> None:
         self.solves += n
-
-    def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        raise NotImplementedError("the matrix-free solver keeps no inverse (dense is False)")
 
     def solve(self, rz: np.ndarray, rx: np.ndarray, key: str = ""
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -647,7 +894,7 @@ DENSE_BYTES_PER_UNKNOWN2 = BYTES_PER_ORDER2
 def dense_memory_bytes(sites: int) -> int:
     """Peak memory of ``method="dense"`` for ``sites`` contact sites, all bonded (bytes):
     ``m = 2 sites`` unknowns."""
-    return _inverse_bytes(2 * int(sites))
+    return _inverse_bytes(COMPONENTS.n * int(sites))
 
 
 def _inverse_bytes(m: int) -> int:
@@ -658,8 +905,8 @@ def _inverse_bytes(m: int) -> int:
 def choose_solver(method: str) -> str:
     """The solver class name for ``method`` (``auto`` starts dense; the dense solver checks its
     memory before each factorisation and, under ``auto``, falls back to ``cg``)."""
-    if method == "auto":
-        return "dense"
+    if method == AUTO:
+        return SOLVERS.names()[0]  # the dense solver, registered first
     SOLVERS.get(method)
     return method
 
@@ -670,5 +917,5 @@ def make_solver(problem: Problem, method: str, reference: bool, tol: float,
     the name of its class."""
     name = choose_solver(method)
     solver = SOLVERS.get(name)(problem, reference=reference, tol=tol, max_iter=max_iter,
-                               threads=problem.threads, fallback=method == "auto")
+                               threads=problem.threads, may_fall_back=method == AUTO)
     return solver, name

@@ -34,8 +34,8 @@ report's pull) or the normal force, with the depth following
 
 Under the Coulomb law a failed bond slips, carrying :math:`f_x = \sigma\lambda f_z` in the
 direction :math:`\sigma` of its force as :math:`f_z` changes (the system is then not
-symmetric: ``ContactState._solve_many``), and a slipping bond whose slip the pull would turn around
-sticks again where it is (the law's reversal rule,
+symmetric: :meth:`~roughslip.coupling.blocksolvers.BlockSolver.solve_slip`), and a slipping
+bond whose slip the pull would turn around sticks again where it is (the law's reversal rule,
 :meth:`~roughslip.friction.laws.SlipLaw.turned_back`; docs/theory/coupled.rst#coupled-coulomb).
 
 Solvers (registered in :data:`~roughslip.coupling.blocksolvers.SOLVERS`): ``"dense"`` assembles
@@ -65,7 +65,6 @@ from roughslip.coupling.blocksolvers import (  # noqa: F401  (the coupled model'
     make_solver,
 )
 from roughslip.coupling.histories import HISTORIES, Setup, indent_to, overlap_start
-from roughslip.coupling.state import ContactState
 from roughslip.errors import InputError, NumericalError
 from roughslip.friction.events import (  # noqa: F401  (TIE, RATE_TIE: public here too)
     RATE_TIE,
@@ -192,13 +191,13 @@ class _Outcome:
     method: str
 
     @classmethod
-    def of(cls, solver, st: ContactState, path: EventPath, method: str, tol: float) -> _Outcome:
-        residual = max(solver.residual(), st.worst)
+    def of(cls, solver: BlockSolver, path: EventPath, tol: float) -> _Outcome:
+        residual = solver.residual()
         problem = path.message or (f"worst block-solve residual {residual:.2e}"
                                    if residual > 10 * tol else "")
         summary = problem or f"{len(path.events)} events, {path.transient} transient state(s)"
-        return cls(residual, not problem, "; ".join(filter(None, [solver.note, summary])),
-                   "cg" if solver.note else method)
+        return cls(residual, not problem, "; ".join(filter(None, [solver.fallback, summary])),
+                   solver.method)
 
 
 def _check_finite(where: str, **fields: np.ndarray) -> None:
@@ -312,7 +311,6 @@ def couple(
         try:
             sq = run_history(problem, solver, setup)
             st = sq.state
-            st.gained = gained
             start = Snapshot.of(st, 0.0)
             squeezed_depth = st.depth_at(0.0)
             t_squeeze = time.perf_counter() - t0
@@ -322,14 +320,14 @@ def couple(
                 st.hold_depth(squeezed_depth)
             elif pull_control == "force" and depth is not None:
                 st.hold_force(start.fz_total)
-            st.slope = True
+            st.begin_pull(gained)
             st.solve()
             path = follow_events(st, limit, record_states)
         except NumericalError as exc:
             raise NumericalError(f"coupled model: {exc}") from None
     peak = path.peak
     _check_finite("coupled model", fz=start.fz, fx=start.fx, **{"fz at peak": peak.fz})
-    out = _Outcome.of(solver, st, path, method, tol)
+    out = _Outcome.of(solver, path, tol)
     return CoupledResult(
         friction_force=float(peak.fx_total), normal_force_at_peak=float(peak.fz_total),
         peak_dx=float(peak.dx), events=path.events, normal_force=float(start.fz.sum()),
@@ -337,9 +335,9 @@ def couple(
         fz0=start.fz, fx0=start.fx, contact0=start.contact, stick0=start.stick,
         fz_peak=peak.fz, fx_peak=peak.fx, stick_peak=peak.stick, contact_peak=peak.contact,
         converged=out.converged, seconds=time.perf_counter() - t0, solves=solver.solves,
-        squeeze_seconds=t_squeeze, blas_seconds=solver.blas_seconds, fallback=solver.note,
+        squeeze_seconds=t_squeeze, blas_seconds=solver.blas_seconds, fallback=solver.fallback,
         method=out.method,
-        residual=out.residual, slip_law=slip_law, slip_iterations=st.gmres_iterations,
+        residual=out.residual, slip_law=slip_law, slip_iterations=solver.slip_iterations,
         message=out.message, states=path.states, depth=float(squeezed_depth),
         pull_control=pull_control, history=history, squeeze_states=sq.states,
     )
@@ -453,7 +451,7 @@ def indent(
     D = path.events[-1].dz
     fz, fx, _ = st.at(D)
     _check_finite("coupled indentation", fz=fz, fx=fx)
-    out = _Outcome.of(solver, st, path, method, tol)
+    out = _Outcome.of(solver, path, tol)
     counts = np.array(path.counts, dtype=np.int64).reshape(-1, 2)
     return IndentResult(
         depth=float(D), normal_force=float(fz.sum()), tangential_force=float(fx.sum()),

@@ -95,7 +95,7 @@ def overlap_start(problem: Problem, setup: Setup) -> np.ndarray:
 
 def _state(solver, problem: Problem, setup: Setup, C: np.ndarray, **kw) -> ContactState:
     return ContactState(solver, problem.base, float(setup.lam), C, depth=setup.depth,
-                        force=setup.force, slip_law=setup.slip_law, tol=setup.tol, **kw)
+                        force=setup.force, slip_law=setup.slip_law, **kw)
 
 
 def drop_tensile(st: ContactState) -> int:
@@ -150,8 +150,7 @@ def settle(st: ContactState, limit: int, where: str = "coupled squeeze") -> int:
 def _bonded_overlap(problem: Problem, solver, setup: Setup) -> tuple[ContactState, int]:
     """The start of the bonded histories: the geometric overlap bonded with u_x = 0 at
     D_x = 0, its tensile contacts dropped; with the number of states so far."""
-    st = _state(solver, problem, setup, overlap_start(problem, setup))
-    st.slope = False
+    st = _state(solver, problem, setup, overlap_start(problem, setup), slope=False)
     return st, drop_tensile(st)
 
 
@@ -214,9 +213,8 @@ def frictionless(problem: Problem, solver, setup: Setup) -> Squeezed:
         C = np.zeros(problem.shape, bool)
     else:
         C = setup.normal(problem).contact
-    st = _state(solver, problem, setup, C)
+    st = _state(solver, problem, setup, C, slope=False)
     st.S[:] = False
-    st.slope = False
     st.solve()
     n = 1 + settle(st, setup.limit, "coupled frictionless squeeze")
     fz, fx, _ = st.at(0.0)
@@ -235,13 +233,11 @@ def indent_history(problem: Problem, solver, setup: Setup) -> Squeezed:
     if path.message:
         raise NumericalError(f"coupled indentation: {path.message}")
     D = path.events[-1].dz
-    st.drive = "x"
+    st.end_indentation()
     if setup.force is None:
         st.hold_depth(D)
     else:
         st.hold_force(setup.force)
-    st.Dscale, st.pulling = 1.0, False
-    st.slope = False
     st.solve()
     n = len(path.events) + path.transient + settle(st, setup.limit)
     return Squeezed(st, _released(st), n)
@@ -261,7 +257,7 @@ def indent_to(problem: Problem, solver, setup: Setup, record_states: bool = Fals
         scale_depth = setup.normal(problem).depth
     top = problem.base >= 0.0
     st = ContactState(solver, problem.base, float(setup.lam), top, depth=scale_depth,
-                      gained="bonded", slip_law=setup.slip_law, tol=setup.tol, drive="z")
+                      gained="bonded", slip_law=setup.slip_law, drive="z")
     st.solve()
     if setup.depth is not None:
         end: float | Callable[[], float] = setup.depth

@@ -13,13 +13,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import linalg
-from scipy.sparse.linalg import LinearOperator, gmres
 
 from roughslip.errors import NumericalError
-from roughslip.friction.events import TIE, EventKind, Snapshot, argext, digest, event_table
+from roughslip.friction.events import (
+    TIE,
+    EventKind,
+    Progress,
+    Snapshot,
+    argext,
+    digest,
+    event_table,
+)
 from roughslip.friction.laws import LAWS
-from roughslip.linalg.inverse import refine
 
 
 class ContactState:
@@ -37,24 +42,21 @@ class ContactState:
 
     def __init__(self, solver, base: np.ndarray, lam: float, C: np.ndarray, *,
                  depth: float | None = None, force: float | None = None,
-                 gained: str = "unbonded", slip_law: str = "break", tol: float = 1e-12,
-                 drive: str = "x"):
+                 gained: str = "unbonded", slip_law: str = "break", drive: str = "x",
+                 slope: bool = True):
         self.solver, self.base, self.lam = solver, base, lam
         self.gained = gained
-        self.slip_law, self.tol = slip_law, tol
+        self.slip_law = slip_law
         self.law = LAWS.get(slip_law, "slip_law")
         #: slip direction of the sites in C but not in S: +-1, a slipping bond carrying
         #: f_x = sigma lam f_z (Coulomb law); 0, no tangential force (a broken bond, or a
         #: contact that never was a bond)
         self.sigma = np.zeros(base.shape)
-        self.worst = 0.0  # worst relative residual of the solves with slip forces
         self.u1x: np.ndarray | None = None  # rate of u_x in D_x, with slipping bonds
         #: u_x of each right-hand side's certified solution with slip forces, by key
         self._ux: dict[str, np.ndarray] = {}
-        self.gmres_iterations = 0
-        #: the last forces (f_z, f_x) with slip by right-hand side: GMRES's starting points
-        self._warm: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        self.pulling = False  # contacts gained while pulling follow the rule ``gained``
+        #: the event loop's progress; contacts gained once it has started follow ``gained``
+        self.progress = Progress()
         #: bond offsets: a bond formed at D_x = D_g holds u_x = D_x + o, o = u_x(D_g) - D_g
         self.offset = np.zeros(base.shape)
         self.depth, self.force = depth, force
@@ -63,14 +65,27 @@ class ContactState:
         self.ones = np.ones(base.shape)
         self.zero = np.zeros(base.shape)
         self.scale_g = float(np.max(base + (depth if depth is not None else 0.0)))
-        self.Dscale = 1.0  # displacement scale for tolerances (set from the first event)
         self.d0, self.d1 = (depth if depth is not None else math.nan), 0.0
         #: solve for the rate in D_x too (the pull); the squeeze at D_x = 0 needs none
-        self.slope = True
+        self.slope = slope
         #: what the loop's parameter D moves: "x", the pull D_x (at a depth or force held);
         #: "z", the depth D_z itself at D_x = 0, up to ``depth`` (frictional indentation,
         #: :func:`indent`; ``depth`` then only sets the gap scale)
         self.drive = drive
+
+    def begin_pull(self, gained: str) -> None:
+        """The pull starts from this state: contacts gained during it follow ``gained``, and
+        every solve gives the rate in :math:`D_x` too (then call :meth:`solve`)."""
+        self.gained = gained
+        self.slope = True
+
+    def end_indentation(self) -> None:
+        """Make the state of an indentation (the depth driven) the start of a pull: the
+        drive is :math:`D_x` from here, a fresh event loop will follow it, and no rate is
+        solved until :meth:`begin_pull` (hold the depth or the force, then :meth:`solve`)."""
+        self.drive = "x"
+        self.progress = Progress()
+        self.slope = False
 
     @property
     def slipping(self) -> np.ndarray:
@@ -159,156 +174,19 @@ class ContactState:
     def _solve_many(self, rhs: list[tuple[np.ndarray, np.ndarray, str]]
                     ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         r"""(f_z, f_x, u_z) on the grid for each right-hand side ``(r_z, r_x, key)``, with the
-        slip forces of the Coulomb law: on the slip sites :math:`P` (in C, not in S,
-        :math:`\sigma \ne 0`), :math:`f_x = \sigma\lambda f_z`.
-
-        With :math:`K` the block on (C, S) that the solver inverts and :math:`H` the
-        displacements on (C, S) of tangential forces on P, the system is
-        :math:`K y + H\,\mathrm{diag}(\sigma\lambda)\,y_z(P) = r`: not symmetric. Its
-        solution is :math:`y = y_0 - K^{-1}H w t` with :math:`y_0 = K^{-1} r` and
-        :math:`t = f_z(P)` the solution of the :math:`|P|`-sized system
-        :math:`(I + E_P^T K^{-1} H w)\,t = E_P^T y_0` (:math:`w = \sigma\lambda`), solved by
-        GMRES warm-started from the last state's slip forces. The iteration matrix is of the
-        order of :math:`\lambda` times the coupling :math:`G_{zx}/G_{zz}`, so a few iterations
-        suffice. With the dense solver, :math:`K^{-1}H` is a block the solver keeps current
-        through the events, a column per slip site
-        (:meth:`~roughslip.coupling.blocksolvers.DenseBlockSolver.slip_response`), so an
-        iteration is a product with the :math:`|P| \times |P|` matrix
-        :math:`E_P^T K^{-1} H w`; matrix-free, GMRES runs on the whole system instead.
-        Every solution is certified against the FFT operator on the full system and refined
-        when its residual is above tol. The dense reference solves the non-symmetric system
-        directly instead.
-        """
+        slip forces of the slip law on the slip sites :math:`P` (in C, not in S,
+        :math:`\sigma \ne 0`): :math:`f_x = w f_z`, :math:`w` the law's
+        :meth:`~roughslip.friction.laws.SlipLaw.carried`. The block solver solves and
+        certifies them (:meth:`~roughslip.coupling.blocksolvers.BlockSolver.solve_slip`) and
+        gives the displacements :math:`u_x` that :meth:`_rate_ux` reads."""
         P = self.slipping
         self._ux = {}
         if not P.any():
             return self.solver.solve_many(rhs)
         w = self.law.carried(self.lam, self.sigma[P])
-        if self.solver.reference:
-            return self._solve_direct(rhs, P, w)
-        solve = self._slip_solve if self.solver.dense else self._slip_solve_free
-        out = []
-        for rz, rx, key in rhs:
-            scale = max(float(np.linalg.norm(np.concatenate([rz[self.C], rx[self.S]]))),
-                        np.finfo(float).tiny)
-            last: list[np.ndarray] = []
-
-            def residual(f, rz=rz, rx=rx, scale=scale, last=last):
-                uz, ux = self.solver.displacements(*f)
-                last[:] = [uz, ux]
-                ez, ex = np.where(self.C, rz - uz, 0.0), np.where(self.S, rx - ux, 0.0)
-                res = float(np.linalg.norm(np.concatenate([ez[self.C], ex[self.S]]))) / scale
-                return (ez, ex), res
-
-            def correct(f, e):
-                dz, dx = solve(*e, "refine", P, w)
-                return f[0] + dz, f[1] + dx
-
-            (fz, fx), res, _ = refine(solve(rz, rx, key, P, w), residual, correct, self.tol, 2)
-            self.worst = max(self.worst, res)
-            self._ux[key] = last[1]  # the certification's u_x of (fz, fx), for the rate
-            out.append((fz, fx, last[0]))
-        return out
-
-    def _slip_solve(self, rz: np.ndarray, rx: np.ndarray, key: str, P: np.ndarray,
-                    w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The forces with the slip law on P for one right-hand side (:meth:`_solve_many`)."""
-        s = self.solver
-        fz0, fx0 = s.solve_inner(rz, rx, key)
-        block = s.slip_response(np.flatnonzero(P))
-        if block is not None:
-            E, fields = block
-            T = E * w  # E_P^T K^{-1} H w
-
-            def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                return fields(w * t)
-
-            def product(t: np.ndarray) -> np.ndarray:
-                return T @ t
-        else:  # no room for the block: an FFT product and a product with the inverse
-
-            def correction(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                fxs = np.zeros(self.base.shape)
-                fxs[P] = w * t
-                return s.apply_inverse(*s.displacements(self.zero, fxs))
-
-            def product(t: np.ndarray) -> np.ndarray:
-                return correction(t)[0][P]
-
-        n = int(P.sum())
-        b = fz0[P]
-
-        def matvec(t: np.ndarray) -> np.ndarray:
-            self.gmres_iterations += 1
-            return t + product(np.ravel(t))
-
-        A = LinearOperator((n, n), matvec=matvec, dtype=float)
-        prev = self._warm.get(key)
-        x0 = prev[0][P] if prev is not None else b
-        bnorm = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
-        # a GMRES that stops short shows in the certified residual of the whole solution
-        t, _ = gmres(A, b, x0=x0, rtol=0.0, atol=0.1 * self.tol * bnorm,
-                     restart=min(n, 50), maxiter=max(20, n))
-        fz1, fx1 = correction(t)
-        fz, fx = fz0 - fz1, fx0 - fx1
-        fx[P] = w * fz[P]
-        self._warm[key] = (fz, fx)
-        return fz, fx
-
-    def _slip_solve_free(self, rz: np.ndarray, rx: np.ndarray, key: str, P: np.ndarray,
-                         w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Matrix-free: GMRES on the whole non-symmetric system, one FFT product per
-        iteration, warm-started from the last solution of the same right-hand side."""
-        C, S = self.C, self.S
-        nc, n = int(C.sum()), int(C.sum() + S.sum())
-
-        def fields(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            fz, fx = np.zeros(self.base.shape), np.zeros(self.base.shape)
-            fz[C] = y[:nc]
-            fx[S] = y[nc:]
-            fx[P] = w * fz[P]
-            return fz, fx
-
-        def matvec(y: np.ndarray) -> np.ndarray:
-            self.gmres_iterations += 1
-            uz, ux = self.solver.displacements(*fields(np.ravel(y)))
-            return np.concatenate([uz[C], ux[S]])
-
-        b = np.concatenate([rz[C], rx[S]])
-        prev = self._warm.get(key)
-        x0 = None if prev is None else np.concatenate([prev[0][C], prev[1][S]])
-        bnorm = max(float(np.linalg.norm(b)), np.finfo(float).tiny)
-        y, _ = gmres(LinearOperator((n, n), matvec=matvec, dtype=float), b, x0=x0, rtol=0.0,
-                     atol=0.1 * self.tol * bnorm, restart=min(n, 200), maxiter=50)
-        self.solver.add_solves(1)
-        fz, fx = fields(y)
-        self._warm[key] = (fz, fx)
-        return fz, fx
-
-    def _solve_direct(self, rhs: list[tuple[np.ndarray, np.ndarray, str]], P: np.ndarray,
-                      w: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """The reference: the non-symmetric system with the slip forces, assembled by dense
-        sums and solved directly (LU)."""
-        s = self.solver
-        s.add_solves(len(rhs))
-        ids = np.concatenate([2 * np.flatnonzero(self.C), 2 * np.flatnonzero(self.S) + 1])
-        A = s.entries(ids, ids)
-        pz = np.flatnonzero(P)
-        cols = np.searchsorted(ids[: int(self.C.sum())], 2 * pz)  # f_z(P) among the unknowns
-        A[:, cols] += s.entries(ids, 2 * pz + 1) * w
-        sites, isx = ids >> 1, (ids & 1).astype(bool)
-        B = np.column_stack([np.where(isx, rx.ravel()[sites], rz.ravel()[sites])
-                             for rz, rx, _ in rhs])
-        Y = linalg.solve(A, B, check_finite=False)
-        out = []
-        for k, (rz, _, _) in enumerate(rhs):
-            fz, fx = np.zeros(rz.shape), np.zeros(rz.shape)
-            fz.ravel()[sites[~isx]] = Y[~isx, k]
-            fx.ravel()[sites[isx]] = Y[isx, k]
-            fx[P] = w * fz[P]
-            uz, self._ux[rhs[k][2]] = s.displacements(fz, fx)
-            out.append((fz, fx, uz))
-        return out
+        out = self.solver.solve_slip(rhs, self.C, self.S, P, w)
+        self._ux = {key: ux for (_, _, key), (_, _, _, ux) in zip(rhs, out, strict=True)}
+        return [(fz, fx, uz) for fz, fx, uz, _ in out]
 
     def depth_at(self, D: float) -> float:
         """:math:`D_z` at pull displacement ``D``."""
@@ -376,7 +254,7 @@ class ContactState:
             self.sigma.ravel()[j] = 0.0
         elif kind == EventKind.GAINED:
             C[j] = True
-            if self.pulling and self.gained == "bonded":
+            if self.progress.started and self.gained == "bonded":
                 self._bond_here(j, D)
         else:  # a bond fails: what it carries after is the slip law's
             S[j] = False
@@ -423,7 +301,7 @@ class ContactState:
         lam = self.lam
         # the scale over which a rate matters: the first event's displacement, or how far the
         # pull has come (a rate negligible over the first event may not be over the pull)
-        Dref = max(self.Dscale, abs(D))
+        Dref = max(self.progress.scale, abs(D))
         fs = max(float(np.abs(fz0).max()), float(np.abs(fz1).max()) * Dref,
                  np.finfo(float).tiny)
         gs = max(self.scale_g, np.finfo(float).tiny)
@@ -432,7 +310,7 @@ class ContactState:
             (EventKind.LOST, self.C, fz0, fz1, fs),
             (EventKind.GAINED, ~self.C, self.g0, self.g1, gs),
         )
-        return event_table(cons, D, Dref, self.Dscale)
+        return event_table(cons, D, Dref, self.progress.scale)
 
     def snapshot(self, D: float) -> Snapshot:
         """The totals and fields at ``D`` (copies)."""

@@ -222,6 +222,18 @@ class Snapshot:
 
 
 @dataclass
+class Progress:
+    """What the event loop owns and a state reads: the drive's progress. The loop
+    (:func:`follow_events`) writes it; a state keeps one (:attr:`EventState.progress`) and never
+    writes it."""
+
+    #: the displacement scale of the tolerances: 1 until the first event sets it
+    scale: float = 1.0
+    #: the drive has started (a state may treat changes before it differently)
+    started: bool = False
+
+
+@dataclass
 class EventPath:
     """The pull path: events, the peak, and how the loop ended."""
 
@@ -242,8 +254,7 @@ class EventState(Protocol):
 
     C: np.ndarray  # contact sites (bool grid)
     S: np.ndarray  # stick sites (bool grid)
-    Dscale: float  # the displacement scale of the tolerances (set from the first event)
-    pulling: bool  # set when the drive starts
+    progress: Progress  # the loop's progress (:class:`Progress`), written by the loop only
     #: the last event changed the forces at constant drive (a bond that failed unstably)
     discontinuous: bool
 
@@ -319,7 +330,7 @@ def follow_events(st: EventState, limit: int, record_states: bool,
             path.peak = st.snapshot(at)
 
     record(0.0, EventKind.START, -1)
-    st.pulling = True
+    st.progress.started = True
     D = 0.0
     first = True
     falling = False  # inside an avalanche (recorded states below the drive, or transients)
@@ -337,7 +348,7 @@ def follow_events(st: EventState, limit: int, record_states: bool,
         if len(path.events) + path.transient > limit:
             path.message = f"stopped after {limit} events"
             break
-        if D > seen_at + TIE * max(st.Dscale, abs(D)):
+        if D > seen_at + TIE * max(st.progress.scale, abs(D)):
             seen.clear()
             seen_at = D
         key = st.signature()
@@ -350,9 +361,9 @@ def follow_events(st: EventState, limit: int, record_states: bool,
             break
         lo, hi, kind, j = st.interval(D)
         if first and math.isfinite(hi) and hi > 0:
-            st.Dscale = hi  # the first event sets the displacement scale
+            st.progress.scale = hi  # the first event sets the displacement scale
             first = False
-        tol_d = TIE * max(st.Dscale, abs(D))
+        tol_d = TIE * max(st.progress.scale, abs(D))
         if (lo > D + tol_d or lo > hi + tol_d) and st.violation(D) is None:
             # Admissible at D within the value tolerances of every constraint, which the
             # test in D missed: a constraint that changes slowly with D (a gap closing at a

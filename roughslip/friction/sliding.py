@@ -42,6 +42,7 @@ from roughslip.friction.bonds import (
 from roughslip.friction.events import (
     TIE,
     EventKind,
+    Progress,
     Snapshot,
     argext,
     digest,
@@ -71,7 +72,7 @@ class TangentialState:
         self.position[b.sites] = np.arange(n)
         self.C = b.mask(np.arange(n))
         self.S = self.C.copy()
-        self.Dscale, self.pulling = 1.0, False
+        self.progress = Progress()
         self.worst, self.refinements, self.ok = 0.0, 0, True
         self._rate: np.ndarray | None = None  # u_x rate on the grid, per stick set
 
@@ -115,11 +116,11 @@ class TangentialState:
         """The admissible interval of the drive and the event ending it: the stick rows of the
         slip law on the live bonds (:func:`~roughslip.friction.events.event_table`)."""
         phi, psi, fz, live = self._rows()
-        Dref = max(self.Dscale, abs(D))
+        Dref = max(self.progress.scale, abs(D))
         fs = max(float(np.abs(fz).max()), np.finfo(float).tiny)
         zero = np.zeros(phi.shape)
         cons = self.law.stick_rows(self.b.lam, live, (fz, -psi), (zero, phi), fs)
-        lo, hi, kind, row = event_table(cons, D, Dref, self.Dscale)
+        lo, hi, kind, row = event_table(cons, D, Dref, self.progress.scale)
         return lo, hi, kind, (self._site(row) if row >= 0 else -1)
 
     def violation(self, D: float) -> tuple[str, int] | None:

@@ -65,6 +65,7 @@ from roughslip.friction.events import (
     RATE_TIE,
     TIE,
     EventKind,
+    Progress,
     Snapshot,
     argext,
     digest,
@@ -104,7 +105,7 @@ class WeakeningState:
         self.neg = 0  # negative eigenvalues of M
         self.snaps = 0  # bonds that failed unstably and slipped to their residual strength
         self.discontinuous = False  # the last event was such a failure
-        self.Dscale, self.pulling = 1.0, False
+        self.progress = Progress()
         self.C = b.mask(np.arange(n))
         self.position = np.full(b.shape[0] * b.shape[1], -1, dtype=np.int64)
         self.position[b.sites] = np.arange(n)
@@ -184,7 +185,7 @@ class WeakeningState:
                 r = np.zeros(inv.m)
                 r[live] = rhs - u
                 # psi's right-hand side is a displacement of the order of the drive's
-                scale = max(float(np.linalg.norm(rhs)), self.Dscale * math.sqrt(rhs.size),
+                scale = max(float(np.linalg.norm(rhs)), self.progress.scale * math.sqrt(rhs.size),
                             1e-300)
                 return r, float(np.linalg.norm(r[live])) / scale
 
@@ -268,7 +269,8 @@ class WeakeningState:
         if not self.stable():  # a weakening bond runs away: admissible nowhere
             return math.inf, -math.inf, EventKind.SNAP, -1
         cons, ids, _ = self._cons(D)
-        lo, hi, kind, row = event_table(cons, D, max(self.Dscale, abs(D)), self.Dscale)
+        scale = self.progress.scale
+        lo, hi, kind, row = event_table(cons, D, max(scale, abs(D)), scale)
         return lo, hi, kind, (int(self.b.sites[ids[row]]) if row >= 0 else -1)
 
     def violation(self, D: float) -> tuple[str, int] | None:
