@@ -9,8 +9,9 @@
 * Test order is shuffled by pytest-randomly (``-p no:randomly`` turns it off; the seed is
   printed in the header, and ``--randomly-seed=N`` replays an order).
 * The test-only extensions of ``tests/examples`` (a pull method whose solver recomputes its
-  inverse at every change) are registered before the tests are collected, so the suites
-  that run over the registries run them too.
+  inverse at every change, a coupled block solver that solves every state afresh) are
+  registered before the tests are collected, so the suites that run over the registries run
+  them too.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import pytest
 from hypothesis import settings
 
 from roughslip.linalg import memory
-from tests.examples import recomputed  # noqa: F401  (registers the test-only pull method)
+from tests.examples import direct, recomputed  # noqa: F401  (register the test-only methods)
 
 DATA = Path(__file__).parent / "data"
 

@@ -25,7 +25,8 @@ PKG = Path(roughslip.__file__).parent
 DATA = Path(__file__).parent / "data"
 
 #: lower layers first; a module may import from its own layer or from layers below it
-RANK = {"errors": 0, "_version": 0, "registry": 0, "linalg": 1, "elastic": 2, "contact": 3, "friction": 4,
+RANK = {"errors": 0, "_version": 0, "registry": 0, "linalg": 1, "elastic": 2, "contact": 3,
+        "friction": 4,
         "coupling": 5, "surfaces": 6, "run": 7, "analysis": 8, "cli": 9, "testing": 10,
         "__init__": 11, "__main__": 11}
 
@@ -133,7 +134,7 @@ def test_method_names_come_from_the_registries():
     assert tuple(meta["method"]["choices"]) == pull.METHODS.names()  # live
     # the package's own; registering more (a test-only method) adds to them
     assert {"auto", "literal", "inverse", "cg", "batch"} <= set(pull.METHODS.names())
-    assert coupled.SOLVERS.names() == ("dense", "cg")
+    assert coupled.SOLVERS.names()[:2] == ("dense", "cg")  # the package's own, dense first
     with pytest.raises(InputError, match=r"method = 'nope': unknown pull method; choose one "
                                          rf"of {', '.join(pull.METHODS.names())}$"):
         pull.METHODS.get("nope")

@@ -884,3 +884,29 @@ def test_the_block_solver_protocol_is_what_the_coupled_model_uses():
                 have = list(inspect.signature(getattr(type(solver), n)).parameters)
                 assert have[: len(want)] == want, f"{method}: {n}"
 
+
+@pytest.mark.parametrize("law", ["break", "coulomb"])
+@pytest.mark.parametrize("method", [m for m in __import__(
+    "roughslip.coupling.blocksolvers", fromlist=["SOLVERS"]).SOLVERS.names()])
+def test_every_block_solver_follows_the_dense_reference(method, law):
+    """The shared suite of the block solvers, over the registry: every registered solver, on
+    a rough scene under both laws, from the bonded and the frictionless histories, gives the
+    events of the dense reference (every state factorised afresh, displacements by dense
+    sums) and its forces within 4 cond(K) tol, cond(K) bounded by the whole grid's block."""
+    from roughslip.coupling.coupled import couple
+    from roughslip.testing import dense_block
+
+    h = self_affine((12, 12), hurst=0.8, rms_height=1.0, rng=sample_rng(9, 0), oversample=2)
+    pb = Problem.from_arrays(h, nu=0.25)
+    w = np.linalg.eigvalsh(dense_block(pb))
+    tol = 1e-12
+    bound = 4 * (w[-1] / w[0]) * tol
+    for history in ("bonded", "frictionless"):
+        kw = dict(depth=1.4, lam=0.3, slip_law=law, history=history, tol=tol)
+        ref = couple(pb, method="dense", reference=True, **kw)
+        res = couple(pb, method=method, **kw)
+        assert res.converged and res.method == method, res.message
+        assert [(e.kind, e.site) for e in res.events] == [(e.kind, e.site) for e in ref.events]
+        scale = float(np.abs(ref.fz0).max())
+        assert np.allclose(res.fx, ref.fx, rtol=bound, atol=bound * scale)
+        assert res.friction_force == pytest.approx(ref.friction_force, rel=bound)
