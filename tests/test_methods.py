@@ -104,3 +104,15 @@ def test_the_callers_use_nothing_outside_the_protocol():
         if path.name == "breaking_single.py":
             used -= {"buf"}
         assert used <= members, f"{path.name}: {sorted(used - members)}"
+
+
+def test_names_kept_from_earlier_versions_warn_and_say_what_replaces_them():
+    from roughslip.friction import events, laws
+    from roughslip.friction import pull as pull_module
+
+    with pytest.warns(DeprecationWarning, match="events.TIE"):
+        assert pull_module.TIE_TOL == events.TIE
+    with pytest.warns(DeprecationWarning, match="LAWS.names"):
+        assert pull_module.SLIP_LAWS == laws.LAWS.names()
+    with pytest.raises(AttributeError):
+        pull_module.NO_SUCH_NAME  # noqa: B018

@@ -195,6 +195,11 @@ class Bonds:
         op = self.problem.operator("xx")
         self.op: ElasticOperator = op if threads is None else op.with_threads(threads)
 
+    @staticmethod
+    def count(normal: NormalResult) -> int:
+        """The number of bonds a squeeze leaves: its contact sites with :math:`f_z > 0`."""
+        return int(np.count_nonzero(normal.contact.ravel() & (normal.fz.ravel() > 0)))
+
     def apply(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
         return self.op.apply("xx", v, out=out)
 

@@ -73,8 +73,6 @@ class Event:
     dz: float = math.nan  # the depth D_z at the same D_x (it moves when the force is held)
 
 
-
-
 @dataclass(frozen=True)
 class Curve:
     """A pull curve, one entry per event: the vocabulary the decoupled pull

@@ -68,12 +68,24 @@ from roughslip.linalg.stick import SolverFactory
 from roughslip.linalg.threads import blas_threads
 from roughslip.registry import Registry
 
-#: the slip laws' names when this module was loaded (:data:`roughslip.friction.laws.LAWS` is
-#: the registry)
-SLIP_LAWS = LAWS.names()
-#: deprecated: the tie rule is :func:`roughslip.friction.events.argext` with
-#: :data:`roughslip.friction.events.TIE`
-TIE_TOL = TIE
+#: names kept for code written against earlier versions: what replaces each
+_DEPRECATED = {
+    "SLIP_LAWS": ("roughslip.friction.laws.LAWS.names()", lambda: LAWS.names()),
+    "TIE_TOL": ("roughslip.friction.events.TIE (the tie rule is events.argext)", lambda: TIE),
+}
+
+
+def __getattr__(name: str):
+    """The deprecated names of this module, with a :class:`DeprecationWarning` that says
+    what replaces each."""
+    if name in _DEPRECATED:
+        import warnings
+
+        instead, value = _DEPRECATED[name]
+        warnings.warn(f"roughslip.friction.pull.{name} is deprecated; use {instead}",
+                      DeprecationWarning, stacklevel=2)
+        return value()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 #: what a method's stick solver can give beyond :math:`\varphi` on each stick set, and so what
@@ -370,18 +382,18 @@ def pull(
     opt = PullOptions(tol=float(tol), early_stop=bool(early_stop), batch_size=int(batch_size),
                       block=int(block), max_iter=int(max_iter), threads=threads, law=law,
                       method=asked)
-    b = Bonds(normal, float(lam))
-    if b.n == 0:
-        return BreakCurve(b, early_stop).result(t0, asked.name, converged=True,
-                                                message="no contact: nothing to pull",
-                                                slip_law=law.name)
-    impl = (METHODS.get(choose_method(b.n, slip_law=law, precision=precision))
+    n = Bonds.count(normal)
+    if n == 0:
+        return BreakCurve(Bonds(normal, float(lam)), early_stop).result(
+            t0, asked.name, converged=True, message="no contact: nothing to pull",
+            slip_law=law.name)
+    impl = (METHODS.get(choose_method(n, slip_law=law, precision=precision))
             if asked.solver is None and asked.run is None else asked)
     if not impl.runs(law):
         raise InputError(f"slip_law = {law.name!r} supports methods "
                          f"{', '.join(methods_for(law))}, not {impl.name!r}")
     if precision == "auto":
-        precision = (choose_precision(b.n, slip_law=law, block=int(block), method=impl)
+        precision = (choose_precision(n, slip_law=law, block=int(block), method=impl)
                      if impl.dense else "double")
     if precision == "single" and not single_ok(law, impl):
         laws = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)
@@ -392,15 +404,14 @@ def pull(
                          f"slip_law = {law.name!r} with method {impl.name!r}")
     opt = replace(opt, precision=precision, method=impl)
     run = impl.run if impl.solver is None else law.engine
-    if impl.dense:
-        # Dense linear algebra gets the threads, and the certification's FFTs run on one
-        # thread beside it; FFT-bound CG loops keep BLAS single-threaded (competing FFTW and
-        # OpenBLAS thread pools made CG iterations 60x slower).
-        b = Bonds(normal, float(lam), threads=1)
+    # Dense linear algebra gets the threads, and the certification's FFTs run on one thread
+    # beside it; FFT-bound CG loops keep BLAS single-threaded (competing FFTW and OpenBLAS
+    # thread pools made CG iterations 60x slower).
+    b = Bonds(normal, float(lam), threads=1 if impl.dense else None)
     with blas_threads(threads if impl.dense else 1):
         res = run(b, opt, t0)
     if impl is not asked:
-        res = replace(res, message=f"auto chose {impl.name} for {b.n} bonds; " + res.message)
+        res = replace(res, message=f"auto chose {impl.name} for {n} bonds; " + res.message)
     if estimate_error:
         lo, hi = bond_spectrum(normal, threads=threads)
         kappa = hi / lo
