@@ -170,6 +170,8 @@ def test_licence_and_citation_agree_with_the_package():
 HTML = ROOT / "docs" / "_build" / "html"
 _RAW_ROLE = re.compile(r":(?:math|ref|func|doc|class|meth|mod|data|attr|term|numref):`")
 _RAW_PATH = re.compile(r"\bdocs/[\w/]+\.(?:rst|md)\b")
+#: an inline literal that docutils did not recognise shows its double backquotes
+_RAW_LITERAL = re.compile(r"``")
 #: maths left as text: a $...$ that MyST did not typeset, or an ASCII formula such as
 #: "nu = 0.3", "F_n ~ D_z^beta" or "n^3" in prose
 _RAW_MATH = re.compile(r"\$[^$\s][^$]*\$|\b(?:nu|lam|lambda|alpha|beta|gamma|[DFf]_[a-z]+)\s*"
@@ -193,24 +195,27 @@ def _visible_text(page: Path, maths: bool = True) -> str:
 @pytest.mark.skipif(not (HTML / "index.html").exists(),
                     reason="the documentation is not built (make test builds it first)")
 def test_rendered_pages_show_no_raw_role_or_source_path():
-    """What the reader sees has no unrendered role (``:math:`...```) and no source path
-    (``docs/page.rst#label``) where a link belongs."""
+    """What the reader sees has no unrendered role (``:math:`...```), no source path
+    (``docs/page.rst#label``) where a link belongs, and no double backquotes of an inline
+    literal that docutils did not recognise (one right after a tilde, say)."""
     bad = []
     for page in sorted(HTML.rglob("*.html")):
         if {"_sources", "_static", "_modules"} & set(page.relative_to(HTML).parts):
             continue
         text = _visible_text(page)
-        for m in [*_RAW_ROLE.finditer(text), *_RAW_PATH.finditer(text)]:
+        for m in [*_RAW_ROLE.finditer(text), *_RAW_PATH.finditer(text),
+                  *_RAW_LITERAL.finditer(text)]:
             bad.append(f"{page.relative_to(HTML)}: ...{text[max(0, m.start() - 40):m.end()]}")
     assert not bad, "\n".join(bad[:20])
 
 
 def test_the_raw_text_check_catches_what_it_should(tmp_path):
     page = tmp_path / "p.html"
-    page.write_text("<p>see (docs/theory/pull.rst#break-law) and ~:math:`x`</p>"
-                    "<pre>docs/stability.md is fine in code</pre>")
+    page.write_text("<p>see (docs/theory/pull.rst#break-law) and ~:math:`x`, ~``N``</p>"
+                    "<pre>docs/stability.md is fine in code, ``so are these``</pre>")
     text = _visible_text(page)
     assert _RAW_PATH.findall(text) == ["docs/theory/pull.rst"] and _RAW_ROLE.search(text)
+    assert _RAW_LITERAL.findall(text) == ["``", "``"]
 
 
 @pytest.mark.skipif(not (HTML / "index.html").exists(),

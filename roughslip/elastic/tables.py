@@ -105,9 +105,9 @@ class KernelTables:
     def direct_sum_limit(self) -> int:
         """Number of point sources below which :meth:`add_sources` beats a convolution.
 
-        One convolution costs ~``M log2 M`` for ``M`` padded points, one source ~``N`` for
-        ``N`` grid points; on this hardware class the measured cost ratio is ~0.7 of
-        ``M log2 M / N`` (N = 256..1024, open and periodic). The limit is a deterministic
+        One convolution costs about ``M log2 M`` for ``M`` padded points, one source about
+        ``N`` for ``N`` grid points; on this hardware class the measured cost ratio is about
+        0.7 of ``M log2 M / N`` (N = 256..1024, open and periodic). The limit is a deterministic
         function of the grid, so the iteration path does not depend on timing.
         """
         m = self.op.padded_shape[0] * self.op.padded_shape[1]
