@@ -40,7 +40,9 @@ numpydoc_class_members_toctree = False
 autodoc_member_order = "bysource"
 autodoc_typehints = "none"  # numpydoc sections carry the types
 html_theme = "alabaster"
-html_static_path: list[str] = []  # the theme's files and the MathJax copy only
+# the theme's files, the MathJax copy and roughslip.css (wide console blocks and tables fit
+# the column)
+html_static_path = ["_static"]
 html_show_sphinx = False  # no footer links to outside sites
 html_theme_options = {"description": "static friction of rough elastic surfaces",
                       "fixed_sidebar": True,

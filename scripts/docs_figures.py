@@ -121,15 +121,28 @@ def topography(out: Path) -> None:
         shutil.copy(work / "runs" / "scan.png", out / "topography_scan.png")
 
 
+def _continued(command: str, first: str, rest: str, width: int = 84) -> str:
+    """``command`` as typed over lines of at most ``width`` characters, each continued by a
+    backslash, broken before an option (a word starting with ``-``)."""
+    lines, line = [], first
+    for word in command.split():
+        if word.startswith("-") and line.strip(" >$") and len(line) + len(word) + 3 > width:
+            lines.append(line + " \\")
+            line = rest
+        line += ("" if line in (first, rest) else " ") + word
+    return "\n".join([*lines, line])
+
+
 def hurst_loop(out: Path) -> None:
     """The Hurst loop of the guide: one run per exponent, then one fit of all of them."""
     with _checkout("rough_h08.toml") as work:
         for h in HURST:
             _roughslip(HURST_RUN.format(H=h), work)
-        loop = HURST_RUN.replace("{H}", "$H")
+        # the loop as typed over several lines, so that it fits the page's column
+        run = _continued(HURST_RUN.replace("{H}", "$H"), ">   ", ">     ")
+        loop = f"$ for H in {' '.join(map(str, HURST))}; do\n{run}\n> done"
         text = _roughslip(HURST_FIT, work)
-        (out / "hurst_loop.txt").write_text(
-            f"$ for H in {' '.join(map(str, HURST))}; do {loop}; done\n$ {HURST_FIT}\n{text}")
+        (out / "hurst_loop.txt").write_text(f"{loop}\n$ {HURST_FIT}\n{text}")
         shutil.copy(work / "runs" / "hurst_fit.png", out / "hurst_fit.png")
 
 

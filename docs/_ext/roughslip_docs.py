@@ -4,12 +4,15 @@
 schema in :mod:`roughslip.run.config` (type, default, rule, description), so the reference cannot
 drift from what ``load_config`` accepts. At build start the error-against-run-time figure and
 tables of ``roughslip verify --quick``, and the figures and console output of
-``scripts/docs_figures.py``, are made into ``docs/_generated/``.
+``scripts/docs_figures.py``, are made into ``docs/_generated/``. Console blocks and tables too
+wide for the text column get a class that ``_static/roughslip.css`` fits to it
+(:func:`fit_wide_blocks`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 import subprocess
 import sys
@@ -197,10 +200,52 @@ def link_references(app, what, name, obj, options, lines: list[str]) -> None:
         lines[i] = _links(line)
 
 
+#: monospace columns that fit the text column at the theme's font size, inside a list too
+COLUMNS = 86
+#: the widest block whose font is shrunk to fit; wider ones wrap instead
+WIDEST = 150
+#: tables with this many columns or more get the smaller font of ``wide-table``
+WIDE_TABLE = 9
+
+
+def block_class(text: str) -> list[str]:
+    """The classes that fit a literal block of ``text`` to the column (``_static/roughslip.css``).
+
+    A few long lines among many short ones (a comment above a table, a command before its
+    output) wrap at the column's edge, and so do lines longer than :data:`WIDEST` (error
+    messages, whole commands), which no font size would fit: ``wrap``. Any other block is a
+    table of text, or a command or two: ``wide-<n>`` shrinks its font until ``n`` columns fit
+    (its longest line, rounded up to 5).
+    """
+    lines = text.splitlines() or [""]
+    width = max(len(line) for line in lines)
+    if width <= COLUMNS:
+        return []
+    long = sum(len(line) > COLUMNS for line in lines)
+    if width > WIDEST or (len(lines) > 3 and long <= len(lines) // 4):
+        return ["wrap"]
+    return [f"wide-{5 * math.ceil(width / 5)}"]
+
+
+def fit_wide_blocks(app, doctree) -> None:
+    """Classes on the literal blocks too wide for the text column (:func:`block_class`), and
+    ``wide-table`` on the tables of :data:`WIDE_TABLE` columns or more."""
+    for node in doctree.findall(nodes.literal_block):
+        node["classes"].extend(c for c in block_class(node.astext()) if c not in node["classes"])
+    for table in doctree.findall(nodes.table):
+        groups = list(table.findall(nodes.tgroup))
+        if groups and int(groups[0].get("cols", 0)) >= WIDE_TABLE:
+            table["classes"].append("wide-table")
+
+
 def setup(app):
+    app.add_css_file("roughslip.css")
+    app.connect("doctree-read", fit_wide_blocks)
     app.add_directive("roughslip-config", ConfigReference)
     app.add_directive("roughslip-schema", SchemaReference)
     app.connect("autodoc-process-docstring", link_references)
     app.connect("builder-inited", make_verify_figure)
     app.connect("builder-inited", make_docs_figures)
-    return {"parallel_read_safe": True, "parallel_write_safe": True}
+    # env_version: the stored doctrees carry the classes of fit_wide_blocks; a change to what
+    # the extension puts into them raises it, so that every page is read again
+    return {"parallel_read_safe": True, "parallel_write_safe": True, "env_version": 2}
