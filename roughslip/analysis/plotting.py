@@ -344,14 +344,19 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
 
 def _maps_figure(plt, stem: Path, run, panels: list, where: str) -> Path:
     """Contact, stick and force maps in length units, each with its key (a two-colour key
-    for the sets), all panels of one size."""
+    for the sets), all panels of one size, two to a row."""
     from matplotlib.colors import ListedColormap
 
     u = units(run)
     pixel = pixel_size(run)
-    fig, axes = plt.subplots(1, len(panels), figsize=(3.9 * len(panels), 3.7),
+    # at most two panels a row: four in a row shrink to unreadable text on a page or screen
+    ncols = min(2, len(panels))
+    nrows = -(-len(panels) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.9 * ncols, 3.7 * nrows),
                              squeeze=False, layout="constrained")
-    for ax, (name, title, a) in zip(axes[0], panels, strict=True):
+    for ax in axes.flat[len(panels):]:
+        ax.set_visible(False)
+    for ax, (name, title, a) in zip(axes.flat, panels, strict=False):
         ny, nx = a.shape
         extent = (0.0, nx * pixel, 0.0, ny * pixel)
         if a.dtype == bool:
