@@ -27,6 +27,10 @@ writes into ``OUT_DIR``:
   nu = 0.3 under the break law and under slip-weakening (lambda_s = 0.2, lambda_d = 0.1 and
   0, d_c = 5e-4) at a/h = 4 ... 32, and the three pull curves at a/h = 16.
 
+* ``python_<cell>.py``, ``python_<cell>.txt``, ``python_*.png``: the Python tutorial
+  ``docs/guide/python_tutorial.py``, run cell by cell (its ``# %%`` lines): the code of each
+  cell, what it prints, and the figures it saves.
+
 Every command runs in a scratch folder laid out like a checkout (``configs/``, ``runs/``),
 so the output shows the paths the quickstart uses.
 """
@@ -35,6 +39,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import io
+import re
 import shutil
 import subprocess
 import sys
@@ -282,6 +288,32 @@ def weakening_resolution(out: Path, ratios=(4, 8, 16, 32), nu: float = 0.3,
     save(plt, fig, out / "weakening_resolution.png")
 
 
+def python_tutorial(out: Path) -> None:
+    """Run the Python tutorial ``docs/guide/python_tutorial.py`` cell by cell (``# %% name``
+    lines) in a scratch folder, in one namespace as a script runs: each cell's code and what
+    it prints go to ``python_<name>.py`` and ``python_<name>.txt``, the figures it saves to
+    ``python_<file>.png``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    source = ROOT / "docs" / "guide" / "python_tutorial.py"
+    parts = re.split(r"^# %% (\w+)\n", source.read_text(), flags=re.M)
+    cells = list(zip(parts[1::2], parts[2::2], strict=True))
+    if not cells:
+        raise RuntimeError(f"{source}: no cells (lines '# %% name')")
+    namespace = {"__name__": "__main__", "__file__": str(source)}
+    with tempfile.TemporaryDirectory(prefix="roughslip-docs-") as tmp, contextlib.chdir(tmp):
+        for name, code in cells:
+            code = code.strip("\n") + "\n"
+            printed = io.StringIO()
+            with contextlib.redirect_stdout(printed):
+                exec(compile(code, f"{source.name} (cell {name})", "exec"), namespace)
+            (out / f"python_{name}.py").write_text(code)
+            (out / f"python_{name}.txt").write_text(printed.getvalue())
+        for png in sorted(Path(tmp).glob("*.png")):
+            shutil.copy(png, out / f"python_{png.name}")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -293,6 +325,7 @@ def main(argv: list[str] | None = None) -> None:
     hurst_loop(args.out)
     hertz_resolution(args.out)
     weakening_resolution(args.out)
+    python_tutorial(args.out)
 
 
 if __name__ == "__main__":

@@ -124,11 +124,15 @@ def test_the_generated_guide_output_is_what_the_script_writes():
                                                   ROOT / "scripts" / "docs_figures.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
+    cells = re.findall(r"^# %% (\w+)$", (DOCS / "guide" / "python_tutorial.py").read_text(),
+                       flags=re.M)
     written = ({f"quickstart_{n}.txt" for n, _ in mod.QUICKSTART} | set(mod.FIGURES)
                | {"topography_scan.txt", "topography_scan.png"}
                | {"hurst_loop.txt", "hurst_fit.png", "hertz_resolution.png",
                   "hertz_resolution.txt", "weakening_resolution.png",
-                  "weakening_resolution.txt"})
+                  "weakening_resolution.txt", "python_friction_coefficient.png",
+                  "python_sample0_fz.png"}
+               | {f"python_{c}.{ext}" for c in cells for ext in ("py", "txt")})
     used = set()
     for page in [*DOCS.rglob("*.rst"), *DOCS.glob("*.md")]:
         if "_build" in page.parts:
@@ -137,7 +141,8 @@ def test_the_generated_guide_output_is_what_the_script_writes():
     assert used and used <= written, used - written
     assert {"demo_pull.png", "demo_maps.png", "fit_friction.png", "fit_area.png",
             "bursts.png", "hertz_resolution.png", "hurst_fit.png",
-            "weakening_resolution.png", "topography_scan.png", "topography_scan.txt"} <= used
+            "weakening_resolution.png", "topography_scan.png", "topography_scan.txt",
+            "python_friction_coefficient.png", "python_sweep.py"} <= used
 
 
 @pytest.mark.slow
