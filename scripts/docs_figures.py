@@ -27,6 +27,11 @@ writes into ``OUT_DIR``:
   nu = 0.3 under the break law and under slip-weakening (lambda_s = 0.2, lambda_d = 0.1 and
   0, d_c = 5e-4) at a/h = 4 ... 32, and the three pull curves at a/h = 16.
 
+* ``index_pull.png``: the picture of the index page, from the quickstart's run: one sample's
+  surface with its contact and stick sets at the friction peak, and its pull curve.
+* ``coupled_events.png``: the coupled theory page's event path and stick/slip maps, from two
+  coupled pulls of one 24 x 24 rough surface (H = 0.8, seed 7, depth 1.6 rms, lambda = 0.2,
+  nu = 0.25 and 0.45, the ``bonded`` history) computed here (about a second).
 * ``python_<cell>.py``, ``python_<cell>.txt``, ``python_*.png``: the Python tutorial
   ``docs/guide/python_tutorial.py``, run cell by cell (its ``# %%`` lines): the code of each
   cell, what it prints, and the figures it saves.
@@ -111,6 +116,59 @@ def quickstart(out: Path) -> None:
             (out / f"quickstart_{name}.txt").write_text(f"$ {command}\n{text}")
         for name in FIGURES:
             shutil.copy(work / "runs" / name, out / name)
+        index_picture(work / "runs" / "demo.h5", out)
+
+
+def index_picture(path: Path, out: Path) -> None:
+    """The index page's picture: the first sample of the quickstart's run at its deepest
+    state, its surface with the contact sites that stick at the friction peak and those whose
+    bonds broke before it, and its pull curve with the peak."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    from roughslip.analysis.bursts import pull_curve
+    from roughslip.analysis.plotting import pyplot, save
+    from roughslip.run.reading import read_run
+
+    run = read_run(path)
+    s, k = int(run.sample_index[run.complete][0]), len(run.axis) - 1
+    h = run.surface(s)
+    contact, stick = run.field(s, k, "contact"), run.field(s, k, "stick")
+    c = pull_curve(run.field(s, k, "dx_lim"), run.field(s, k, "fx_lim"))
+    cfg = run.config_dict()
+    plt = pyplot()
+    fig, (left, right) = plt.subplots(1, 2, figsize=(7.5, 3.3),
+                                      gridspec_kw={"width_ratios": [1, 1.25]},
+                                      layout="constrained")
+    ny, nx = h.shape
+    extent = (0, nx, 0, ny)
+    left.imshow(h, origin="lower", cmap="Greys_r", extent=extent, interpolation="nearest",
+                alpha=0.55)
+    sets = np.where(stick, 2, np.where(contact, 1, 0)).astype(float)
+    sets[sets == 0] = np.nan
+    left.imshow(sets, origin="lower", extent=extent, interpolation="nearest",
+                cmap=ListedColormap(["C1", "C0"]), vmin=1, vmax=2)
+    left.set_title(f"{nx} x {ny} rough surface (H = {cfg['surface']['hurst']})", fontsize=9)
+    left.set_xlabel("x, pull direction (pixels)", fontsize=8)
+    left.set_ylabel("y (pixels)", fontsize=8)
+    left.tick_params(labelsize=8)
+    left.legend(handles=[Patch(color="C0", label=f"stuck at the peak ({int(stick.sum())})"),
+                         Patch(color="C1", label="contact, bond broken "
+                                                 f"({int((contact & ~stick).sum())})")],
+                loc="upper center", bbox_to_anchor=(0.5, -0.2), fontsize=8, ncol=1,
+                frameon=False)
+    right.plot(c.dx, c.fx, "-", color="C0", lw=0.9)
+    i = int(np.argmax(c.fx))
+    right.plot(c.dx[i], c.fx[i], "o", color="C3", ms=6)
+    right.annotate(f"static friction force $F_x$ = {c.fx[i]:.3g}", (c.dx[i], c.fx[i]),
+                   xytext=(-8, 8), textcoords="offset points", ha="right", fontsize=8)
+    right.set_ylim(0, 1.15 * c.fx[i])  # room for the label above the curve
+    right.set_xlabel("pull displacement $D_x$", fontsize=8)
+    right.set_ylabel("pull force $F_x$ ($E\\,\\times$ pixel$^2$)", fontsize=8)
+    right.set_title("its pull curve: bonds break, in bursts, until the peak", fontsize=9)
+    right.tick_params(labelsize=8)
+    right.grid(True, alpha=0.3)
+    save(plt, fig, out / "index_pull.png")
 
 
 #: the topographies guide's command, on the shipped example scan
@@ -288,6 +346,138 @@ def weakening_resolution(out: Path, ratios=(4, 8, 16, 32), nu: float = 0.3,
     save(plt, fig, out / "weakening_resolution.png")
 
 
+#: the marker of each event kind in :func:`coupled_events`
+EVENT_MARKERS = {"slip+": ("^", "C3", "bond fails, $f_x = +\\lambda f_z$ (slip+)"),
+                 "slip-": ("v", "C0", "bond fails, $f_x = -\\lambda f_z$ (slip-)"),
+                 "lost": ("x", "C4", "contact lost, $f_z = 0$"),
+                 "gained": ("P", "C2", "contact gained, gap $= 0$")}
+
+
+def _event_path(problem, depth: float, result) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pull curve of a coupled break-law pull under monotone :math:`D_x`, drawn exactly.
+
+    Between events the forces are affine in :math:`D_x`; each recorded state's sets (contact
+    and stick, ``record_states``) give them by two dense solves of the block operator. The
+    totals at each event's own :math:`D_x` are checked against the recorded ones. Returns the
+    vertices ``(D_x, F_x)`` and, for each event, the force just before it at the drive.
+    """
+    from threadpoolctl import threadpool_limits
+
+    from roughslip.testing import dense_block
+
+    A = dense_block(problem)
+    n = problem.base.size
+    ubar = problem.overlap(depth).ravel()
+    drive, xs, ys, at = 0.0, [], [], []
+    for (D, _, _, _, C, S), event in zip(result.states, result.events, strict=True):
+        C, S = C.ravel(), S.ravel()
+        nc, ns = int(C.sum()), int(S.sum())
+        rows = np.concatenate([np.flatnonzero(C), n + np.flatnonzero(S)])
+        rhs = np.zeros((nc + ns, 2))
+        rhs[:nc, 0] = ubar[C]  # the squeeze's part, at D_x = 0
+        rhs[nc:, 1] = 1.0  # the rate: stuck bonds follow D_x
+        with threadpool_limits(1):  # small systems: threads only wait for each other
+            f = np.linalg.solve(A[np.ix_(rows, rows)], rhs)
+        F0, F1 = f[nc:].sum(axis=0)
+        if abs(F0 + D * F1 - event.fx) > 1e-8 * max(abs(event.fx), 1.0):
+            raise RuntimeError(f"coupled event path: F_x at the {event.kind} event is "
+                               f"{F0 + D * F1!r}, recorded {event.fx!r}")
+        if not xs:
+            xs, ys = [0.0], [F0]
+        new = max(drive, D)
+        xs += [drive, new]
+        ys += [F0 + drive * F1, F0 + new * F1]
+        at.append(F0 + new * F1)
+        drive = new
+    return np.array(xs), np.array(ys), np.array(at)
+
+
+def coupled_events(out: Path, n: int = 24, seed: int = 7, depth: float = 1.6,
+                   lam: float = 0.2, nus=(0.25, 0.45)) -> None:
+    """The coupled theory page's figure: the event path of a small coupled pull at two
+    Poisson ratios, with the event kinds marked, and its contact and stick sets at the
+    friction peak (the ``bonded`` history, the break law, unbonded gains: the defaults)."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    from roughslip import Grid, Material, Problem, couple
+    from roughslip.analysis.plotting import pyplot, save
+    from roughslip.surfaces.synthetic import sample_rng, self_affine
+
+    h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(seed, 0), oversample=2)
+    plt = pyplot()
+    fig = plt.figure(figsize=(7.5, 7.4), layout="constrained")
+    top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 1.05])
+    path_ax = top.subplots()
+    map_axes = bottom.subplots(1, len(nus))
+    kinds_seen: set[str] = set()
+    lines = [f"# {n} x {n}, H = 0.8, seed {seed}, depth {depth} rms, lambda = {lam}, "
+             "history bonded, break law"]
+    colours = ListedColormap(["0.6", "C1", "C0", "C2"])
+    for j, (nu, ax) in enumerate(zip(nus, map_axes, strict=True)):
+        problem = Problem(h, Grid((n, n), 1.0), Material(1.0, nu))
+        r = couple(problem, depth=depth, lam=lam, record_states=True)
+        xs, ys, at = _event_path(problem, depth, r)
+        style = "-" if j == 0 else "--"
+        path_ax.plot(xs, ys, style, color="0.25", lw=0.9,
+                     label=f"$\\nu$ = {nu}: $F_x$ under monotone $D_x$")
+        for kind, (marker, colour, _) in EVENT_MARKERS.items():
+            pick = [i for i, e in enumerate(r.events) if e.kind == kind]
+            if pick:
+                kinds_seen.add(kind)
+                drive = np.maximum.accumulate(r.dx)[pick]
+                path_ax.plot(drive, at[pick], marker, color=colour, ms=4.5, mfc="none", mew=0.9)
+        path_ax.plot(r.peak_dx, r.friction_force, "*", color="k", ms=11, zorder=5)
+        path_ax.annotate(f"peak, $\\nu$ = {nu}", (r.peak_dx, r.friction_force),
+                         xytext=(8, 4), textcoords="offset points", fontsize=8)
+        # 0 out of contact, 1 contact without a bond since D_x = 0, 2 bond failed in the
+        # pull, 3 stuck at the peak, 4 gained during the pull (unbonded)
+        sets = np.zeros((n, n))
+        sets[r.contact_peak & ~r.contact0] = 4
+        sets[r.contact_peak & r.contact0 & ~r.stick0] = 1
+        sets[r.contact_peak & r.stick0 & ~r.stick_peak] = 2
+        sets[r.stick_peak] = 3
+        sets[sets == 0] = np.nan
+        ax.imshow(sets, origin="lower", cmap=colours, vmin=1, vmax=4, extent=(0, n, 0, n),
+                  interpolation="nearest")
+        ax.contour(np.arange(n) + 0.5, np.arange(n) + 0.5, h, levels=6, colors="0.8",
+                   linewidths=0.6, linestyles="solid")
+        ax.set_title(f"$\\nu$ = {nu}: {int(r.contact0.sum())} contacts, "
+                     f"{int(r.stick0.sum())} bonds at $D_x = 0$", fontsize=9)
+        ax.set_xlabel("x, pull direction (pixels)", fontsize=8)
+        ax.set_ylabel("y (pixels)", fontsize=8)
+        ax.tick_params(labelsize=8)
+        kinds = ", ".join(f"{k} {sum(e.kind == k for e in r.events)}" for k in EVENT_MARKERS
+                          if any(e.kind == k for e in r.events))
+        lines += [f"nu = {nu}: {int(r.contact0.sum())} contacts, {int(r.stick0.sum())} bonds at "
+                  f"D_x = 0 ({r.released} released)",
+                  f"{'':11}peak F_x = {r.friction_force:.4g} at D_x = {r.peak_dx:.4g}, "
+                  f"{int(r.stick_peak.sum())} bonds stuck there",
+                  f"{'':11}events: {kinds}"]
+    handles = path_ax.get_legend_handles_labels()[0]
+    handles += [path_ax.plot([], [], m, color=c, mfc="none", label=text)[0]
+                for k, (m, c, text) in EVENT_MARKERS.items() if k in kinds_seen]
+    handles.append(path_ax.plot([], [], "*", color="k", ms=9, label="friction force (peak)")[0])
+    path_ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                   frameon=False)
+    path_ax.set_xlabel("pull displacement $D_x$ (pixels)", fontsize=8)
+    path_ax.set_ylabel("pull force $F_x$ ($E\\,\\times$ pixel$^2$)", fontsize=8)
+    path_ax.tick_params(labelsize=8)
+    path_ax.grid(True, alpha=0.3)
+    path_ax.margins(y=0.08)
+    path_ax.set_title(f"event path of one {n} x {n} rough contact (H = 0.8, depth {depth} rms, "
+                      f"$\\lambda$ = {lam})", fontsize=9)
+    bottom.legend(handles=[Patch(color="C0", label="stuck at the peak"),
+                           Patch(color="C1", label="bond failed in the pull"),
+                           Patch(color="0.6", label="released before the pull (no bond)"),
+                           Patch(color="C2", label="gained in the pull (no bond)")],
+                  loc="outside lower center", ncol=2, fontsize=8, frameon=False)
+    bottom.suptitle("contact and stick at the friction peak (thin lines: height contours)",
+                    fontsize=9)
+    save(plt, fig, out / "coupled_events.png")
+    (out / "coupled_events.txt").write_text("\n".join(lines) + "\n")
+
+
 def python_tutorial(out: Path) -> None:
     """Run the Python tutorial ``docs/guide/python_tutorial.py`` cell by cell (``# %% name``
     lines) in a scratch folder, in one namespace as a script runs: each cell's code and what
@@ -325,6 +515,7 @@ def main(argv: list[str] | None = None) -> None:
     hurst_loop(args.out)
     hertz_resolution(args.out)
     weakening_resolution(args.out)
+    coupled_events(args.out)
     python_tutorial(args.out)
 
 
