@@ -32,6 +32,10 @@ writes into ``OUT_DIR``:
 * ``coupled_events.png``: the coupled theory page's event path and stick/slip maps, from two
   coupled pulls of one 24 x 24 rough surface (H = 0.8, seed 7, depth 1.6 rms, lambda = 0.2,
   nu = 0.25 and 0.45, the ``bonded`` history) computed here (about a second).
+* ``histories.png``: the friction ratio of the squeeze-histories study against N, drawn from
+  the table of ``docs/results.md`` (recorded numbers; the study takes hours).
+* ``bench_scaling.png``: time against size with fitted slopes, and against the peer codes,
+  drawn from the tables of ``docs/benchmarks.md`` (recorded numbers, not measured here).
 * ``python_<cell>.py``, ``python_<cell>.txt``, ``python_*.png``: the Python tutorial
   ``docs/guide/python_tutorial.py``, run cell by cell (its ``# %%`` lines): the code of each
   cell, what it prints, and the figures it saves.
@@ -45,6 +49,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import math
 import re
 import shutil
 import subprocess
@@ -478,6 +483,185 @@ def coupled_events(out: Path, n: int = 24, seed: int = 7, depth: float = 1.6,
     (out / "coupled_events.txt").write_text("\n".join(lines) + "\n")
 
 
+def _markdown_table(page: Path, header: str) -> list[list[str]]:
+    """The rows of the Markdown table of ``page`` whose header row starts with ``header``,
+    as lists of cell texts; an error naming the page when there is none."""
+    lines = page.read_text().splitlines()
+    for i, line in enumerate(lines):
+        if line.startswith(header):
+            rows = []
+            for row in lines[i + 2:]:
+                if not row.startswith("|"):
+                    break
+                rows.append([c.strip() for c in row.strip().strip("|").split("|")])
+            return rows
+    raise RuntimeError(f"{page}: no table whose header starts with {header!r}")
+
+
+def _plus_minus(cell: str) -> tuple[float, float]:
+    value, _, error = cell.partition("±")
+    return float(value), float(error) if error.strip() else math.nan
+
+
+def histories(out: Path) -> None:
+    """The squeeze-histories study of the results page as a figure: the coupled/decoupled
+    friction ratio against N for each history, with its bootstrap error, read from the
+    page's own table."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    rows = _markdown_table(ROOT / "docs" / "results.md", "| N | $\\nu$ | history |")
+    data: dict[tuple[float, str], list[tuple[int, float, float]]] = {}
+    for row in rows:
+        ratio, err = _plus_minus(row[4])
+        data.setdefault((float(row[1]), row[2]), []).append((int(row[0]), ratio, err))
+    order = ("bonded", "simultaneous", "indent", "frictionless")
+    nus = sorted({nu for nu, _ in data})
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(nus), figsize=(7.5, 3.6), sharey=True, layout="constrained")
+    for ax, nu in zip(np.atleast_1d(axes), nus, strict=True):
+        ax.axhline(1.0, color="0.5", lw=0.8, ls=":")
+        for j, name in enumerate(order):
+            pts = sorted(data.get((nu, name), []))
+            if not pts:
+                continue
+            N, ratio, err = (np.array(c, dtype=float) for c in zip(*pts, strict=True))
+            shift = 2.0 ** (0.045 * (j - 1.5))  # side by side: bonded and simultaneous agree
+            ax.errorbar(N * shift, ratio, yerr=err, fmt="os^D"[j] + "-", color=f"C{j}", ms=4,
+                        lw=1, capsize=2.5, label=name)
+        ax.set_xscale("log", base=2)
+        ax.set_xticks([64, 128, 256], ["64", "128", "256"])
+        ax.minorticks_off()
+        ax.set_xlim(50, 320)
+        ax.set_ylim(0, 1.1)
+        ax.set_title(f"$\\nu$ = {nu:g}", fontsize=9)
+        ax.set_xlabel("grid size N (unit pixels: a larger patch)", fontsize=8)
+        ax.tick_params(labelsize=8)
+        ax.grid(True, alpha=0.3)
+    np.atleast_1d(axes)[0].set_ylabel("$F_{\\rm fric}$ coupled / decoupled", fontsize=8)
+    handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=4, fontsize=8, frameon=False,
+               title="squeeze history (mean over 20 samples, $\\pm$ bootstrap s.d.)",
+               title_fontsize=8)
+    save(plt, fig, out / "histories.png")
+
+
+def _text_rows(page: str, start: str, first: str, occurrence: int = 0) -> list[list[str]]:
+    """The whitespace-separated rows of the text block of ``page`` after the ``occurrence``-th
+    line that starts with ``start``, to the block's end or its next comment line, without the
+    column headers (rows whose first field is ``first``)."""
+    lines = page.splitlines()
+    found = [i for i, line in enumerate(lines) if line.strip().startswith(start)]
+    if len(found) <= occurrence:
+        raise RuntimeError(f"docs/benchmarks.md: no text block after a line {start!r}")
+    rows = []
+    for row in lines[found[occurrence] + 1:]:
+        fields = row.split()
+        if not fields or fields[0].startswith(("#", "`")):
+            break
+        if fields[0] != first:
+            rows.append(fields)
+    return rows
+
+
+def _slope(x, y) -> float:
+    return float(np.polyfit(np.log(x), np.log(y), 1)[0])
+
+
+def benchmarks(out: Path) -> None:
+    """The benchmarks page at a glance, drawn from its own tables: time against size with
+    the fitted slopes (operator, squeeze, pull) and against the peer codes."""
+    from roughslip.analysis.plotting import log_ticks, pyplot, save
+
+    page = (ROOT / "docs" / "benchmarks.md").read_text()
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(7.5, 6.6), layout="constrained")
+    (op, sq), (pl, peers) = axes
+
+    rows = _text_rows(page, "# cores: 2, FFT threads: 1, medians of 11", "N")
+    for j, (boundary, style) in enumerate((("open", "o-"), ("periodic", "s-"))):
+        sel = [r for r in rows if r[1] == boundary and r[2] == "pyfftw"]
+        N = np.array([float(r[0]) for r in sel])
+        t = np.array([float(r[4]) for r in sel])
+        op.loglog(N, t, style, color=f"C{j}", ms=4,
+                  label=f"{boundary} (slope {_slope(N, t):.2f})")
+    op.set_title("operator: one convolution (pyfftw, 1 thread)", fontsize=9)
+    op.set_ylabel("time per convolution (ms)", fontsize=8)
+
+    rows = _text_rows(page, "# cores: 2, FFT: pyfftw ESTIMATE, 1 thread, tol 1e-08, "
+                      "medians of 3", "N")
+    for j, (scene, bound, style) in enumerate((("rough", "open", "o-"),
+                                               ("rough", "periodic", "s-"),
+                                               ("hertz", "open", "^-"))):
+        sel = [r for r in rows if r[1] == scene and r[2] == bound and r[3] == "0.050"
+               and r[4] == "depth"]
+        N = np.array([float(r[0]) for r in sel])
+        t = np.array([float(r[7]) for r in sel])
+        sq.loglog(N, t, style, color=f"C{j}", ms=4,
+                  label=f"{scene}, {bound} (slope {_slope(N, t):.2f})")
+    sq.set_title("squeeze to 5 % contact, tol $10^{-8}$", fontsize=9)
+    sq.set_ylabel("time per squeeze (s)", fontsize=8)
+    for ax in (op, sq):
+        ax.set_xlabel("grid size N ($N \\times N$)", fontsize=8)
+        ax.set_xticks([256, 512, 1024], ["256", "512", "1024"])
+        ax.minorticks_off()
+
+    rows = _text_rows(page, "# cores: 2, BLAS/FFT threads: 2, lambda 0.2, tol 1e-10", "N")
+    # the larger contact of the bullet below the table (its own block, the same columns)
+    rows += _text_rows(page, "N   area  bonds   method       sec  steps     F_friction", "N",
+                       occurrence=1)
+    series = (("literal", "0.050", "o-", "C0"), ("cg", "0.050", "s-", "C1"),
+              ("inverse", "0.050", "^-", "C2"), ("inverse", "0.200", "^--", "C2"))
+    for method, area, style, colour in series:
+        # 0.199 and 0.200 are the same target of 20 % contact
+        pts = sorted((float(r[2]), float(r[4])) for r in rows
+                     if r[3] == method and abs(float(r[1]) - float(area)) < 0.005)
+        n = np.array([p[0] for p in pts])
+        t = np.array([p[1] for p in pts])
+        big = n >= 800  # the smallest pulls are overhead
+        pl.loglog(n, t, style, color=colour, ms=4, mfc="white" if area == "0.200" else colour,
+                  label=f"{method}, {float(area):.0%} contact (slope "
+                        f"{_slope(n[big], t[big]):.2f})")
+    pl.set_title("exact pull: time against the bonds", fontsize=9)
+    pl.set_xlabel("bonds at the start of the pull", fontsize=8)
+    pl.set_ylabel("time per pull (s)", fontsize=8)
+    log_ticks(pl.xaxis)
+    pl.set_ylim(top=3e5)  # room for the legend above the curves
+    for ax in (op, sq, pl):
+        log_ticks(ax.yaxis)
+        ax.grid(True, which="major", alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left")
+        ax.tick_params(labelsize=8)
+
+    rows = _text_rows(page, "# after, 2 threads", "peer")
+    cases = []
+    for r in rows:
+        line = " ".join(r)
+        m = re.match(r"(tamaas|contactmech) [\d.]+ (\w+) (\w+) 512\^2, ([FD]) (\d) ([\d.]+) "
+                     r"[\d.]+ \S+ ([\d.]+) ([\d.]+)", line)
+        if m is None:
+            raise RuntimeError(f"docs/benchmarks.md: a peer row not understood: {line!r}")
+        peer = {"tamaas": "Tamaas", "contactmech": "ContactMechanics"}[m.group(1)]
+        cases.append((f"{peer}\n{m.group(3)} {m.group(2)}, {100 * float(m.group(6)):.1f} %",
+                      float(m.group(7)), float(m.group(8))))
+    y = np.arange(len(cases))
+    ours = np.array([c[1] for c in cases])
+    theirs = np.array([c[2] for c in cases])
+    peers.barh(y + 0.2, theirs, height=0.38, color="0.6", label="peer code")
+    peers.barh(y - 0.2, ours, height=0.38, color="C0", label="roughslip")
+    for yi, a, b in zip(y, ours, theirs, strict=True):
+        peers.text(b + 0.2, yi + 0.2, f"{b:.1f} s", va="center", fontsize=8)
+        peers.text(a + 0.2, yi - 0.2, f"{a:.2f} s ({b / a:.1f}x faster)", va="center",
+                   fontsize=8)
+    peers.set_yticks(y, [c[0] for c in cases], fontsize=8)
+    peers.invert_yaxis()
+    peers.set_xlim(0, theirs.max() * 1.25)
+    peers.set_xlabel("s, 512 x 512 squeeze, best of 3", fontsize=8)
+    peers.set_title("against the peer codes, 2 threads", fontsize=9)
+    peers.tick_params(labelsize=8)
+    peers.legend(fontsize=8, loc="upper right")
+    save(plt, fig, out / "bench_scaling.png")
+
+
 def python_tutorial(out: Path) -> None:
     """Run the Python tutorial ``docs/guide/python_tutorial.py`` cell by cell (``# %% name``
     lines) in a scratch folder, in one namespace as a script runs: each cell's code and what
@@ -516,6 +700,8 @@ def main(argv: list[str] | None = None) -> None:
     hertz_resolution(args.out)
     weakening_resolution(args.out)
     coupled_events(args.out)
+    histories(args.out)
+    benchmarks(args.out)
     python_tutorial(args.out)
 
 

@@ -131,8 +131,8 @@ def test_the_generated_guide_output_is_what_the_script_writes():
                | {"hurst_loop.txt", "hurst_fit.png", "hertz_resolution.png",
                   "hertz_resolution.txt", "weakening_resolution.png",
                   "weakening_resolution.txt", "index_pull.png", "coupled_events.png",
-                  "coupled_events.txt", "python_friction_coefficient.png",
-                  "python_sample0_fz.png"}
+                  "coupled_events.txt", "histories.png", "bench_scaling.png",
+                  "python_friction_coefficient.png", "python_sample0_fz.png"}
                | {f"python_{c}.{ext}" for c in cells for ext in ("py", "txt")})
     used = set()
     for page in [*DOCS.rglob("*.rst"), *DOCS.glob("*.md")]:
@@ -143,7 +143,7 @@ def test_the_generated_guide_output_is_what_the_script_writes():
     assert {"demo_pull.png", "demo_maps.png", "fit_friction.png", "fit_area.png",
             "bursts.png", "hertz_resolution.png", "hurst_fit.png",
             "weakening_resolution.png", "topography_scan.png", "topography_scan.txt",
-            "index_pull.png", "coupled_events.png",
+            "index_pull.png", "coupled_events.png", "histories.png", "bench_scaling.png",
             "python_friction_coefficient.png", "python_sweep.py"} <= used
 
 
