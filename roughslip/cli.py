@@ -174,6 +174,7 @@ def run_cmd(config, out, overrides, workers, resume, overwrite, scheduler, stric
     from roughslip.run.budget import check_budget
     from roughslip.run.config import load_config
     from roughslip.run.executor import run
+    from roughslip.run.partial import kept_text
 
     extra = ["execution.strict=true"] if strict else []
     cfg = load_config(config, [*overrides, *extra])
@@ -190,8 +191,8 @@ def run_cmd(config, out, overrides, workers, resume, overwrite, scheduler, stric
         again = resume_command(config, out, overrides, workers=workers, scheduler=scheduler,
                                strict=strict, quiet=quiet)
         with contextlib.suppress(OSError):  # after SIGHUP there may be no terminal to write to
-            click.echo(f"roughslip: interrupted ({signal.Signals(signum).name}); completed "
-                       f"samples are kept; continue with: {again}", err=True)
+            click.echo(f"roughslip: interrupted ({signal.Signals(signum).name}); "
+                       f"{kept_text(out)} are kept; continue with: {again}", err=True)
         sys.exit(exit_code(signum))
     finally:
         progress.close()

@@ -103,7 +103,7 @@ def test_the_writer_refuses_a_sample_of_another_configuration(references, tmp_pa
 
     (cfg_a, _), (cfg_b, _) = references
     monkeypatch.setattr(executor, "run_sample",
-                        lambda config, sample, progress=None: run_sample(cfg_b, sample))
+                        lambda config, sample, progress=None, **kw: run_sample(cfg_b, sample))
     out = tmp_path / "mixed.h5"
     with pytest.raises(OutputError) as info:
         run(cfg_a, out, workers=1)

@@ -88,7 +88,8 @@ STATES = [("start", 1), ("creating", 1), ("journal-entry", 2), ("main-write", 2)
 
 
 def test_every_checkpoint_is_covered():
-    assert {p for p, _ in STATES} | {"rebuild"} == set(CHECKPOINTS)
+    # "depth-entry": a one-sample run's finished depths (test_a_kill_keeps_...)
+    assert {p for p, _ in STATES} | {"rebuild", "depth-entry"} == set(CHECKPOINTS)
 
 
 def test_every_checkpoint_is_reached(tmp_path):
@@ -295,3 +296,55 @@ def test_workers_die_with_a_manager_killed_while_they_start(tmp_path):
     for pid in alive:  # do not leave them behind on failure
         os.kill(pid, signal.SIGKILL)
     assert alive == []
+
+
+ONE = {**CFG, "squeeze": {"depths": [0.3, 0.6, 1.0, 1.5, 2.2], "depth_unit": "rms"},
+       "ensemble": {"samples": 1, "seed": 17}}
+
+
+@pytest.fixture(scope="module")
+def one_sample(tmp_path_factory):
+    """A run of one sample at five depths, and its uninterrupted result."""
+    d = tmp_path_factory.mktemp("one")
+    cfg_path = d / "one.toml"
+    cfg_path.write_text(dumps_toml(ONE))
+    ref = d / "ref.h5"
+    run(load_config(cfg_path), ref)
+    return cfg_path, ref
+
+
+def test_a_kill_keeps_the_finished_depths_of_a_sample_in_progress(one_sample, tmp_path):
+    """A run of one large sample journals each finished depth: killed while it journals the
+    third, it keeps the first two, --resume computes only the rest (it says so by what it
+    writes), and the sample is bitwise that of an uninterrupted run; the depth entries go
+    once the sample is written whole."""
+    cfg_path, ref = one_sample
+    out = tmp_path / "one.h5"
+    _killed_run("depth-entry", 3, cfg_path, out, 1)
+    depths = journal_dir(out) / "depths"
+    assert sorted(p.name for p in depths.glob("*.h5")) == ["s000000.d000.h5",
+                                                           "s000000.d001.h5"]
+    assert len(list(depths.glob("*.tmp"))) == 1
+    seen: list[str] = []
+    previous = checkpoints.listen(seen.append)
+    try:
+        run(load_config(cfg_path), out, resume=True)
+    finally:
+        checkpoints.listen(previous)
+    assert seen.count("depth-entry") == 2  # depths 2 and 3 journalled, 4 is the last
+    _assert_finished_like(ref, out)
+    assert not journal_dir(out).exists()
+
+
+def test_ctrl_c_says_which_finished_depths_it_keeps(one_sample, tmp_path):
+    cfg_path, ref = one_sample
+    out = tmp_path / "one.h5"
+    r = subprocess.run([sys.executable, INJECT, "--signal", "INT", "depth-entry", "3", "run",
+                        str(cfg_path), "-o", str(out), "--quiet"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 130, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "completed samples and 2 finished depth(s) of sample 0 are " \
+        "kept; continue with:" in lines[0], r.stderr
+    _resume(cfg_path, out, 1)
+    _assert_finished_like(ref, out)

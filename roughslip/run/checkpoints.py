@@ -22,6 +22,8 @@ CHECKPOINTS: dict[str, str] = {
     "journal-entry": "a sample's journal entry written to a temporary file, not yet renamed",
     "main-write": "a sample journalled and half-written into OUT.h5 (open for writing)",
     "sample-done": "a sample fully written, OUT.h5 open for writing",
+    "depth-entry": "a finished depth of an unfinished sample journalled to a temporary file, "
+                   "not yet renamed",
     "finish": "every sample done, the journal renamed .journal.done but not removed",
     "rebuild": "during a resume: a journal entry read while OUT.h5 is rebuilt from the journal",
 }

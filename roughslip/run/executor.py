@@ -19,6 +19,7 @@ from roughslip._version import __version__
 from roughslip.elastic.fft import library_versions, resolve_backend
 from roughslip.errors import InputError
 from roughslip.linalg import memory
+from roughslip.run import partial
 from roughslip.run.blas import blas_libraries
 from roughslip.run.budget import check_budget, estimate_memory
 from roughslip.run.cluster import run_dask
@@ -141,6 +142,22 @@ def run(
                     command_line, t0)
 
 
+def _in_process(config: RunConfig, sample: int, writer: RunWriter, emit: Progress) -> None:
+    """Compute ``sample`` here, journalling each finished depth (:mod:`roughslip.run.partial`)
+    and starting from the depths an interrupted run journalled; write it whole."""
+    digest = config.digest()
+    done = partial.read_depths(writer.journal, sample, digest)
+
+    def finished(rec: partial.DepthRecord) -> None:
+        partial.write_depth(writer.journal, sample, rec, digest)
+
+    res = run_sample(config, sample, lambda si, k: emit(
+        {"kind": "depth", "sample": si, "depth_index": k}), done=done, finished=finished)
+    writer.write_sample(res)
+    partial.drop_depths(writer.journal, sample)
+    emit({"kind": "sample", "sample": sample})
+
+
 def _run(config: RunConfig, scene: Scene, out: Path, workers: int, resume: bool,
          overwrite: bool, scheduler: str | None, emit: Progress, command_line: str | None,
          t0: float) -> RunSummary:
@@ -173,10 +190,7 @@ def _run(config: RunConfig, scene: Scene, out: Path, workers: int, resume: bool,
                 run_dask(config, pending, writer, emit, scheduler)
             elif workers == 1 or len(pending) <= 1:
                 for s in pending:
-                    res = run_sample(config, s, lambda si, k: emit(
-                        {"kind": "depth", "sample": si, "depth_index": k}))
-                    writer.write_sample(res)
-                    emit({"kind": "sample", "sample": s})
+                    _in_process(config, s, writer, emit)
             else:
                 run_pool(config, pending, writer, emit, workers)
         except BaseException:

@@ -10,7 +10,7 @@ its result to the single writer of :mod:`roughslip.run.store`.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -19,6 +19,7 @@ from roughslip.contact.problem import Problem
 from roughslip.errors import NumericalError
 from roughslip.run import schema
 from roughslip.run.config import RunConfig
+from roughslip.run.partial import DepthRecord
 from roughslip.run.scene import Scene
 from roughslip.run.stages import stage_for
 from roughslip.run.store import SampleResult
@@ -55,8 +56,9 @@ class _Context(threading.local):
 _CONTEXT = _Context()
 
 
-def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], None] | None = None
-               ) -> SampleResult:
+def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], None] | None = None,
+               *, done: Sequence[DepthRecord] = (),
+               finished: Callable[[DepthRecord], None] | None = None) -> SampleResult:
     """Compute one sample at every target (depth or load) of the configuration, in order.
 
     Parameters
@@ -66,6 +68,12 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
         Global sample number (its surfaces come from ``SeedSequence(seed, spawn_key=(sample,))``).
     progress : callable ``(sample, depth_index)``, optional
         Called after each target.
+    done : sequence of DepthRecord
+        The first targets, already finished (journalled by an interrupted run,
+        :mod:`roughslip.run.partial`): taken as they are, and the next target starts from
+        what the last of them carries, so the rest is bitwise what it would have been.
+    finished : callable ``(DepthRecord)``, optional
+        Called with each target finished here but the last (to journal it).
 
     Returns
     -------
@@ -88,7 +96,19 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
     fields: list[dict[str, np.ndarray]] = []
     solvers: list[dict[str, str]] = []
     notes = list(scene.notes)
+    for old in done:  # finished by an earlier, interrupted run
+        k = old.index
+        schema.put(rows, k, old.scalars)
+        notes.extend(f"depth index {k}: {n}" for n in old.notes)
+        fields.append(old.fields)
+        solvers.append(old.solvers)
+        if progress is not None:
+            progress(sample, k)
+    if done:
+        runner.restore(done[-1].carry)
     for k, t in enumerate(targets):
+        if k < len(done):
+            continue
         where = f"sample {sample}, depth index {k}"
         rec = runner.step(float(t), where)
         bad = [n for n, v in rec.scalars.items() if not np.isfinite(float(v))]
@@ -102,6 +122,9 @@ def run_sample(config: RunConfig, sample: int, progress: Callable[[int, int], No
                 raise NumericalError(f"{where}: non-finite values in field {name!r}")
         fields.append(rec.fields)
         solvers.append(rec.solvers)
+        if finished is not None and k + 1 < len(targets):
+            finished(DepthRecord(k, dict(rec.scalars), dict(rec.fields), list(rec.notes),
+                                 dict(rec.solvers), runner.carry()))
         if progress is not None:
             progress(sample, k)
     surfaces = {"rigid_surface": surf.rigid}

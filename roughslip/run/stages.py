@@ -64,6 +64,14 @@ class _DecoupledSample:
         self.solver = NormalSolver(problem, method=sq.method, tol=sq.tol, max_iter=sq.max_iter)
         self.x0: np.ndarray | None = None
 
+    def carry(self) -> dict[str, np.ndarray]:
+        """What the next target starts from: the squeeze's warm start."""
+        return {} if self.x0 is None else {"x0": self.x0}
+
+    def restore(self, carry: dict[str, np.ndarray]) -> None:
+        """Start the next target from ``carry`` (:meth:`carry` of a journalled target)."""
+        self.x0 = carry.get("x0")
+
     def step(self, target: float, where: str) -> Record:
         cfg, want = self.stage.config, self.stage.want
         try:
@@ -139,6 +147,13 @@ class _CoupledSample:
     def __init__(self, stage: CoupledStage, problem: Problem) -> None:
         self.stage = stage
         self.problem = problem
+
+    def carry(self) -> dict[str, np.ndarray]:
+        """Nothing: each target is solved from its own start."""
+        return {}
+
+    def restore(self, carry: dict[str, np.ndarray]) -> None:
+        """Nothing to restore (:meth:`carry`)."""
 
     def step(self, target: float, where: str) -> Record:
         cfg, want = self.stage.config, self.stage.want
