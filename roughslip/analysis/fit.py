@@ -193,12 +193,14 @@ def quantity(run: RunData, name: str) -> np.ndarray:
     return run.scalars[name][sel]
 
 
-def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out = {}
+def flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """A nested configuration as one level of dotted keys (``{"pull": {"lam": 0.2}}`` gives
+    ``{"pull.lam": 0.2}``)."""
+    out: dict[str, Any] = {}
     for k, v in d.items():
         key = f"{prefix}{k}"
         if isinstance(v, dict):
-            out.update(_flatten(v, key + "."))
+            out.update(flatten(v, key + "."))
         else:
             out[key] = v
     return out
@@ -226,7 +228,7 @@ def fit_files(paths: list[str | Path], x: str = "normal_force", y: str = "fricti
     if not paths:
         raise InputError("no run files given")
     runs = [read_run(p) for p in paths]
-    flats = [_flatten(r.config_dict()) for r in runs]
+    flats = [flatten(r.config_dict()) for r in runs]
     keys = sorted(set().union(*flats))
     varied_keys = [k for k in keys if not k.startswith(_IGNORED)
                    and len({repr(f.get(k)) for f in flats}) > 1]

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from roughslip.analysis.fit import flatten
 from roughslip.errors import InputError, io_failure
 from roughslip.run import schema
 from roughslip.run.reading import RunData, group_name, open_file, read_run
@@ -53,17 +54,6 @@ def _plain(v: Any) -> Any:
     return v.decode() if isinstance(v, bytes) else v
 
 
-def _flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        key = f"{prefix}{k}"
-        if isinstance(v, dict):
-            out.update(_flatten(v, key + "."))
-        else:
-            out[key] = v
-    return out
-
-
 def config_attrs(run: RunData) -> dict[str, Any]:
     """The attributes :func:`to_dataframe` and :func:`to_xarray` attach: the stored
     configuration flattened to dotted keys, and the file's provenance.
@@ -81,7 +71,7 @@ def config_attrs(run: RunData) -> dict[str, Any]:
         (of roughslip that wrote it), ``"units"`` (what the numbers are measured in, a dict)
         and ``"notes"`` (the run's notes, a list of str).
     """
-    attrs = _flatten(run.config_dict())
+    attrs = flatten(run.config_dict())
     attrs["file"] = str(run.path)
     attrs["version"] = str(run.attrs.get("version", ""))
     for name in ("units", "notes"):
