@@ -14,7 +14,7 @@ import pytest
 from click.testing import CliRunner
 
 from roughslip.cli import cli
-from roughslip.errors import InputError
+from roughslip.errors import ConfigError, InputError
 from roughslip.run.config import dumps_toml, load_config
 from roughslip.run.executor import run
 from roughslip.run.store import journal_dir, read_run
@@ -736,3 +736,30 @@ def test_zip_based_instrument_files_are_checked_before_they_are_handed_over(tmp_
                                          r"member may be compressed at most 1100:1"):
         read_raw(p)
     _one_line(CliRunner().invoke(cli, ["topography", str(p)]), "scan.zip", "1100:1")
+
+
+def test_a_flat_generated_surface_with_depths_in_rms_units_is_refused(tmp_path):
+    """A plane with no slope has rms height and range 0: depths in those units would all be
+    0, and the run would say nothing. The configuration is refused in one line naming the
+    key; with a slope, or depths in length units, it runs."""
+    data = {"grid": {"n": 8}, "surface": {"kind": "plane"},
+            "squeeze": {"depths": [0.5], "depth_unit": "rms"}}
+    with pytest.raises(ConfigError, match=r"squeeze.depth_unit = \"rms\": needs a surface with "
+                                         r"relief; a plane with no slope is flat"):
+        load_config(data=data)
+    load_config(data={**data, "surface": {"kind": "plane", "slope": [0.1, 0.0]}})
+    load_config(data={**data, "squeeze": {"depths": [0.5], "depth_unit": "length"}})
+
+
+def test_a_text_topography_is_refused_past_the_point_cap_while_it_is_read(tmp_path,
+                                                                          monkeypatch):
+    """Text files are read row by row, counted against the cap on points, so that a huge one
+    is refused before it fills the memory (the cap lowered here to 8 x 8)."""
+    from roughslip.surfaces import limits
+
+    monkeypatch.setattr(limits, "MAX_SCAN_POINTS", 64)
+    np.savetxt(tmp_path / "big.txt", np.ones((9, 8)) + np.arange(8))
+    with pytest.raises(InputError, match=r"big.txt: more than 64 points by line 9"):
+        read_raw(tmp_path / "big.txt")
+    np.savetxt(tmp_path / "fits.txt", np.ones((8, 8)) + np.arange(8))
+    assert read_raw(tmp_path / "fits.txt").heights.shape == (8, 8)

@@ -440,6 +440,14 @@ def _check_cross(cfg: RunConfig, ctx: Context, errors: Errors) -> None:
                    "applies to depths only; use squeeze.force_unit with forces")
     if cfg.coupling.enabled and not cfg.pull.enabled:
         errors.add("coupling.enabled", True, "needs pull.enabled = true")
+    flat = (cfg.surface.kind == "plane" and not any(cfg.surface.slope or (0.0, 0.0))
+            and (cfg.elastic_surface is None or (cfg.elastic_surface.kind == "plane"
+                 and not any(cfg.elastic_surface.slope or (0.0, 0.0)))))
+    if flat and cfg.squeeze.forces is None and cfg.squeeze.depth_unit in ("rms", "range"):
+        errors.add("squeeze.depth_unit", cfg.squeeze.depth_unit,
+                   "needs a surface with relief; a plane with no slope is flat (its rms "
+                   "height and range are 0, so every depth would be 0): give surface.slope, "
+                   "or depths in length units (squeeze.depth_unit = \"length\")")
     law = LAWS.get(cfg.pull.slip_law)
     if cfg.pull.enabled:  # the slip law's own parameters ([pull] keys named as the law's)
         given = {k: getattr(cfg.pull, k) for k in LAW_PARAMS}

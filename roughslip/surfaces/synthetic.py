@@ -294,7 +294,13 @@ def _load_npz(p: Path, key: str | None) -> np.ndarray:
 
 
 def _load_text(p: Path, delimiter: str | None) -> np.ndarray:
-    rows = []
+    """A text matrix, one row per line: each row held as float64 as it is read, and the
+    points counted against :data:`~roughslip.surfaces.limits.MAX_SCAN_POINTS`, so that a huge
+    file is refused before it fills the memory."""
+    from roughslip.surfaces.limits import MAX_SCAN_POINTS
+
+    rows: list[np.ndarray] = []
+    points = 0
     with p.open("r", encoding="utf-8", errors="strict") as fh:
         for lineno, line in enumerate(fh, 1):
             s = line.split("#", 1)[0].strip()
@@ -302,7 +308,7 @@ def _load_text(p: Path, delimiter: str | None) -> np.ndarray:
                 continue
             parts = s.split(delimiter) if delimiter else s.split()
             try:
-                rows.append([float(v) for v in parts])
+                rows.append(np.array([float(v) for v in parts]))
             except ValueError:
                 raise InputError(f"{p}: line {lineno}: not a row of numbers") from None
             if len(rows[-1]) != len(rows[0]):
@@ -310,6 +316,10 @@ def _load_text(p: Path, delimiter: str | None) -> np.ndarray:
                     f"{p}: ragged rows (line {lineno} has {len(rows[-1])} values, the first "
                     f"row {len(rows[0])})"
                 )
+            points += rows[-1].size
+            if points > MAX_SCAN_POINTS:
+                raise InputError(f"{p}: more than {MAX_SCAN_POINTS} points by line {lineno}: "
+                                 f"a height map may have at most {MAX_SCAN_POINTS} (2^30)")
     if not rows:
         raise InputError(f"{p}: is empty")
     return np.array(rows)
