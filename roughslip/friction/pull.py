@@ -140,6 +140,9 @@ class PullMethod:
         It stops exactly once no later state can exceed the best (``pull.early_stop``).
     estimate
         Its friction force has the refinement error estimate (``estimate_error``).
+    chooses
+        It is no method of its own but the choice among the others (``auto``,
+        :func:`choose_method`).
     """
 
     name: str
@@ -153,11 +156,13 @@ class PullMethod:
     auto: bool = True
     early_stop: bool = True
     estimate: bool = True
+    chooses: bool = False
 
     def runs(self, law: SlipLaw) -> bool:
         r"""Whether it runs ``law``: on a stick solver, a law with an engine that needs
         nothing the solver does not offer; matrix-free, a law that needs nothing (a break
-        sequence on :math:`\varphi` alone). ``"auto"`` runs nothing itself."""
+        sequence on :math:`\varphi` alone). A method that :attr:`chooses` runs nothing
+        itself."""
         if self.solver is not None:
             return law.engine is not None and law.needs <= self.offers
         return self.run is not None and not law.needs
@@ -197,7 +202,7 @@ def single_ok(slip_law: str | SlipLaw, method: str | PullMethod = "inverse") -> 
     if not law.single:
         return False
     m = _method(method)
-    if m.solver is None and m.run is None:  # auto
+    if m.chooses:
         return any(METHODS.get(n).runs(law) and "single" in METHODS.get(n).precisions
                    for n in METHODS)
     return m.runs(law) and "single" in m.precisions
@@ -248,7 +253,7 @@ def methods_for(slip_law: str | SlipLaw) -> list[str]:
     which chooses among them."""
     law = _law(slip_law)
     return [n for n in METHODS.names()
-            if METHODS.get(n).runs(law) or not (METHODS.get(n).solver or METHODS.get(n).run)]
+            if METHODS.get(n).runs(law) or METHODS.get(n).chooses]
 
 
 def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "break",
@@ -388,7 +393,7 @@ def pull(
             t0, asked.name, converged=True, message="no contact: nothing to pull",
             slip_law=law.name)
     impl = (METHODS.get(choose_method(n, slip_law=law, precision=precision))
-            if asked.solver is None and asked.run is None else asked)
+            if asked.chooses else asked)
     if not impl.runs(law):
         raise InputError(f"slip_law = {law.name!r} supports methods "
                          f"{', '.join(methods_for(law))}, not {impl.name!r}")
@@ -429,7 +434,7 @@ def pull(
 
 
 METHODS.register("auto", "an exact method chosen by bond count and memory")(
-    PullMethod("auto", exact=True, dense=False, auto=False))
+    PullMethod("auto", exact=True, dense=False, auto=False, chooses=True))
 METHODS.register("literal", "the report's algorithm, one CG solve from zero per break")(
     PullMethod("literal", exact=True, dense=False, run=break_literal, tiny=12,
                early_stop=False))
