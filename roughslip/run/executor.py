@@ -17,7 +17,7 @@ from typing import Any
 
 from roughslip._version import __version__
 from roughslip.elastic.fft import library_versions, resolve_backend
-from roughslip.errors import InputError
+from roughslip.errors import InputError, io_failure
 from roughslip.linalg import memory
 from roughslip.run import partial
 from roughslip.run.blas import blas_libraries
@@ -149,7 +149,11 @@ def _in_process(config: RunConfig, sample: int, writer: RunWriter, emit: Progres
     done = partial.read_depths(writer.journal, sample, digest)
 
     def finished(rec: partial.DepthRecord) -> None:
-        partial.write_depth(writer.journal, sample, rec, digest)
+        try:
+            partial.write_depth(writer.journal, sample, rec, digest)
+        except (OSError, RuntimeError) as exc:  # h5py reports a failed write as either
+            raise io_failure(writer.path, f"cannot write sample {sample}", exc,
+                             resume=True) from exc
 
     res = run_sample(config, sample, lambda si, k: emit(
         {"kind": "depth", "sample": si, "depth_index": k}), done=done, finished=finished)

@@ -56,7 +56,8 @@ def write_depth(journal: Path, sample: int, rec: DepthRecord, digest: str) -> No
     """Journal the finished depth ``rec.index`` of ``sample`` (atomically: a temporary file,
     flushed, then renamed)."""
     folder = journal / DEPTHS
-    folder.mkdir(parents=True, exist_ok=True)
+    journal.mkdir(exist_ok=True)  # never the run's folder: a vanished folder is an error
+    folder.mkdir(exist_ok=True)
     final = folder / _name(sample, rec.index)
     tmp = final.with_suffix(".tmp")
     with h5py.File(tmp, "w", libver="earliest") as f:
