@@ -82,8 +82,12 @@ def test_two_configurations_on_one_scheduler_keep_their_own_samples(references, 
                                                                     blas_restored):
     """Two runs of different configurations with the same sample numbers, submitted together
     to one scheduler whose two workers share this process: each file holds its own
-    configuration's samples, bitwise those of the run alone."""
+    configuration's samples, bitwise those of the run alone; the process's Dask settings are
+    as they were (two overlapping clients would otherwise restore them out of order)."""
     distributed = pytest.importorskip("distributed", reason="the dask extra is not installed")
+    import dask
+
+    scheduler_before = dask.config.get("scheduler", None)
     (cfg_a, ref_a), (cfg_b, ref_b) = references
     out_a, out_b = tmp_path / "a.h5", tmp_path / "b.h5"
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
@@ -93,6 +97,7 @@ def test_two_configurations_on_one_scheduler_keep_their_own_samples(references, 
     assert differences(ref_a, out_a) == []
     assert differences(ref_b, out_b) == []
     assert read_run(out_a).complete.all() and read_run(out_b).complete.all()
+    assert dask.config.get("scheduler", None) == scheduler_before
 
 
 def test_the_writer_refuses_a_sample_of_another_configuration(references, tmp_path,

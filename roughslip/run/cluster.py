@@ -111,7 +111,9 @@ def run_dask(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pro
         raise InputError("--scheduler needs the dask extra: pip install 'roughslip[dask]'"
                          ) from None
     try:
-        client = Client(address, timeout="20s")
+        # not the default client: a process-wide Dask setting would outlive this run and,
+        # with two runs in one process, be restored out of order
+        client = Client(address, timeout="20s", set_as_default=False)
     except OSError as exc:
         raise InputError(f"--scheduler {address}: cannot connect ({exc})") from None
     with client:
@@ -120,7 +122,7 @@ def run_dask(config: RunConfig, pending: list[int], writer: RunWriter, emit: Pro
                    for s in pending]
         nd = len(config.targets)
         try:
-            for fut in as_completed(futures):
+            for fut in as_completed(futures, loop=client.loop):
                 res = fut.result()
                 writer.write_sample(res)
                 for k in range(nd):
