@@ -9,7 +9,6 @@ from roughslip._version import __version__
 from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import NormalResult, NormalSolver, squeeze
 from roughslip.coupling.coupled import (
-    CoupledResult,
     IndentResult,
     couple,
     indent,
@@ -26,13 +25,13 @@ from roughslip.errors import (
     RoughslipError,
     SizeLimitError,
 )
-from roughslip.friction.pull import SlipResult, pull
+from roughslip.friction.pull import pull
+from roughslip.friction.result import PullResult, renamed
 from roughslip.run.config import RunConfig, load_config
 
 __all__ = [
     "ConfigError",
     "ConvergenceError",
-    "CoupledResult",
     "ElasticOperator",
     "Grid",
     "IndentResult",
@@ -44,10 +43,10 @@ __all__ = [
     "NumericalError",
     "OutputError",
     "Problem",
+    "PullResult",
     "RoughslipError",
     "RunConfig",
     "SizeLimitError",
-    "SlipResult",
     "__version__",
     "couple",
     "indent",
@@ -56,3 +55,11 @@ __all__ = [
     "squeeze",
     "squeeze_pull_coupled",
 ]
+
+
+def __getattr__(name: str) -> type:
+    """``SlipResult`` and ``CoupledResult``, the result types of earlier versions
+    (deprecated: both are :class:`PullResult`)."""
+    if name in ("SlipResult", "CoupledResult"):
+        return renamed(__name__, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

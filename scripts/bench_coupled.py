@@ -110,7 +110,7 @@ def gap_bound(sizes: list[int], areas: list[float], threads: int, near: list[int
         result, states = _pull_states(problem, depth)
         norms = _RowNorms(DenseBlockSolver(problem, threads=threads))
         needed = [_products_needed(states, norms, k) for k in near]
-        print(f"{problem.shape[0]:>5} {area:>6.3f} {int(result.contact0.sum()):>6} "
+        print(f"{problem.shape[0]:>5} {area:>6.3f} {int(result.start.contact.sum()):>6} "
               f"{len(result.events):>7} {len(states):>7} "
               + " ".join(f"{x:>7}" for x in needed), flush=True)
 
@@ -235,10 +235,10 @@ def main() -> None:
                 fft = op.fft_seconds + op.with_threads(1).fft_seconds - fft0
                 print(f"{n:>5} {normal.contact_area:>6.3f} {normal.n_contact:>6} "
                       f"{t_sq:>10.2f} {t_dec:>7.2f} {c.method:>8} {history:>13} "
-                      f"{t_c:>10.2f} {c.squeeze_states:>7} {len(c.events):>7} "
+                      f"{t_c:>10.2f} {c.details.squeeze_states:>7} {len(c.events):>7} "
                       f"{c.solves:>7} {t_c / t_dec:>6.1f} {t_c / (t_dec + t_sq):>6.1f} "
-                      f"{100 * c.squeeze_seconds / t_c:>4.0f}% {100 * fft / t_c:>4.0f}% "
-                      f"{100 * c.blas_seconds / t_c:>4.0f}%"
+                      f"{100 * c.details.squeeze_seconds / t_c:>4.0f}% {100 * fft / t_c:>4.0f}% "
+                      f"{100 * c.details.blas_seconds / t_c:>4.0f}%"
                       + ("" if c.converged else f"  NOT CONVERGED: {c.message}"),
                       flush=True)
 

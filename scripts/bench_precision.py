@@ -43,9 +43,9 @@ def child(size: int, area: float, precision: str, threads: int, out: str) -> Non
                precision=precision)
     sec = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    np.save(out + ".npy", res.broken_site)
+    np.save(out + ".npy", res.curve.site[1:])
     with open(out + ".json", "w") as f:
-        json.dump({"sec": sec, "peak": peak, "pull": peak - before, "bonds": res.n_bonds,
+        json.dump({"sec": sec, "peak": peak, "pull": peak - before, "bonds": res.details.n_bonds,
                    "steps": res.steps, "friction": res.friction_force,
                    "converged": res.converged, "message": res.message}, f)
 

@@ -74,7 +74,7 @@ def main() -> None:
             speed = f"{t_lit / sec:8.1f}" if t_lit else f"{'-':>8}"
             # batch is approximate: its error is its bias (it has no estimate), not the solves'
             bound = f"{hi / lo * res.residual:>8.1e}" if m != "batch" else f"{'-':>8}"
-            print(f"{n:>5} {normal.contact_area:>6.3f} {res.n_bonds:>6} {m:>8} {sec:>9.2f} "
+            print(f"{n:>5} {normal.contact_area:>6.3f} {res.details.n_bonds:>6} {m:>8} {sec:>9.2f} "
                   f"{res.steps:>6} {res.friction_force:>14.10f} {diff:>9.1e} {res.residual:>8.1e} "
                   f"{speed} {hi / lo:>6.1f} {bound}", flush=True)
 

@@ -63,7 +63,7 @@ def main() -> None:
             c = couple(problem, depth=d, lam=args.lam)
             t_c = time.perf_counter() - t0
             fc = c.friction_force / (args.lam * c.normal_force_at_peak)
-            released = c.released / max(int(c.contact0.sum()), 1)
+            released = c.details.released / max(int(c.start.contact.sum()), 1)
             print(row + f"| {fc:.4f} | {fc / fd:.4f} | {released:.2f} | {t_dec:.1f} / "
                   f"{t_c:.1f} |", flush=True)
 

@@ -36,19 +36,19 @@ def main() -> None:
                             oversample=2)
             normal = squeeze(h, depth=1.5, tol=1e-12)
             ref = pull(normal, method="inverse", tol=1e-13)
-            head = ref.broken_site[: ref.peak_index + 1]
+            head = ref.curve.site[: ref.peak_event + 1]
             for method in ("cg", "literal"):
                 for tol in (1e-3, 1e-4, 1e-6, 1e-8, 1e-10):
                     r = pull(normal, method=method, tol=tol, estimate_error=True)
                     err = abs(r.friction_force - ref.friction_force) / ref.friction_force
-                    same = np.array_equal(r.broken_site[: r.peak_index + 1], head)
+                    same = np.array_equal(r.curve.site[: r.peak_event + 1], head)
                     total += 1
                     reordered += not same
                     if err > FLOOR:
-                        ratios.append(r.solve_error_estimate / err)
-                        bound_ratios.append(r.error_bound / err)
+                        ratios.append(r.details.solve_error_estimate / err)
+                        bound_ratios.append(r.details.error_bound / err)
                     print(f"{n:>4} {seed:>4} {method:>8} {tol:>7.0e} {err:>11.2e} "
-                          f"{r.solve_error_estimate:>10.2e} {r.error_bound:>10.2e} "
+                          f"{r.details.solve_error_estimate:>10.2e} {r.details.error_bound:>10.2e} "
                           f"{'same' if same else 'other':>6}")
     ratios, bound_ratios = np.array(ratios), np.array(bound_ratios)
     print(f"{total} pulls, {reordered} with another break order up to the peak; above the "

@@ -114,7 +114,7 @@ def run_scene(sc: dict) -> dict:
         r = couple(pb, **by, lam=0.2, history=sc["history"], slip_law=sc["law"],
                    gained=sc["gained"], tol=COUPLED_TOL)
         events = [[e.kind, int(e.site)] for e in r.events]
-        forces = np.concatenate([r.fx, r.fz, r.fz_peak.ravel(), r.fx_peak.ravel()])
+        forces = np.concatenate([r.curve.fx, r.curve.fz, r.peak.fz.ravel(), r.peak.fx.ravel()])
         return dict(events=events, friction=r.friction_force, forces=forces.tolist(),
                     converged=bool(r.converged), message=r.message)
     from roughslip.contact.squeeze import squeeze
@@ -125,9 +125,9 @@ def run_scene(sc: dict) -> dict:
              else {})
     r = pull(normal, lam=0.2, slip_law=sc["law"], method="inverse", tol=PULL_TOL,
              precision=sc["precision"], **extra)
-    kinds = r.kinds if len(r.kinds) == len(r.broken_site) else ("break",) * len(r.broken_site)
-    events = [[k, int(s)] for k, s in zip(kinds, r.broken_site, strict=True)]
-    forces = np.concatenate([r.fx_lim, normal.fz.ravel()])
+    c = r.curve
+    events = [[k, int(s)] for k, s in zip(c.kind[1:], c.site[1:], strict=True)]
+    forces = np.concatenate([c.fx[1:], normal.fz.ravel()])
     return dict(events=events, friction=r.friction_force, forces=forces.tolist(),
                 converged=bool(r.converged), message=r.message)
 

@@ -80,7 +80,7 @@ def main() -> None:
             p = pull(n, lam=0.3)
             a_eq = math.sqrt(n.n_contact * h * h / math.pi)
             k = mindlin_bonded_punch_stiffness(a_eq, nu=nu)
-            err = (p.fx_lim[0] / p.dx_lim[0] - k) / k
+            err = (p.curve.fx[1] / p.curve.dx[1] - k) / k
             return n, (f"bonded punch $K = 8Ga/(2-\\nu)$: err {err:+.4f} "
                        "(staircase $\\approx -0.12\\,h/a$)"), \
                 -0.2 * h < err < 0

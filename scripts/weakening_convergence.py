@@ -64,7 +64,7 @@ def main() -> None:
             mu = r.friction_force / (lam * normal.normal_force)
             table[name].append(mu)
             unstable = r.message.split(", ")[-1].split(" ")[0] if law is not None else "-"
-            print(f"| {name} | {ratio} | {n} | {r.n_bonds} | {mu:.5f} | {r.steps} | "
+            print(f"| {name} | {ratio} | {n} | {r.details.n_bonds} | {mu:.5f} | {r.steps} | "
                   f"{unstable} | {t:.1f} |", flush=True)
     print()
     print("| law | change per halving of h | observed order p | extrapolated |")

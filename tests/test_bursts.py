@@ -60,18 +60,18 @@ def rough_pulls():
 
 def test_peak_of_the_curve_is_the_friction_force_exactly(rough_pulls):
     for full, fast in rough_pulls:
-        assert full.steps == full.n_bonds and fast.early_stopped
+        assert full.steps == full.details.n_bonds and fast.details.early_stopped
         for res, exhausted in ((full, True), (fast, False)):
-            c = pull_curve(res.dx_lim, res.fx_lim, exhausted=exhausted)
+            c = pull_curve(res.curve.dx[1:], res.curve.fx[1:], exhausted=exhausted)
             assert c.peak == res.friction_force  # bitwise
-            assert c.peak_break == res.peak_index
+            assert c.peak_break == (res.peak_event - 1)
             assert np.all(np.diff(c.dx) >= 0)
-        c = pull_curve(full.dx_lim, full.fx_lim, exhausted=True)
+        c = pull_curve(full.curve.dx[1:], full.curve.fx[1:], exhausted=True)
         # every break belongs to exactly one burst; drops are positive and end at zero force
         assert c.burst_size.sum() == full.steps and np.all(c.burst_drop > 0)
         assert c.fx[-1] == 0.0
         # the early-stopped sequence is a prefix: same bursts up to its last (open) one
-        e = pull_curve(fast.dx_lim, fast.fx_lim)
+        e = pull_curve(fast.curve.dx[1:], fast.curve.fx[1:])
         m = int(e.complete.sum())
         assert np.array_equal(e.burst_size[:m], c.burst_size[:m])
 

@@ -21,10 +21,11 @@ def _assert_same_path(other, ref):
     """The same events as the reference, and the same pull curve to 1e-8 (the solvers'
     agreement criterion throughout)."""
     assert [(e.kind, e.site) for e in other.events] == [(e.kind, e.site) for e in ref.events]
-    assert np.allclose(other.dx, ref.dx, rtol=1e-8, atol=1e-12)
-    assert np.allclose(other.fx, ref.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
-    assert np.allclose(other.fz, ref.fz, rtol=1e-8)
-    assert np.allclose(other.dz, ref.dz, rtol=1e-8)
+    assert np.allclose(other.curve.dx, ref.curve.dx, rtol=1e-8, atol=1e-12)
+    assert np.allclose(other.curve.fx, ref.curve.fx, rtol=1e-8,
+                       atol=1e-10 * np.abs(ref.curve.fx).max())
+    assert np.allclose(other.curve.fz, ref.curve.fz, rtol=1e-8)
+    assert np.allclose(other.curve.dz, ref.curve.dz, rtol=1e-8)
     assert other.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
 
 
@@ -41,17 +42,17 @@ def test_half_poisson_ratio_reproduces_the_decoupled_model(heights, history):
     h = rough(16) if heights == "rough" else sphere((14, 14), radius=12.0)
     depth = 1.2 if heights == "rough" else 0.8
     c = squeeze_pull_coupled(h, depth=depth, lam=0.2, nu=0.5, history=history)
-    assert c.history == history
+    assert c.details.history == history
     normal = squeeze(h, depth=depth, nu=0.5, tol=1e-13)
     d = pull(normal, lam=0.2, method="inverse", early_stop=False, block=8)
-    assert c.released == 0 and np.array_equal(c.contact0, normal.contact)
-    assert np.allclose(c.fz0, normal.fz, rtol=0, atol=1e-11 * normal.fz.max())
-    assert np.allclose(c.fx0, 0.0, atol=1e-13)
+    assert c.details.released == 0 and np.array_equal(c.start.contact, normal.contact)
+    assert np.allclose(c.start.fz, normal.fz, rtol=0, atol=1e-11 * normal.fz.max())
+    assert np.allclose(c.start.fx, 0.0, atol=1e-13)
     ev = c.events[1:]
     assert all(e.kind == "slip+" for e in ev) and len(ev) == d.steps
-    assert [e.site for e in ev] == d.broken_site.tolist()
-    assert np.allclose([e.dx for e in ev], d.dx_lim, rtol=1e-9)
-    assert np.allclose([e.fx for e in ev], d.fx_lim, rtol=1e-9)
+    assert [e.site for e in ev] == d.curve.site[1:].tolist()
+    assert np.allclose([e.dx for e in ev], d.curve.dx[1:], rtol=1e-9)
+    assert np.allclose([e.fx for e in ev], d.curve.fx[1:], rtol=1e-9)
     assert c.friction_force == pytest.approx(d.friction_force, rel=1e-9)
     assert c.normal_force_at_peak == pytest.approx(normal.normal_force, rel=1e-12)
 
@@ -65,17 +66,20 @@ def test_dense_reference_agrees_with_the_fft_solver(nu, history):
     fft = squeeze_pull_coupled(h, method="cg", tol=1e-13, **kw)
     inc = squeeze_pull_coupled(h, method="dense", **kw)  # updated inverse
     assert [(e.kind, e.site) for e in inc.events] == [(e.kind, e.site) for e in ref.events]
-    assert np.allclose(inc.fx, ref.fx, rtol=1e-9, atol=1e-12 * np.abs(ref.fx).max())
+    assert np.allclose(inc.curve.fx, ref.curve.fx, rtol=1e-9,
+                       atol=1e-12 * np.abs(ref.curve.fx).max())
     assert fft.converged and ref.converged
     assert len(ref.events) == len(fft.events)
-    assert len(ref.events) + ref.squeeze_states > 20  # the squeeze's states are decisions too
-    assert ref.squeeze_states == fft.squeeze_states == inc.squeeze_states
+    # the squeeze's states are decisions too
+    assert len(ref.events) + ref.details.squeeze_states > 20
+    assert ref.details.squeeze_states == fft.details.squeeze_states == inc.details.squeeze_states
     assert [(e.kind, e.site) for e in ref.events] == [(e.kind, e.site) for e in fft.events]
-    assert np.allclose(ref.dx, fft.dx, rtol=1e-8, atol=1e-12)
-    assert np.allclose(ref.fx, fft.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
-    assert np.allclose(ref.fz, fft.fz, rtol=1e-8)
+    assert np.allclose(ref.curve.dx, fft.curve.dx, rtol=1e-8, atol=1e-12)
+    assert np.allclose(ref.curve.fx, fft.curve.fx, rtol=1e-8,
+                       atol=1e-10 * np.abs(ref.curve.fx).max())
+    assert np.allclose(ref.curve.fz, fft.curve.fz, rtol=1e-8)
     assert ref.friction_force == pytest.approx(fft.friction_force, rel=1e-8)
-    assert ref.released == fft.released
+    assert ref.details.released == fft.details.released
 
 
 @pytest.mark.parametrize("history", HISTORIES.names())
@@ -84,9 +88,9 @@ def test_every_recorded_state_is_admissible(nu, history):
     h = rough(14, seed=7) + sphere((14, 14), radius=25.0)
     res = squeeze_pull_coupled(h, depth=1.4, lam=0.3, nu=nu, record_states=True,
                                history=history)
-    assert res.states and len(res.states) == len(res.events)
-    fscale = max(float(np.abs(s[1]).max()) for s in res.states)
-    for _D, fz, fx, g, C, S in res.states:
+    assert res.details.states and len(res.details.states) == len(res.events)
+    fscale = max(float(np.abs(s[1]).max()) for s in res.details.states)
+    for _D, fz, fx, g, C, S in res.details.states:
         tol = 1e-8 * fscale
         assert np.all(fz[C] >= -tol), "f_z >= 0 in contact"
         assert np.all(fz[~C] == 0) and np.all(fx[~S] == 0), "no force off contact / slip"
@@ -95,12 +99,12 @@ def test_every_recorded_state_is_admissible(nu, history):
         assert np.all(np.abs(fx[S]) <= 0.3 * fz[S] + tol), "|f_x| <= lambda f_z on stick sites"
         assert np.all(S <= C)
     # the recorded totals are the sums of the recorded fields
-    for e, (_, fz, fx, *_rest) in zip(res.events, res.states, strict=True):
+    for e, (_, fz, fx, *_rest) in zip(res.events, res.details.states, strict=True):
         assert e.fx == pytest.approx(fx.sum(), abs=1e-12 * fscale)
         assert e.fz == pytest.approx(fz.sum(), rel=1e-12)
     # the friction force is the largest F_x on the path, with F_z at the same D_x
-    i = int(np.argmax(res.fx))
-    assert res.friction_force == res.fx[i] and res.normal_force_at_peak == res.fz[i]
+    i = int(np.argmax(res.curve.fx))
+    assert res.friction_force == res.curve.fx[i] and res.normal_force_at_peak == res.curve.fz[i]
 
 
 def test_coupling_is_felt_at_zero_pull():
@@ -109,16 +113,16 @@ def test_coupling_is_felt_at_zero_pull():
     (docs/theory/coupled.rst#coupled)."""
     h = rough(14, seed=9)
     res = squeeze_pull_coupled(h, depth=1.3, lam=0.2, nu=0.0)
-    assert res.released > 0
+    assert res.details.released > 0
     assert abs(res.events[0].fx) > 1e-6 * res.normal_force
     kinds = {e.kind for e in res.events}
     assert "slip+" in kinds
-    assert 0 < res.squeeze_seconds < res.seconds  # the time until the pull starts, a part
+    assert 0 < res.details.squeeze_seconds < res.seconds  # the time until the pull starts, a part
 
 
 def test_no_contact_and_bad_input():
     res = squeeze_pull_coupled(np.zeros((4, 4)), depth=0.0)
-    assert res.friction_force == 0 and not res.contact0.any()
+    assert res.friction_force == 0 and not res.start.contact.any()
     with pytest.raises(InputError, match="lam"):
         squeeze_pull_coupled(np.zeros((4, 4)), depth=1.0, lam=0)
     with pytest.raises(InputError, match="method"):
@@ -171,8 +175,8 @@ def test_dense_solver_checks_its_memory_first():
             squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=0.25, method="dense")
         tight = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=0.25, tol=1e-13)
     assert tight.method == "cg" and tight.message.startswith("auto chose cg")
-    assert tight.fallback.startswith("auto chose cg") and "GiB" in tight.fallback
-    assert free.fallback == ""
+    assert tight.details.fallback.startswith("auto chose cg") and "GiB" in tight.details.fallback
+    assert free.details.fallback == ""
     assert [(e.kind, e.site) for e in tight.events] == [(e.kind, e.site) for e in free.events]
     assert tight.friction_force == pytest.approx(free.friction_force, rel=1e-8)
     # the same under the Coulomb law: the matrix-free path solves the slip forces by GMRES on
@@ -226,29 +230,31 @@ def test_force_held_pull_agrees_between_solvers_and_holds_the_force(nu):
     inc = squeeze_pull_coupled(h, method="dense", **kw)
     fft = squeeze_pull_coupled(h, method="cg", tol=1e-13, **kw)
     assert ref.converged and inc.converged and fft.converged
-    assert len(ref.events) + ref.squeeze_states > 20  # the squeeze's states are decisions too
-    assert ref.squeeze_states == fft.squeeze_states == inc.squeeze_states
+    # the squeeze's states are decisions too
+    assert len(ref.events) + ref.details.squeeze_states > 20
+    assert ref.details.squeeze_states == fft.details.squeeze_states == inc.details.squeeze_states
     for other in (inc, fft):
         _assert_same_path(other, ref)
-    assert np.allclose(ref.fz, F, rtol=1e-10)  # the force is held
+    assert np.allclose(ref.curve.fz, F, rtol=1e-10)  # the force is held
     assert ref.normal_force == pytest.approx(F, rel=1e-12)
-    assert np.ptp(ref.dz) > 1e-6 * ref.depth  # ... and the depth moves
+    assert np.ptp(ref.curve.dz) > 1e-6 * ref.details.depth  # ... and the depth moves
 
 
 def test_squeeze_to_a_force_then_hold_the_depth_equals_the_depth_controlled_model():
     h = rough(14, seed=9)
     by_force = squeeze_pull_coupled(h, force=5.0, lam=0.2, nu=0.25, pull_control="depth")
-    by_depth = squeeze_pull_coupled(h, depth=by_force.depth, lam=0.2, nu=0.25)
+    by_depth = squeeze_pull_coupled(h, depth=by_force.details.depth, lam=0.2, nu=0.25)
     assert by_force.normal_force == pytest.approx(5.0, rel=1e-12)
     assert [(e.kind, e.site) for e in by_force.events] == \
         [(e.kind, e.site) for e in by_depth.events]
-    assert np.allclose(by_force.fx, by_depth.fx, rtol=1e-8, atol=1e-12)
-    assert np.allclose(by_force.dz, by_force.depth) and by_force.pull_control == "depth"
+    assert np.allclose(by_force.curve.fx, by_depth.curve.fx, rtol=1e-8, atol=1e-12)
+    assert np.allclose(by_force.curve.dz, by_force.details.depth)
+    assert by_force.details.pull_control == "depth"
     # a depth-controlled squeeze with a force-held pull holds the squeezed force
-    held = squeeze_pull_coupled(h, depth=by_force.depth, lam=0.2, nu=0.25,
+    held = squeeze_pull_coupled(h, depth=by_force.details.depth, lam=0.2, nu=0.25,
                                 pull_control="force")
-    assert np.allclose(held.fz, held.normal_force, rtol=1e-10)
-    assert held.depth == pytest.approx(by_force.depth, rel=1e-12)
+    assert np.allclose(held.curve.fz, held.normal_force, rtol=1e-10)
+    assert held.details.depth == pytest.approx(by_force.details.depth, rel=1e-12)
 
 
 @pytest.mark.parametrize("history", HISTORIES.names())
@@ -261,9 +267,9 @@ def test_force_held_pull_at_half_poisson_ratio_is_the_decoupled_pull_at_that_loa
                              history=history)
     normal = squeeze(h, force=2.0, nu=0.5, tol=1e-13)
     d = pull(normal, lam=0.2, method="inverse", early_stop=False, block=8)
-    assert c.depth == pytest.approx(normal.depth, rel=1e-10)
-    assert np.allclose(c.dz, normal.depth, rtol=1e-10)
-    assert [e.site for e in c.events[1:]] == d.broken_site.tolist()
+    assert c.details.depth == pytest.approx(normal.depth, rel=1e-10)
+    assert np.allclose(c.curve.dz, normal.depth, rtol=1e-10)
+    assert [e.site for e in c.events[1:]] == d.curve.site[1:].tolist()
     assert c.friction_force == pytest.approx(d.friction_force, rel=1e-9)
 
 
@@ -291,16 +297,16 @@ def test_contacts_gained_while_pulling_enter_by_the_chosen_rule():
     gained = [e.site for e in unb.events if e.kind == "gained"]
     assert gained and gained == [e.site for e in bon.events if e.kind == "gained"]
     for res, bonded in ((unb, False), (bon, True)):
-        fscale = max(float(np.abs(s[1]).max()) for s in res.states)
-        for k, (e, (_D, fz, fx, g, C, S)) in enumerate(zip(res.events, res.states,
+        fscale = max(float(np.abs(s[1]).max()) for s in res.details.states)
+        for k, (e, (_D, fz, fx, g, C, S)) in enumerate(zip(res.events, res.details.states,
                                                             strict=True)):
             assert np.all(fz[C] >= -1e-8 * fscale) and np.all(g[~C] >= -1e-8)
             assert np.all(np.abs(fx[S]) <= 0.3 * fz[S] + 1e-8 * fscale)
             if e.kind == "gained":  # the state after it is the next one recorded
-                after = res.states[k + 1]
+                after = res.details.states[k + 1]
                 assert after[4].flat[e.site] and after[5].flat[e.site] == bonded
     # a new bond starts with no force: it never jumps the totals
-    for e, s in zip(bon.events, bon.states, strict=True):
+    for e, s in zip(bon.events, bon.details.states, strict=True):
         if e.kind == "gained":
             assert s[2].flat[e.site] == 0.0
     ref = squeeze_pull_coupled(h, gained="bonded", method="dense", reference=True, depth=1.4,
@@ -308,8 +314,9 @@ def test_contacts_gained_while_pulling_enter_by_the_chosen_rule():
     cg = squeeze_pull_coupled(h, gained="bonded", method="cg", tol=1e-13, depth=1.4, lam=0.3,
                               nu=0.25)
     assert [(e.kind, e.site) for e in cg.events] == [(e.kind, e.site) for e in ref.events]
-    assert np.allclose(cg.dx, ref.dx, rtol=1e-8, atol=1e-12)
-    assert np.allclose(cg.fx, ref.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
+    assert np.allclose(cg.curve.dx, ref.curve.dx, rtol=1e-8, atol=1e-12)
+    assert np.allclose(cg.curve.fx, ref.curve.fx, rtol=1e-8,
+                       atol=1e-10 * np.abs(ref.curve.fx).max())
     assert [(e.kind, e.site) for e in bon.events] == [(e.kind, e.site) for e in ref.events]
     with pytest.raises(InputError, match="gained"):
         squeeze_pull_coupled(h, depth=1.4, gained="sticky")
@@ -505,10 +512,11 @@ def test_bulk_passes_by_cg_then_the_updated_inverse_match_the_reference(monkeypa
     # the bulk passes ran matrix-free: the overlap always has tensile sites, so a pass that
     # removes them is followed by at least one more
     assert len(bulk_solves) >= 2
-    assert fast.converged and ref.converged and fast.released == ref.released
+    assert fast.converged and ref.converged and fast.details.released == ref.details.released
     assert [(e.kind, e.site) for e in fast.events] == [(e.kind, e.site) for e in ref.events]
     assert fast.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
-    np.testing.assert_allclose(fast.fz0, ref.fz0, rtol=0, atol=1e-8 * np.abs(ref.fz0).max())
+    np.testing.assert_allclose(fast.start.fz, ref.start.fz, rtol=0,
+                               atol=1e-8 * np.abs(ref.start.fz).max())
     assert fast.residual <= 1e-11
 
 
@@ -517,11 +525,13 @@ def _coulomb_admissible(res, lam):
     """Every recorded state: the constraints of the break law on contact and stick sites, and
     on the other contact sites either no tangential force (never bonded) or exactly
     f_x = +-lam f_z (a slipping bond). Forces to 1e-8 of the largest, gaps to 1e-8 of the
-    depth (the gaps' scale: the highest point is at -depth)."""
-    fscale = max(float(np.abs(s[1]).max()) for s in res.states)
-    gtol = 1e-8 * res.depth
+    depth (the gaps' scale: the highest point is at -depth). ``res``: a pull's result or an
+    indentation's."""
+    out = getattr(res, "details", res)  # a pull's states are in its details
+    fscale = max(float(np.abs(s[1]).max()) for s in out.states)
+    gtol = 1e-8 * out.depth
     slipping = 0
-    for _D, fz, fx, g, C, S in res.states:
+    for _D, fz, fx, g, C, S in out.states:
         tol = 1e-8 * fscale
         assert np.all(fz[C] >= -tol) and np.all(fz[~C] == 0) and np.all(fx[~C] == 0)
         assert np.all(g[~C] >= -gtol) and np.all(np.abs(g[C]) <= gtol)
@@ -546,20 +556,20 @@ def test_coulomb_law_agrees_between_the_solvers_and_the_direct_reference(nu):
     inc = squeeze_pull_coupled(h, method="dense", **kw)
     fft = squeeze_pull_coupled(h, method="cg", tol=1e-13, **kw)
     assert ref.converged and inc.converged and fft.converged and ref.slip_law == "coulomb"
-    assert len(ref.events) + ref.released > 20
+    assert len(ref.events) + ref.details.released > 20
     for other in (inc, fft):
         _assert_same_path(other, ref)
         assert other.residual <= 10 * 1e-12
-    assert inc.slip_iterations > 0 and ref.slip_iterations == 0
+    assert inc.details.slip_iterations > 0 and ref.details.slip_iterations == 0
     assert _coulomb_admissible(ref, 0.25) > 10
-    _D, fz, fx, _g, C, S = ref.states[-1]  # as the last bond reaches its bound
+    _D, fz, fx, _g, C, S = ref.details.states[-1]  # as the last bond reaches its bound
     bonded = C & (fx != 0)
     assert S.sum() == 1 and np.allclose(fx[bonded], 0.25 * fz[bonded], rtol=1e-10)
-    assert ref.fx[-1] == pytest.approx(fx.sum(), rel=1e-12)
+    assert ref.curve.fx[-1] == pytest.approx(fx.sum(), rel=1e-12)
     # bonds released backwards by the squeeze stick again when the pull turns their slip
     # around, and slip forwards at last: at full sliding every bond pulls with +lam f_z
     kinds = [e.kind for e in ref.events]
-    assert "stick" in kinds and kinds[-1] == "slip+" and ref.released > 0
+    assert "stick" in kinds and kinds[-1] == "slip+" and ref.details.released > 0
     # a slipping bond keeps its friction: the Coulomb pull force exceeds the break law's
     brk = squeeze_pull_coupled(h, depth=2.5, lam=0.25, nu=nu)
     assert ref.friction_force > brk.friction_force
@@ -600,10 +610,11 @@ def test_coulomb_law_under_load_control_and_with_bonded_gains():
     inc = squeeze_pull_coupled(h, method="dense", **kw)
     assert ref.converged and inc.converged
     assert [(e.kind, e.site) for e in inc.events] == [(e.kind, e.site) for e in ref.events]
-    assert np.allclose(inc.fx, ref.fx, rtol=1e-8, atol=1e-10 * np.abs(ref.fx).max())
-    assert np.allclose(inc.dz, ref.dz, rtol=1e-8)
+    assert np.allclose(inc.curve.fx, ref.curve.fx, rtol=1e-8,
+                       atol=1e-10 * np.abs(ref.curve.fx).max())
+    assert np.allclose(inc.curve.dz, ref.curve.dz, rtol=1e-8)
     _assert_same_path(inc, ref)
-    assert np.allclose(ref.fz, 12.0, rtol=1e-10)
+    assert np.allclose(ref.curve.fz, 12.0, rtol=1e-10)
     assert _coulomb_admissible(ref, 0.3) > 0
 
 
@@ -620,12 +631,12 @@ def test_coulomb_law_at_half_poisson_ratio_is_the_decoupled_coulomb_pull(heights
     normal = squeeze(h, depth=depth, nu=0.5, tol=1e-13)
     d = pull(normal, lam=0.2, method="inverse", slip_law="coulomb")
     ev = c.events[1:]
-    assert c.released == 0 and len(ev) == d.steps
+    assert c.details.released == 0 and len(ev) == d.steps
     if heights == "rough":  # on the sphere, symmetric sites tie: the order among them is free
-        assert [e.site for e in ev] == d.broken_site.tolist()
-    assert sorted(e.site for e in ev) == sorted(d.broken_site.tolist())
-    assert np.allclose([e.dx for e in ev], d.dx_lim, rtol=1e-9)
-    assert np.allclose([e.fx for e in ev], d.fx_lim, rtol=1e-9)
+        assert [e.site for e in ev] == d.curve.site[1:].tolist()
+    assert sorted(e.site for e in ev) == sorted(d.curve.site[1:].tolist())
+    assert np.allclose([e.dx for e in ev], d.curve.dx[1:], rtol=1e-9)
+    assert np.allclose([e.fx for e in ev], d.curve.fx[1:], rtol=1e-9)
     assert c.friction_force == pytest.approx(d.friction_force, rel=1e-9)
     assert c.friction_force == pytest.approx(0.2 * normal.normal_force, rel=1e-9)
     with pytest.raises(InputError, match="slip_law"):
@@ -776,7 +787,7 @@ def test_the_coupled_squeeze_under_load_honours_the_squeeze_method():
     act = couple(p, force=6.0, lam=0.2, squeeze_method="active-set")
     assert act.friction_force == pytest.approx(pk.friction_force, rel=1e-9)
     assert act.normal_force == pytest.approx(6.0, rel=1e-10)
-    assert np.array_equal(act.contact0, pk.contact0)
+    assert np.array_equal(act.start.contact, pk.start.contact)
     with pytest.raises(InputError, match="method = 'nope': unknown squeeze method"):
         couple(p, force=6.0, lam=0.2, squeeze_method="nope")
 
@@ -907,6 +918,6 @@ def test_every_block_solver_follows_the_dense_reference(method, law):
         res = couple(pb, method=method, **kw)
         assert res.converged and res.method == method, res.message
         assert [(e.kind, e.site) for e in res.events] == [(e.kind, e.site) for e in ref.events]
-        scale = float(np.abs(ref.fz0).max())
-        assert np.allclose(res.fx, ref.fx, rtol=bound, atol=bound * scale)
+        scale = float(np.abs(ref.start.fz).max())
+        assert np.allclose(res.curve.fx, ref.curve.fx, rtol=bound, atol=bound * scale)
         assert res.friction_force == pytest.approx(ref.friction_force, rel=bound)

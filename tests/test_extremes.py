@@ -60,10 +60,10 @@ def test_tangential_punch_stiffness_at_extreme_nu(nu):
     h = 1.0 / ah
     normal = squeeze(punch((2 * ah + 2, 2 * ah + 2), radius=1.0, a=h), depth=1e-3, a=h, nu=nu)
     res = pull(normal, lam=0.3)
-    assert res.converged and np.isfinite(res.fx_lim).all()
+    assert res.converged and np.isfinite(res.curve.fx[1:]).all()
     a_eq = math.sqrt(normal.n_contact * h * h / math.pi)
     k = mindlin_bonded_punch_stiffness(a_eq, nu=nu)
-    err = (res.fx_lim[0] / res.dx_lim[0] - k) / k
+    err = (res.curve.fx[1:][0] / res.curve.dx[1:][0] - k) / k
     assert -0.2 * h < err < 0
 
 

@@ -62,13 +62,13 @@ def test_simultaneous_is_the_step_seven_rule_on_the_dense_matrix(nu):
     pb = Problem.from_arrays(rough(10, seed=4), nu=nu)
     fz, fx, C, S = _simultaneous_by_hand(pb, 1.6, 0.2)
     r = couple(pb, depth=1.6, lam=0.2, history="simultaneous", method="dense")
-    assert np.array_equal(r.contact0.ravel(), C) and np.array_equal(r.stick0.ravel(), S)
-    assert np.allclose(r.fz0.ravel(), fz, rtol=0, atol=1e-10 * fz.max())
-    assert np.allclose(r.fx0.ravel(), fx, rtol=0, atol=1e-10 * fz.max())
-    assert r.released == int((C & ~S).sum()) > 0
+    assert np.array_equal(r.start.contact.ravel(), C) and np.array_equal(r.start.stick.ravel(), S)
+    assert np.allclose(r.start.fz.ravel(), fz, rtol=0, atol=1e-10 * fz.max())
+    assert np.allclose(r.start.fx.ravel(), fx, rtol=0, atol=1e-10 * fz.max())
+    assert r.details.released == int((C & ~S).sum()) > 0
     # a different rule from one bond at a time: here it releases a different set
     one = couple(pb, depth=1.6, lam=0.2, history="bonded", method="dense")
-    assert one.squeeze_states > r.squeeze_states
+    assert one.details.squeeze_states > r.details.squeeze_states
 
 
 @pytest.mark.parametrize("nu", [0.0, 0.25, 0.45])
@@ -77,10 +77,11 @@ def test_frictionless_history_starts_from_the_frictionless_squeeze_with_no_tange
     pb = Problem.from_arrays(h, nu=nu)
     r = couple(pb, depth=1.5, lam=0.2, history="frictionless")
     normal = squeeze(h, depth=1.5, nu=nu, tol=1e-13)
-    assert r.released == 0
-    assert np.array_equal(r.contact0, normal.contact) and np.array_equal(r.stick0, r.contact0)
-    assert np.allclose(r.fz0, normal.fz, rtol=0, atol=1e-10 * normal.fz.max())
-    assert np.abs(r.fx0).max() <= 1e-10 * normal.fz.max()
+    assert r.details.released == 0
+    assert np.array_equal(r.start.contact, normal.contact)
+    assert np.array_equal(r.start.stick, r.start.contact)
+    assert np.allclose(r.start.fz, normal.fz, rtol=0, atol=1e-10 * normal.fz.max())
+    assert np.abs(r.start.fx).max() <= 1e-10 * normal.fz.max()
     assert r.events[0].fx == pytest.approx(0.0, abs=1e-10 * normal.normal_force)
 
 
@@ -89,13 +90,13 @@ def test_indent_history_starts_from_the_frictional_indentation(law):
     pb = Problem.from_arrays(rough(14, seed=8), nu=0.2)
     r = couple(pb, depth=1.4, lam=0.25, history="indent", slip_law=law)
     ind = indent(pb, depth=1.4, lam=0.25, slip_law=law)
-    assert np.array_equal(r.contact0, ind.contact) and np.array_equal(r.stick0, ind.stick)
+    assert np.array_equal(r.start.contact, ind.contact) and np.array_equal(r.start.stick, ind.stick)
     scale = ind.fz.max()
-    assert np.allclose(r.fz0, ind.fz, rtol=0, atol=1e-10 * scale)
-    assert np.allclose(r.fx0, ind.fx, rtol=0, atol=1e-10 * scale)
-    assert r.released == int((ind.contact & ~ind.stick).sum())
-    assert r.released > 0 or law == "coulomb"  # a slipping site may stick again
-    assert r.squeeze_states >= len(ind.events)
+    assert np.allclose(r.start.fz, ind.fz, rtol=0, atol=1e-10 * scale)
+    assert np.allclose(r.start.fx, ind.fx, rtol=0, atol=1e-10 * scale)
+    assert r.details.released == int((ind.contact & ~ind.stick).sum())
+    assert r.details.released > 0 or law == "coulomb"  # a slipping site may stick again
+    assert r.details.squeeze_states >= len(ind.events)
 
 
 @pytest.mark.parametrize("history", HISTORIES.names())
@@ -104,10 +105,10 @@ def test_every_history_holds_the_normal_force_under_load_control(history):
     r = couple(pb, force=3.0, lam=0.2, history=history, pull_control="force")
     assert r.converged
     assert r.normal_force == pytest.approx(3.0, rel=1e-10)
-    assert np.allclose(r.fz, 3.0, rtol=1e-9)
-    by_depth = couple(pb, depth=r.depth, lam=0.2, history=history)
+    assert np.allclose(r.curve.fz, 3.0, rtol=1e-9)
+    by_depth = couple(pb, depth=r.details.depth, lam=0.2, history=history)
     # the same squeeze reached through its depth: the same state at D_x = 0
-    assert np.array_equal(by_depth.stick0, r.stick0)
+    assert np.array_equal(by_depth.start.stick, r.start.stick)
     assert by_depth.normal_force == pytest.approx(3.0, rel=1e-9)
 
 
@@ -116,8 +117,8 @@ def test_the_histories_differ_where_the_coupling_acts():
     and holds the most, the others release bonds."""
     pb = Problem.from_arrays(rough(16, seed=5), nu=0.25)
     out = {h: couple(pb, depth=1.6, lam=0.2, history=h) for h in HISTORIES.names()}
-    assert out["frictionless"].released == 0
-    assert all(out[h].released > 0 for h in ("bonded", "simultaneous", "indent"))
+    assert out["frictionless"].details.released == 0
+    assert all(out[h].details.released > 0 for h in ("bonded", "simultaneous", "indent"))
     assert out["frictionless"].friction_force > max(
         out[h].friction_force for h in ("bonded", "simultaneous", "indent"))
 
@@ -171,7 +172,7 @@ def test_a_coulomb_pull_ends_in_the_one_full_sliding_state_of_its_bonds(seed):
                    tol=tol)
         assert r.converged, r.message
         # contacts without a bond at D_x = 0 carry exactly nothing (no slip force is set)
-        bond = ~(r.contact0 & ~r.stick0 & (r.fx0 == 0)).ravel()
+        bond = ~(r.start.contact & ~r.start.stick & (r.start.fx == 0)).ravel()
         M = Gzz + lam * Gzx * bond[None, :]
         fz = _murty(M, -ubar)
         C = fz > 0
@@ -225,7 +226,7 @@ def test_a_bond_gained_with_no_force_fails_before_its_contact_is_lost():
     assert degenerate  # the scene has one (site 67)
     for k in degenerate:
         j = ev[k].site
-        _, _, fx, _, C, S = r.states[k]  # the state the gain ends
+        _, _, fx, _, C, S = r.details.states[k]  # the state the gain ends
         C, S = C.ravel().copy(), S.ravel().copy()
         sigma = np.where(C & ~S, np.sign(fx.ravel()), 0.0)
         ok = {}

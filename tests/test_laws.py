@@ -15,6 +15,7 @@ from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import InputError
 from roughslip.friction.laws import LAWS, CoulombLaw
 from roughslip.friction.pull import pull
+from roughslip.friction.result import CoupledDetails, DecoupledDetails, PullResult
 from roughslip.surfaces.synthetic import sample_rng, self_affine
 
 
@@ -50,11 +51,13 @@ def _problem(n: int = 24, nu: float = 0.25, seed: int = 4) -> Problem:
 
 def _same(a, b) -> None:
     for name in ("dx", "fx", "fz", "dz"):
-        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+        assert getattr(a.curve, name).tobytes() == getattr(b.curve, name).tobytes(), name
     assert [e.kind for e in a.events] == [e.kind for e in b.events]
     assert [e.site for e in a.events] == [e.site for e in b.events]
-    for name in ("fz0", "fx0", "fz_peak", "fx_peak"):
-        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+    for state in ("start", "peak"):
+        for name in ("fz", "fx"):
+            assert getattr(getattr(a, state), name).tobytes() == getattr(
+                getattr(b, state), name).tobytes(), (state, name)
 
 
 def test_a_registered_law_at_its_coulomb_limit_gives_the_coulomb_numbers(kinetic):
@@ -77,11 +80,12 @@ def test_a_registered_law_matches_the_dense_reference_and_its_own_bound(kinetic)
                   record_states=True)
     assert [e.kind for e in fast.events] == [e.kind for e in ref.events]
     assert fast.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
-    np.testing.assert_allclose(fast.fx, ref.fx, rtol=1e-7, atol=1e-9 * np.abs(ref.fx).max())
+    np.testing.assert_allclose(fast.curve.fx, ref.curve.fx, rtol=1e-7,
+                               atol=1e-9 * np.abs(ref.curve.fx).max())
     kinds = {e.kind for e in fast.events}
     assert {"slip+"} <= kinds
     slipping = 0
-    for (_, fz, fx, _, C, S) in fast.states:
+    for (_, fz, fx, _, C, S) in fast.details.states:
         P = C & ~S & (fx != 0)
         slipping += int(P.sum())
         np.testing.assert_allclose(np.abs(fx[P]), 0.6 * lam * fz[P], rtol=1e-12)
@@ -126,23 +130,30 @@ def test_the_configuration_offers_the_registered_laws():
     assert LAWS.summary("coulomb") in meta["doc"]
 
 
-def test_the_pull_and_the_coupled_model_share_their_curve_and_peak_names():
-    """Both results give the same curve type (D_x, F_x, F_z, D_z, kind, site per event) and
-    the same peak fields; at nu = 1/2 the Coulomb curves are the same events."""
+def test_the_pull_and_the_coupled_model_give_one_result_type():
+    """Both models return a PullResult whose curve starts at D_x = 0 (D_x, F_x, F_z, D_z, kind,
+    site per event); at nu = 1/2 the Coulomb curves are the same events, and the peaks the
+    same states."""
     p = _problem(n=20, nu=0.5)
     c = couple(p, depth=1.2, lam=0.3, slip_law="coulomb")
     normal = squeeze(p.heights, depth=1.2, nu=0.5, tol=1e-13)
     d = pull(normal, lam=0.3, slip_law="coulomb", tol=1e-13)
+    assert type(c) is type(d) is PullResult
+    assert isinstance(c.details, CoupledDetails) and isinstance(d.details, DecoupledDetails)
     cc, dc = c.curve, d.curve
-    assert type(cc) is type(dc)
-    assert cc.kind[0] == "start" and set(cc.kind[1:]) <= {"slip+", "slip-"}
-    assert dc.kind == cc.kind[1:]
-    np.testing.assert_array_equal(dc.site, cc.site[1:])
-    np.testing.assert_allclose(dc.dx, cc.dx[1:], rtol=1e-7)
-    np.testing.assert_allclose(dc.fx, cc.fx[1:], rtol=1e-7)
-    np.testing.assert_allclose(dc.fz, cc.fz[1:], rtol=1e-7)
-    for name in ("friction_force", "peak_dx", "fx_peak", "stick_peak", "fx_at_peak",
-                 "stick_at_peak", "normal_force_at_peak"):
-        assert hasattr(c, name) and hasattr(d, name), name
-    broken = pull(normal, lam=0.3).curve
-    assert set(broken.kind) == {"break"} and np.all(np.isnan(broken.dz))
+    assert cc.kind == dc.kind and cc.kind[0] == "start"
+    assert set(cc.kind[1:]) <= {"slip+", "slip-"}
+    np.testing.assert_array_equal(dc.site, cc.site)
+    for name in ("dx", "fx", "fz", "dz"):
+        np.testing.assert_allclose(getattr(dc, name), getattr(cc, name), rtol=1e-7,
+                                   err_msg=name)
+    assert c.peak_event == d.peak_event == dc.dx.size - 1  # Coulomb: full sliding
+    for r in (c, d):
+        assert r.peak_dx == r.curve.dx[r.peak_event]
+        assert r.steps == r.curve.dx.size - 1
+    np.testing.assert_allclose(d.peak.fx, c.peak.fx, rtol=1e-7, atol=1e-12)
+    np.testing.assert_array_equal(d.start.contact, c.start.contact)
+    broken = pull(normal, lam=0.3)
+    assert broken.curve.kind[0] == "start" and set(broken.curve.kind[1:]) == {"break"}
+    assert broken.curve.fx[broken.peak_event] == broken.friction_force
+    assert np.all(broken.curve.dz == normal.depth)  # the decoupled pull holds the depth

@@ -196,22 +196,22 @@ def pairs():
 
 def test_at_least_twenty_scenes_with_ties_and_near_ties(pairs):
     assert len(pairs) >= 20
-    assert min(d.n_bonds for d, _ in pairs.values()) >= 20
+    assert min(d.details.n_bonds for d, _ in pairs.values()) >= 20
 
 
 @pytest.mark.parametrize("name", [s[0] for s in SCENES])
 def test_single_precision_gives_the_double_break_sequence(pairs, name):
     d, s = pairs[name]
-    assert (d.precision, s.precision) == ("double", "single")
-    np.testing.assert_array_equal(s.broken_site, d.broken_site)
-    assert s.peak_index == d.peak_index
+    assert (d.details.precision, s.details.precision) == ("double", "single")
+    np.testing.assert_array_equal(s.curve.site[1:], d.curve.site[1:])
+    assert s.peak_event == d.peak_event
     assert abs(s.friction_force - d.friction_force) <= 1e-10 * abs(d.friction_force)
-    np.testing.assert_array_equal(s.stick_at_peak, d.stick_at_peak)
-    np.testing.assert_allclose(s.fx_at_peak, d.fx_at_peak, rtol=0,
-                               atol=1e-9 * np.abs(d.fx_at_peak).max())
+    np.testing.assert_array_equal(s.peak.stick, d.peak.stick)
+    np.testing.assert_allclose(s.peak.fx, d.peak.fx, rtol=0,
+                               atol=1e-9 * np.abs(d.peak.fx).max())
     # the other points of the curve carry the single-precision error, inside their bound
     bound = float(s.message.split("curve points within ")[1].split(" ")[0])
-    assert np.all(np.abs(s.fx_lim - d.fx_lim) <= bound * np.abs(d.fx_lim) + 1e-300)
+    assert np.all(np.abs(s.curve.fx - d.curve.fx) <= bound * np.abs(d.curve.fx) + 1e-300)
     assert s.converged and d.converged
     assert "bound exceeded 0 times" in s.message
 
@@ -243,12 +243,12 @@ def test_memory_guard_knows_both_precisions():
     n = Bonds(normal, 0.2).n
     double, single = inverse_memory_bytes(n), inverse_memory_bytes(n, precision="single")
     ref = pull(normal)
-    assert (ref.method, ref.precision) == ("inverse", "double")
+    assert (ref.method, ref.details.precision) == ("inverse", "double")
     with memory.limited((single + double) / 2 / 2**30):
         with pytest.raises(MemoryLimitError, match="precision 'single'"):
             pull(normal, method="inverse", precision="double")
         res = pull(normal)
-        assert (res.method, res.precision) == ("inverse", "single")
+        assert (res.method, res.details.precision) == ("inverse", "single")
         assert res.friction_force == pytest.approx(ref.friction_force, rel=1e-10)
     with memory.limited(single / 2 / 2**30):
         with pytest.raises(MemoryLimitError, match="single precision"):
@@ -301,6 +301,6 @@ def test_tiny_contacts_in_single_precision(depth):
     normal = squeeze(sphere((9, 9), radius=20.0), depth=depth, tol=1e-13)
     d = pull(normal, method="inverse", precision="double")
     s = pull(normal, precision="single")
-    assert s.method == "inverse" and s.precision == "single"
-    np.testing.assert_array_equal(s.broken_site, d.broken_site)
+    assert s.method == "inverse" and s.details.precision == "single"
+    np.testing.assert_array_equal(s.curve.site[1:], d.curve.site[1:])
     assert abs(s.friction_force - d.friction_force) <= 1e-10 * abs(d.friction_force)

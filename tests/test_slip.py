@@ -48,15 +48,16 @@ def literal(rough_contact, hertz_contact):
 def test_fast_exact_methods_equal_literal(rough_contact, hertz_contact, literal, scene, method):
     normal = rough_contact if scene == "rough" else hertz_contact
     ref = literal[scene]
-    assert ref.n_bonds > 40 and ref.steps == ref.n_bonds and not ref.early_stopped
+    assert ref.details.n_bonds > 40 and ref.steps == ref.details.n_bonds
+    assert not ref.details.early_stopped
     res = pull(normal, lam=0.2, method=method, tol=1e-12, block=16)
-    assert res.converged and math.isnan(res.error_estimate)  # not asked for: not estimated
+    assert res.converged and math.isnan(res.details.error_estimate)  # not asked for: not estimated
     assert res.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
-    assert res.peak_index == ref.peak_index
+    assert res.peak_event == ref.peak_event
     k = res.steps
-    assert np.array_equal(res.broken_site, ref.broken_site[:k])
-    assert np.allclose(res.fx_lim, ref.fx_lim[:k], rtol=1e-8)
-    assert np.array_equal(res.stick_at_peak, ref.stick_at_peak)
+    assert np.array_equal(res.curve.site[1:], ref.curve.site[1:][:k])
+    assert np.allclose(res.curve.fx[1:], ref.curve.fx[1:][:k], rtol=1e-8)
+    assert np.array_equal(res.peak.stick, ref.peak.stick)
 
 
 @pytest.fixture(scope="module")
@@ -101,21 +102,21 @@ def test_error_bound_is_condition_times_residual(rough_contact):
     tol = 1e-12
     res = pull(rough_contact, method="inverse", tol=tol, estimate_error=True)
     lo, hi = bond_spectrum(rough_contact)
-    assert res.condition == hi / lo and res.condition > 1
-    assert res.error_bound == res.condition * res.residual
+    assert res.details.condition == hi / lo and res.details.condition > 1
+    assert res.details.error_bound == res.details.condition * res.residual
     # the peak state is certified (residual > 0 even with fewer breaks than one block), and
     # converged means every certification met tol
     assert res.steps < 128 and res.converged and 0 < res.residual <= tol
     again = pull(rough_contact, method="inverse", tol=tol, estimate_error=True)
-    assert (again.condition, again.error_bound, again.error_estimate) == (
-        res.condition, res.error_bound, res.error_estimate)
+    assert (again.details.condition, again.details.error_bound, again.details.error_estimate) == (
+        res.details.condition, res.details.error_bound, res.details.error_estimate)
     cg = pull(rough_contact, method="cg", tol=1e-9, estimate_error=True)
-    assert cg.error_bound == pytest.approx(cg.condition * cg.residual)
+    assert cg.details.error_bound == pytest.approx(cg.details.condition * cg.residual)
     # here the bounds cover the measured difference between the two exact methods
     diff = abs(cg.friction_force - res.friction_force) / res.friction_force
-    assert diff <= cg.error_bound + res.error_bound
+    assert diff <= cg.details.error_bound + res.details.error_bound
     plain = pull(rough_contact, method="inverse")
-    assert math.isnan(plain.condition) and math.isnan(plain.error_bound)
+    assert math.isnan(plain.details.condition) and math.isnan(plain.details.error_bound)
 
 
 @pytest.mark.parametrize("method", ["cg", "literal"])
@@ -128,18 +129,19 @@ def test_error_estimate_is_within_a_factor_two_of_the_truth(rough_contact, metho
     err = abs(res.friction_force - ref.friction_force) / ref.friction_force
     assert err > 1e-12  # the loose solve has a measurable error
     # the reference shares the squeeze: the pull's own part is the comparable one
-    assert err / 2 <= res.solve_error_estimate <= 2 * err
-    assert res.error_estimate == res.solve_error_estimate + res.normal_error_estimate
-    assert res.error_bound >= err
+    assert err / 2 <= res.details.solve_error_estimate <= 2 * err
+    est = res.details
+    assert est.error_estimate == est.solve_error_estimate + est.normal_error_estimate
+    assert res.details.error_bound >= err
 
 
 def test_error_estimate_of_the_inverse_is_at_rounding(rough_contact):
     res = pull(rough_contact, method="inverse", tol=1e-10, estimate_error=True)
-    assert 0 <= res.solve_error_estimate < 1e-14
-    assert 0 < res.normal_error_estimate < 1e-10  # the squeeze, at 1e-12, dominates
+    assert 0 <= res.details.solve_error_estimate < 1e-14
+    assert 0 < res.details.normal_error_estimate < 1e-10  # the squeeze, at 1e-12, dominates
     coulomb = pull(rough_contact, slip_law="coulomb", estimate_error=True)
-    assert coulomb.solve_error_estimate == 0.0  # lambda F_n does not depend on the solves
-    assert coulomb.error_estimate == coulomb.normal_error_estimate
+    assert coulomb.details.solve_error_estimate == 0.0  # lambda F_n does not depend on the solves
+    assert coulomb.details.error_estimate == coulomb.details.normal_error_estimate
     with pytest.raises(InputError, match="break-law"):
         refinement_estimate(rough_contact, coulomb)
 
@@ -147,26 +149,27 @@ def test_error_estimate_of_the_inverse_is_at_rounding(rough_contact):
 def test_early_stop_is_exact(rough_contact):
     full = pull(rough_contact, method="inverse", early_stop=False, block=8)
     fast = pull(rough_contact, method="inverse", early_stop=True, block=8)
-    assert full.steps == full.n_bonds and fast.early_stopped and fast.steps < full.steps
+    assert full.steps == full.details.n_bonds
+    assert fast.details.early_stopped and fast.steps < full.steps
     assert fast.friction_force == full.friction_force
 
 
 def test_pull_curve_maximum_and_peak_state(rough_contact):
     res = pull(rough_contact, lam=0.3)
-    assert res.friction_force == res.fx_lim.max() == res.fx_lim[res.peak_index]
+    assert res.friction_force == res.curve.fx.max() == res.curve.fx[res.peak_event]
     # the forces at the peak sum to the friction force; only stick sites carry them
-    assert res.fx_at_peak.sum() == pytest.approx(res.friction_force, rel=1e-10)
-    assert np.all(res.fx_at_peak[~res.stick_at_peak] == 0)
+    assert res.peak.fx.sum() == pytest.approx(res.friction_force, rel=1e-10)
+    assert np.all(res.peak.fx[~res.peak.stick] == 0)
     # the peak bond sits at its limit, every other one below it
-    ratio = np.abs(res.fx_at_peak[res.stick_at_peak]) / (0.3 * rough_contact.fz[
-        res.stick_at_peak])
+    ratio = np.abs(res.peak.fx[res.peak.stick]) / (0.3 * rough_contact.fz[
+        res.peak.stick])
     assert ratio.max() == pytest.approx(1.0, rel=1e-10)
-    assert res.stick_at_peak.sum() == res.n_bonds - res.peak_index
+    assert res.peak.stick.sum() == res.details.n_bonds + 1 - res.peak_event
 
 
 def test_hertz_stick_forces_are_positive(hertz_contact):
     res = pull(hertz_contact, lam=0.2)
-    f = res.fx_at_peak[res.stick_at_peak]
+    f = res.peak.fx[res.peak.stick]
     assert f.size > 0 and np.all(f > 0)
 
 
@@ -175,8 +178,8 @@ def test_lambda_scaling(rough_contact):
     for s in (1e-6, 3.0, 1e4):
         b = pull(rough_contact, lam=0.2 * s)
         assert b.friction_force == pytest.approx(s * a.friction_force, rel=1e-10)
-        assert np.array_equal(b.broken_site, a.broken_site)
-        assert np.allclose(b.dx_lim, s * a.dx_lim, rtol=1e-10)
+        assert np.array_equal(b.curve.site[1:], a.curve.site[1:])
+        assert np.allclose(b.curve.dx[1:], s * a.curve.dx[1:], rtol=1e-10)
 
 
 def test_deterministic_tie_breaking_lowest_flat_index():
@@ -186,35 +189,36 @@ def test_deterministic_tie_breaking_lowest_flat_index():
     assert normal.n_contact >= 12
     for method in ("literal", "inverse", "cg"):
         res = pull(normal, method=method, tol=1e-13)
-        fx = res.fx_at_peak
-        first = res.broken_site[0]
+        fx = res.peak.fx
+        first = res.curve.site[1:][0]
         # the first bond to break is the lowest flat index among the equal maxima
         iy, ix = divmod(int(first), 8)
         twins = {(iy, 7 - ix), (7 - iy, ix), (7 - iy, 7 - ix)}
         assert all(first <= y * 8 + x for y, x in twins)
         assert np.isfinite(fx).all()
-    seqs = {tuple(pull(normal, method=m, tol=1e-13).broken_site[:6])
+    seqs = {tuple(pull(normal, method=m, tol=1e-13).curve.site[1:7])
             for m in ("literal", "inverse", "cg")}
     assert len(seqs) == 1
 
 
 def test_only_sites_with_positive_normal_force_are_bonds(rough_contact):
     res = pull(rough_contact)
-    assert res.n_bonds == int(np.count_nonzero(rough_contact.fz > 0))
-    assert np.all(rough_contact.fz.ravel()[res.broken_site] > 0)
+    assert res.details.n_bonds == int(np.count_nonzero(rough_contact.fz > 0))
+    assert np.all(rough_contact.fz.ravel()[res.curve.site[1:]] > 0)
 
 
 def test_single_bond_and_full_contact():
     h = self_affine((10, 10), hurst=0.7, rms_height=1.0, rng=sample_rng(2, 0))
     one = squeeze(h, depth=1e-9)
     res = pull(one, lam=0.25)
-    assert res.n_bonds == 1 and res.steps == 1
+    assert res.details.n_bonds == 1 and res.steps == 1
     assert res.friction_force == pytest.approx(0.25 * one.normal_force, rel=1e-12)
     full = squeeze(h, depth=30 * (h.max() - h.min()))
     assert full.contact.all()
     for method in ("inverse", "cg", "literal"):
         r = pull(full, lam=0.25, method=method, tol=1e-11)
-        assert r.n_bonds == 100 and r.converged and 0 < r.friction_force <= 0.25 * full.normal_force
+        assert r.details.n_bonds == 100 and r.converged
+        assert 0 < r.friction_force <= 0.25 * full.normal_force
     assert pull(full, method="inverse").friction_force == pytest.approx(
         pull(full, method="literal", tol=1e-12).friction_force, rel=1e-8)
 
@@ -234,7 +238,7 @@ def test_bonded_punch_follows_mindlin_before_the_first_break():
     res = pull(normal, lam=0.3)
     a_eq = math.sqrt(normal.n_contact * h * h / math.pi)
     k_exact = mindlin_bonded_punch_stiffness(a_eq, nu=nu)
-    err = (res.fx_lim[0] / res.dx_lim[0] - k_exact) / k_exact
+    err = (res.curve.fx[1:][0] / res.curve.dx[1:][0] - k_exact) / k_exact
     assert -0.2 * h < err < 0, f"bonded punch stiffness off by {err:.3e}"
 
 
@@ -247,13 +251,13 @@ def test_coulomb_matches_cattaneo_mindlin(a_over_h):
     res = pull(normal, lam=lam, slip_law="coulomb", block=64)
     P = normal.normal_force
     assert res.converged and res.friction_force == pytest.approx(lam * P, rel=1e-12)
-    assert np.all(np.diff(res.fx_lim) >= -1e-12 * lam * P)  # Q(delta) never decreases
+    assert np.all(np.diff(res.curve.fx[1:]) >= -1e-12 * lam * P)  # Q(delta) never decreases
     cm = cattaneo_mindlin(P, ac, lam, nu=nu)
     for frac in (0.3, 0.7):
         q = float(coulomb_force_at(res, frac * cm.delta_s))
         q_exact = cm.force(frac * cm.delta_s)
         assert abs(q - q_exact) / (lam * P) < 3e-3, "Cattaneo-Mindlin tangential force"
-        stick = int(np.count_nonzero(res.dx_lim > frac * cm.delta_s))
+        stick = int(np.count_nonzero(res.curve.dx[1:] > frac * cm.delta_s))
         c_eq = math.sqrt(stick * h * h / math.pi)
         c = cm.stick_radius(q_exact)
         assert abs(c_eq - c) < 1.5 * h, "Cattaneo-Mindlin stick radius"
@@ -262,17 +266,17 @@ def test_coulomb_matches_cattaneo_mindlin(a_over_h):
 def test_batch_is_approximate_and_says_so(rough_contact):
     exact = pull(rough_contact, method="inverse")
     approx = pull(rough_contact, method="batch", batch_size=8)
-    assert approx.method == "batch" and math.isnan(approx.error_estimate)
+    assert approx.method == "batch" and math.isnan(approx.details.error_estimate)
     assert approx.friction_force <= exact.friction_force * (1 + 1e-12)
     assert "no error estimate" in approx.message
     # asked for, it still has none: its error is a staircase in the batch size
     asked = pull(rough_contact, method="batch", batch_size=8, estimate_error=True)
-    assert math.isnan(asked.error_estimate) and asked.condition > 1
+    assert math.isnan(asked.details.error_estimate) and asked.details.condition > 1
 
 
 def test_auto_records_its_choice(rough_contact):
     res = pull(rough_contact)
-    assert res.method == choose_method(res.n_bonds) == "inverse"
+    assert res.method == choose_method(res.details.n_bonds) == "inverse"
     assert "auto chose inverse" in res.message
     assert choose_method(10) == "literal"
     assert choose_method(10**6, memory=2**30) == "cg"
@@ -316,8 +320,8 @@ def test_error_estimate_covers_the_squeeze(slip_law, squeeze_tol):
     res = pull(loose, method="inverse", tol=1e-10, slip_law=slip_law, estimate_error=True)
     err = abs(res.friction_force - ref.friction_force) / ref.friction_force
     assert err > 1e-12
-    assert 0.9 * err <= res.error_estimate <= 1.1 * err
-    assert res.normal_error_estimate > 100 * res.solve_error_estimate
+    assert 0.9 * err <= res.details.error_estimate <= 1.1 * err
+    assert res.details.normal_error_estimate > 100 * res.details.solve_error_estimate
     assert "normal forces" in res.message
 
 
@@ -327,14 +331,16 @@ def test_coulomb_force_at_follows_the_drive_past_an_avalanche():
     backwards), and a break-law result is refused."""
     from dataclasses import replace
 
-    from roughslip.friction.bonds import SlipResult
+    from roughslip.friction.result import DecoupledDetails, PullResult, PullState, start_curve
 
     z = np.zeros((1, 3))
-    res = SlipResult(friction_force=5.0, peak_index=3, dx_lim=np.array([1.0, 2.0, 1.5, 3.0]),
-                     fx_lim=np.array([1.0, 3.0, 2.5, 5.0]), broken_site=np.arange(4),
-                     stick_at_peak=z.astype(bool), fx_at_peak=z, converged=True, seconds=0.0,
-                     method="inverse", slip_law="coulomb",
-                     kinds=("slip+", "slip+", "slip+", "slip+"))
+    curve = start_curve(np.array([1.0, 2.0, 1.5, 3.0]), np.array([1.0, 3.0, 2.5, 5.0]),
+                        ("slip+",) * 4, np.arange(4), 10.0, 0.1)
+    state = PullState(z, z, z.astype(bool), z.astype(bool))
+    res = PullResult(friction_force=5.0, normal_force_at_peak=10.0, normal_force=10.0,
+                     curve=curve, peak_event=4, peak=state, start=state, converged=True,
+                     seconds=0.0, method="inverse", slip_law="coulomb", residual=0.0, solves=0,
+                     message="", details=DecoupledDetails())
     q = coulomb_force_at(res, np.array([0.5, 1.5, 2.0, 2.5, 4.0]))
     np.testing.assert_allclose(q, [0.5, 2.0, 3.0, 4.0, 5.0])
     with pytest.raises(InputError, match="needs a result of a law whose bonds slip"):

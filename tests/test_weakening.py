@@ -42,11 +42,11 @@ def test_no_weakening_is_the_coulomb_pull(hertz8):
     event (to 1e-10 of the largest force)."""
     c = pull(hertz8, lam=LAM, slip_law="coulomb")
     w = _weak(hertz8, LAM, 5e-4)
-    assert w.converged and w.kinds == c.kinds
-    np.testing.assert_array_equal(w.broken_site, c.broken_site)
-    scale = np.abs(c.fx_lim).max()
-    assert np.abs(w.fx_lim - c.fx_lim).max() <= 1e-10 * scale
-    assert np.abs(w.dx_lim - c.dx_lim).max() <= 1e-10 * np.abs(c.dx_lim).max()
+    assert w.converged and w.curve.kind[1:] == c.curve.kind[1:]
+    np.testing.assert_array_equal(w.curve.site[1:], c.curve.site[1:])
+    scale = np.abs(c.curve.fx[1:]).max()
+    assert np.abs(w.curve.fx[1:] - c.curve.fx[1:]).max() <= 1e-10 * scale
+    assert np.abs(w.curve.dx[1:] - c.curve.dx[1:]).max() <= 1e-10 * np.abs(c.curve.dx[1:]).max()
     assert w.friction_force == pytest.approx(c.friction_force, rel=1e-10)
 
 
@@ -58,11 +58,11 @@ def test_a_vanishing_slip_distance_to_zero_is_the_break_law(hertz8, dc):
     friction force is the break law's."""
     b = pull(hertz8, lam=LAM, early_stop=False, method="inverse")
     w = _weak(hertz8, 0.0, dc)
-    fail = np.array([k in ("slip+", "slip-") for k in w.kinds])
-    assert set(w.kinds) <= {"slip+", "slip-", "jump"}
-    np.testing.assert_array_equal(w.broken_site[fail], b.broken_site)
-    assert np.abs(w.dx_lim[fail] - b.dx_lim).max() <= 1e-12 * b.dx_lim.max()
-    assert np.abs(w.fx_lim[fail] - b.fx_lim).max() <= 1e-12 * b.fx_lim.max()
+    fail = np.array([k in ("slip+", "slip-") for k in w.curve.kind[1:]])
+    assert set(w.curve.kind[1:]) <= {"slip+", "slip-", "jump"}
+    np.testing.assert_array_equal(w.curve.site[1:][fail], b.curve.site[1:])
+    assert np.abs(w.curve.dx[1:][fail] - b.curve.dx[1:]).max() <= 1e-12 * b.curve.dx[1:].max()
+    assert np.abs(w.curve.fx[1:][fail] - b.curve.fx[1:]).max() <= 1e-12 * b.curve.fx[1:].max()
     assert w.friction_force == pytest.approx(b.friction_force, rel=1e-12)
 
 
@@ -138,7 +138,7 @@ def test_a_burst_holds_the_drive_and_its_states_never_set_the_friction(hertz8):
     D_x so far), and the friction force is the largest force of the stable path and the
     landings, never of a state inside a burst."""
     w = _weak(hertz8, 0.0, 1e-4)
-    dx, fx, kinds = w.dx_lim, w.fx_lim, w.kinds
+    dx, fx, kinds = w.curve.dx[1:], w.curve.fx[1:], w.curve.kind[1:]
     top = np.maximum.accumulate(dx)
     jumps = [i for i, k in enumerate(kinds) if k == "jump"]
     assert len(jumps) >= 3
@@ -146,7 +146,7 @@ def test_a_burst_holds_the_drive_and_its_states_never_set_the_friction(hertz8):
         assert dx[i] == top[i]
     inside = dx < top  # recorded below the drive: inside a burst
     assert inside.any()
-    assert w.friction_force == fx[~inside].max() == fx[w.peak_index]
+    assert w.friction_force == fx[~inside].max() == fx[w.peak_event - 1]
 
 
 def test_the_friction_force_converges_with_the_pixel_size():
@@ -162,8 +162,9 @@ def test_the_friction_force_converges_with_the_pixel_size():
 def test_the_same_pull_gives_the_same_bits(hertz8):
     a = _weak(hertz8, 0.05, 2e-4)
     b = _weak(hertz8, 0.05, 2e-4)
-    for name in ("dx_lim", "fx_lim", "broken_site", "fx_at_peak"):
-        assert getattr(a, name).tobytes() == getattr(b, name).tobytes()
+    for x, y in ((a.curve.dx, b.curve.dx), (a.curve.fx, b.curve.fx),
+                 (a.curve.site, b.curve.site), (a.peak.fx, b.peak.fx)):
+        assert x.tobytes() == y.tobytes()
 
 
 def test_bad_parameters_get_one_line_errors(hertz8):
@@ -187,8 +188,8 @@ def test_the_landing_curve_is_the_break_laws_sawtooth_in_the_limit(hertz8):
 
     b = pull(hertz8, lam=LAM, early_stop=False, method="inverse")
     w = _weak(hertz8, 0.0, 1e-9)
-    cb = pull_curve(b.dx_lim, b.fx_lim, exhausted=True)
-    cw = landing_curve(w.dx_lim, w.fx_lim, w.broken_site)
+    cb = pull_curve(b.curve.dx[1:], b.curve.fx[1:], exhausted=True)
+    cw = landing_curve(w.curve.dx[1:], w.curve.fx[1:], w.curve.site[1:])
     assert cw.peak == pytest.approx(cb.peak, rel=1e-12) == w.friction_force
     np.testing.assert_allclose(cw.burst_dx, cb.burst_dx, rtol=1e-12)
     np.testing.assert_array_equal(cw.burst_size, cb.burst_size)

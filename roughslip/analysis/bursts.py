@@ -91,7 +91,7 @@ def pull_curve(dx_lim: np.ndarray, fx_lim: np.ndarray, *, exhausted: bool = Fals
     Parameters
     ----------
     dx_lim, fx_lim : ndarray
-        The break sequence, in order (``SlipResult.dx_lim``, ``fx_lim``, or the stored
+        The break sequence, in order (``PullResult.curve.dx[1:]``, ``curve.fx[1:]``, or the stored
         ``dx_lim``/``fx_lim`` of a run).
     exhausted : bool
         The sequence ran until no bond was left (``method="literal"``, or no early stop that

@@ -67,12 +67,12 @@ from roughslip.coupling.coupled import couple
 from roughslip.errors import VerificationError
 from roughslip.friction.pull import (
     METHODS,
-    SlipResult,
     bond_spectrum,
     coulomb_force_at,
     pull,
     refinement_estimate,
 )
+from roughslip.friction.result import PullResult
 from roughslip.surfaces.synthetic import punch as punch_shape
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sinusoid, sphere
 
@@ -313,7 +313,7 @@ def _wavy(n: int) -> _SqueezeScene:
         shared_reference=False)
 
 
-def _reference(solve: Callable[[], NormalResult | SlipResult], what: str):
+def _reference(solve: Callable[[], NormalResult | PullResult], what: str):
     r = solve()
     if not r.converged:
         raise VerificationError(f"verify: the tight reference of {what} did not converge "
@@ -399,7 +399,7 @@ def _cattaneo(sizes: Sequence[int], tol_size: int, budget: float) -> Study:
         f_err = abs(_rel(est.friction_force, ref.friction_force))
         out.checks.append(Check("cattaneo", method, "tolerance", label, tol,
                                 "pull solve_error_estimate", "estimate", "friction force",
-                                est.solve_error_estimate, f_err))
+                                est.details.solve_error_estimate, f_err))
     return out
 
 
@@ -437,12 +437,12 @@ def _pull_on_loose_squeezes(n: int) -> Study:
                 r = pull(loose, method=method, tol=tol, slip_law=law, estimate_error=True)
                 out.checks.append(Check("pull", name, "squeeze tolerance", f"N={n}", stol,
                                         "pull error_estimate", "estimate", "friction force",
-                                        r.error_estimate,
+                                        r.details.error_estimate,
                                         abs(_rel(r.friction_force, ref.friction_force))))
     return out
 
 
-def _pull_point(normal: NormalResult, ref: SlipResult, kappa: float, method: str,
+def _pull_point(normal: NormalResult, ref: PullResult, kappa: float, method: str,
                 series: str, n: int, tol: float, budget: float) -> Study:
     """One timed pull and the checks of its estimates. The reference shares the squeeze, so
     the pull's own part of the estimate is compared; it and the bound are computed as
@@ -456,7 +456,7 @@ def _pull_point(normal: NormalResult, ref: SlipResult, kappa: float, method: str
                             "exact pull", sec, rep, res.converged, res.residual, res.solves))
     if not METHODS.get(method).exact:
         out.checks.append(Check("pull", method, series, label, tol, "pull error_estimate",
-                                "none", "friction force", res.error_estimate, abs(err)))
+                                "none", "friction force", res.details.error_estimate, abs(err)))
         return out
     for name, kind, value in (("pull solve_error_estimate", "estimate",
                                refinement_estimate(normal, res)),
@@ -537,8 +537,8 @@ def _coupled(sizes: Sequence[int], tol_size: int, budget: float) -> Study:
             res, sec, rep = timed(lambda m=method, law=law, tol=tol: couple(
                 pb, depth=depth, lam=lam, method=m, tol=tol, slip_law=law), budget)
             err = _rel(res.friction_force, refs[law].friction_force)
-            same = (np.array_equal(res.stick0, refs[law].stick0)
-                    and np.array_equal(res.contact0, refs[law].contact0))
+            same = (np.array_equal(res.start.stick, refs[law].start.stick)
+                    and np.array_equal(res.start.contact, refs[law].start.contact))
             out.points.append(Point("coupled", q, name(method, law), "tolerance", label,
                                     tol_size, tol, err, "tight reference", sec, rep,
                                     res.converged, res.residual, res.solves,

@@ -49,7 +49,6 @@ and every solve is certified against the FFT operator.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
@@ -76,94 +75,15 @@ from roughslip.friction.events import (  # noqa: F401  (TIE, RATE_TIE: public he
     follow_events,
 )
 from roughslip.friction.pull import check_friction
+from roughslip.friction.result import CoupledDetails, PullResult, PullState, renamed
 from roughslip.linalg.threads import blas_threads
 
 
-@dataclass(frozen=True)
-class CoupledResult:
-    """Outcome of :func:`squeeze_pull_coupled` (fields indexed ``[iy, ix]``)."""
-
-    friction_force: float
-    normal_force_at_peak: float
-    peak_dx: float
-    events: list[Event]
-    normal_force: float  # F_z after the squeeze and the initial release, at D_x = 0
-    contact_area: float  # fraction, at D_x = 0
-    released: int  # contact sites without a bond when the pull starts (D_x = 0)
-    fz0: np.ndarray  # normal forces at D_x = 0 (after release)
-    fx0: np.ndarray  # tangential forces at D_x = 0 (after release)
-    contact0: np.ndarray
-    stick0: np.ndarray
-    fz_peak: np.ndarray
-    fx_peak: np.ndarray
-    stick_peak: np.ndarray
-    contact_peak: np.ndarray
-    converged: bool
-    seconds: float  # the whole solve: squeeze, release at D_x = 0 and pull
-    solves: int
-    method: str
-    message: str = ""
-    #: of :attr:`seconds`, those until the pull starts (the squeeze and the release of the
-    #: bonds it overloads at :math:`D_x = 0`)
-    squeeze_seconds: float = math.nan
-    #: worst relative residual of the block solves against the FFT operator (both solvers); a
-    #: measure of convergence, not of the error: where equally overloaded bonds are released
-    #: (a symmetric contact), the matrix-free solver's error can reorder them, and its
-    #: friction force can then be 20 % off at residual 1e-6
-    #: (docs/methods.rst#estimates-against-truth)
-    residual: float = math.nan
-    #: D_z after the squeeze (given, or found under load control)
-    depth: float = math.nan
-    #: what the pull holds: ``"depth"`` (D_z fixed, the report's pull) or ``"force"``
-    pull_control: str = "depth"
-    #: with ``record_states=True``: (D_x, f_z, f_x, gap, contact, stick) at every event
-    states: list | None = None
-    #: seconds in dense linear algebra (the dense solver's factorisation, products and
-    #: updates; 0 for the matrix-free solver)
-    blas_seconds: float = 0.0
-    #: why ``auto`` went on matrix-free (the dense inverse did not fit), else ""
-    fallback: str = ""
-    #: what a failed bond carries: ``"break"`` (nothing) or ``"coulomb"`` (lam f_z)
-    slip_law: str = "break"
-    #: GMRES iterations of the solves with Coulomb slip forces (0 under the break law)
-    slip_iterations: int = 0
-    #: how the contacts came to carry their bonds (:data:`~roughslip.coupling.histories.HISTORIES`)
-    history: str = "bonded"
-    #: states solved before the pull: the squeeze's corrections and releases, or the
-    #: indentation's events
-    squeeze_states: int = 0
-
-    @property
-    def dx(self) -> np.ndarray:
-        return np.array([e.dx for e in self.events])
-
-    @property
-    def fx(self) -> np.ndarray:
-        return np.array([e.fx for e in self.events])
-
-    @property
-    def fz(self) -> np.ndarray:
-        return np.array([e.fz for e in self.events])
-
-    @property
-    def dz(self) -> np.ndarray:
-        return np.array([e.dz for e in self.events])
-
-    @property
-    def curve(self) -> Curve:
-        """The pull curve (:class:`~roughslip.friction.events.Curve`), as the decoupled pull's
-        :attr:`~roughslip.friction.bonds.SlipResult.curve`."""
-        return Curve.of(self.events)
-
-    @property
-    def fx_at_peak(self) -> np.ndarray:
-        """:attr:`fx_peak`, by the decoupled pull's name."""
-        return self.fx_peak
-
-    @property
-    def stick_at_peak(self) -> np.ndarray:
-        """:attr:`stick_peak`, by the decoupled pull's name."""
-        return self.stick_peak
+def __getattr__(name: str) -> type:
+    """``CoupledResult``, the result type of earlier versions (deprecated)."""
+    if name == "CoupledResult":
+        return renamed(__name__, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 #: the largest tolerance a run gives the coupled model (``pull.tol``, at most this)
@@ -224,7 +144,7 @@ def couple(
     record_states: bool = False,
     squeeze_method: str = "pk",
     history: str = "bonded",
-) -> CoupledResult:
+) -> PullResult:
     r"""Squeeze a problem with bonded contacts and pull it with the coupled model until every
     bond has broken (module docstring; [Report2003] §6.1 with errata T25 and T26).
 
@@ -284,7 +204,10 @@ def couple(
 
     Returns
     -------
-    CoupledResult
+    PullResult
+        The curve from :math:`D_x = 0` (the state after the squeeze), the peak, and the
+        diagnostics; the squeeze and the block solver's in its
+        :class:`~roughslip.friction.result.CoupledDetails`.
     """
     t0 = time.perf_counter()
     _check_couple(problem, depth, force, lam, pull_control, gained, slip_law, squeeze_method)
@@ -295,15 +218,15 @@ def couple(
     geo = overlap_start(problem, setup)
     if not geo.any():
         z = np.zeros(problem.shape)
-        return CoupledResult(
-            friction_force=0.0, normal_force_at_peak=0.0, peak_dx=0.0, events=[],
-            normal_force=0.0, contact_area=0.0, released=0, fz0=z, fx0=z, contact0=geo,
-            stick0=geo, fz_peak=z, fx_peak=z, stick_peak=geo, contact_peak=geo,
-            converged=True, seconds=time.perf_counter() - t0, solves=0,
-            squeeze_seconds=time.perf_counter() - t0,
-            method=choose_solver(method), residual=0.0,  # nothing to solve
-            message="no overlap: no contact", depth=0.0 if depth is None else depth,
-            pull_control=pull_control, slip_law=slip_law, history=history)
+        none = PullState(z, z, geo, geo)
+        return PullResult(
+            friction_force=0.0, normal_force_at_peak=0.0, normal_force=0.0,
+            curve=Curve.empty(), peak_event=0, peak=none, start=none, converged=True,
+            seconds=time.perf_counter() - t0, method=choose_solver(method), slip_law=slip_law,
+            residual=0.0, solves=0, message="no overlap: no contact",  # nothing to solve
+            details=CoupledDetails(depth=0.0 if depth is None else depth,
+                                   pull_control=pull_control, history=history,
+                                   squeeze_seconds=time.perf_counter() - t0))
     solver, method = make_solver(problem, method, reference, tol, max_iter)
     limit = _event_limit(max_events, geo)
     setup.limit = limit
@@ -328,19 +251,19 @@ def couple(
     peak = path.peak
     _check_finite("coupled model", fz=start.fz, fx=start.fx, **{"fz at peak": peak.fz})
     out = _Outcome.of(solver, path, tol)
-    return CoupledResult(
+    return PullResult(
         friction_force=float(peak.fx_total), normal_force_at_peak=float(peak.fz_total),
-        peak_dx=float(peak.dx), events=path.events, normal_force=float(start.fz.sum()),
-        contact_area=float(start.contact.sum()) / start.contact.size, released=sq.released,
-        fz0=start.fz, fx0=start.fx, contact0=start.contact, stick0=start.stick,
-        fz_peak=peak.fz, fx_peak=peak.fx, stick_peak=peak.stick, contact_peak=peak.contact,
-        converged=out.converged, seconds=time.perf_counter() - t0, solves=solver.solves,
-        squeeze_seconds=t_squeeze, blas_seconds=solver.blas_seconds, fallback=solver.fallback,
-        method=out.method,
-        residual=out.residual, slip_law=slip_law, slip_iterations=solver.slip_iterations,
-        message=out.message, states=path.states, depth=float(squeezed_depth),
-        pull_control=pull_control, history=history, squeeze_states=sq.states,
-    )
+        normal_force=float(start.fz.sum()), curve=Curve.of(path.events),
+        peak_event=path.peak_event, peak=PullState(peak.fz, peak.fx, peak.contact, peak.stick),
+        start=PullState(start.fz, start.fx, start.contact, start.stick),
+        converged=out.converged, seconds=time.perf_counter() - t0, method=out.method,
+        slip_law=slip_law, residual=out.residual, solves=solver.solves, message=out.message,
+        details=CoupledDetails(
+            contact_area=float(start.contact.sum()) / start.contact.size, released=sq.released,
+            depth=float(squeezed_depth), pull_control=pull_control, history=history,
+            squeeze_states=sq.states, squeeze_seconds=t_squeeze,
+            blas_seconds=solver.blas_seconds, fallback=solver.fallback,
+            slip_iterations=solver.slip_iterations, states=path.states))
 
 
 def _check_couple(problem: Problem, depth: float | None, force: float | None, lam: float,
@@ -485,7 +408,7 @@ def squeeze_pull_coupled(
     reference: bool = False,
     record_states: bool = False,
     history: str = "bonded",
-) -> CoupledResult:
+) -> PullResult:
     """:func:`couple` on a problem built from plain numbers (or given, ignoring ``a`` ...
     ``threads``)."""
     problem = heights if isinstance(heights, Problem) else Problem.from_arrays(

@@ -23,122 +23,45 @@ from roughslip.elastic.operators import ElasticOperator
 from roughslip.elastic.tables import gather_pairs
 from roughslip.errors import MemoryLimitError, NumericalError
 from roughslip.friction.events import Curve, EventKind, argext
+from roughslip.friction.result import (
+    DecoupledDetails,
+    PullResult,
+    PullState,
+    renamed,
+    start_curve,
+)
 from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.restricted import Restricted
 from roughslip.linalg.stick import SolverFactory, StickSolver
 
 
-@dataclass(frozen=True)
-class SlipResult:
-    r"""Outcome of a pull.
+def __getattr__(name: str) -> type:
+    """``SlipResult``, the result type of earlier versions (deprecated)."""
+    if name == "SlipResult":
+        return renamed(__name__, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
-    Attributes
-    ----------
-    friction_force : float
-        :math:`F_{\rm friction} = \max F_{x,\rm lim}` (break law) or :math:`\lambda F_n`
-        (Coulomb law: full sliding).
-    peak_index : int
-        Index of the maximum in the pull curve.
-    dx_lim, fx_lim : ndarray
-        The pull curve: the displacement and pull force at which each bond breaks (break law),
-        or at which each site starts to slip (Coulomb law), in order.
-    broken_site : ndarray of int
-        Flat indices (``iy * nx + ix``) of the sites, in the same order.
-    stick_at_peak : ndarray of bool
-        The stick set just before the peak break.
-    fx_at_peak : ndarray
-        Tangential pixel forces at the peak (:math:`D_x = D_{x,\rm lim}` of the peak state).
-    converged : bool
-        All solves met their tolerance (and, for ``"inverse"``, every certification passed).
-    method : str
-        The method actually used (``"auto"`` resolved).
-    error_estimate : float
-        Estimated relative error of ``friction_force``, NaN when not estimated. With
-        ``pull(..., estimate_error=True)``: ``solve_error_estimate + normal_error_estimate``,
-        the errors of the pull's own solves and of the squeeze's normal forces it starts
-        from. Within a factor 3.2 of the true error on every verify scene. The approximate
-        ``"batch"`` method has none (NaN): its error is a staircase in the batch size that no
-        cheap comparison estimates.
-    solve_error_estimate : float
-        The pull's own part: :func:`refinement_estimate` (one step of iterative refinement
-        on the peak state) for the break law, at the rounding level for ``"inverse"``; 0 for
-        the Coulomb law, whose friction force :math:`\sum_i s_i\lambda f_{z,i}` does not
-        depend on the tangential solves.
-    normal_error_estimate : float
-        The squeeze's part, :func:`normal_share` (how the estimated error of the normal
-        forces moves the friction force).
-    error_bound : float
-        With ``estimate_error=True``: :math:`\hat\kappa\,\rho`, the condition estimate
-        times the worst relative residual ``residual`` (see :func:`bond_spectrum`), an
-        *estimate of a bound* on the relative error of the tangential forces. On the verify
-        scenes it is never below the error of the friction force and up to
-        :math:`7\cdot10^6` times above it; NaN otherwise.
-    condition : float
-        With ``estimate_error=True``: :math:`\hat\kappa`, the Lanczos estimate of the
-        condition number of :math:`G_{xx}` on the initial bonds (the exact value bounds that
-        of every later stick set); NaN otherwise.
-    """
 
-    friction_force: float
-    peak_index: int
-    dx_lim: np.ndarray
-    fx_lim: np.ndarray
-    broken_site: np.ndarray
-    stick_at_peak: np.ndarray
-    fx_at_peak: np.ndarray
-    converged: bool
-    seconds: float
-    method: str
-    slip_law: str = "break"
-    lam: float = 0.2
-    error_estimate: float = math.nan
-    n_bonds: int = 0
-    steps: int = 0
-    early_stopped: bool = False
-    solves: int = 0
-    residual: float = 0.0
-    message: str = ""
-    normal_force: float = 0.0
-    condition: float = math.nan
-    error_bound: float = math.nan
-    solve_error_estimate: float = math.nan
-    normal_error_estimate: float = math.nan
-    #: the kind of each event of the curve (``"slip+"``, ``"slip-"``, ``"stick"``; empty for
-    #: the break law's sequence, whose events are all breaks)
-    kinds: tuple[str, ...] = ()
-    #: the precision of the break law's ``"inverse"`` method: ``"double"`` or ``"single"``
-    #: (empty for the other methods and laws)
-    precision: str = ""
-
-    @property
-    def peak_dx(self) -> float:
-        """Pull displacement at the peak."""
-        return float(self.dx_lim[self.peak_index]) if self.dx_lim.size else 0.0
-
-    @property
-    def fx_peak(self) -> np.ndarray:
-        """:attr:`fx_at_peak`, by the coupled model's name."""
-        return self.fx_at_peak
-
-    @property
-    def stick_peak(self) -> np.ndarray:
-        """:attr:`stick_at_peak`, by the coupled model's name."""
-        return self.stick_at_peak
-
-    @property
-    def normal_force_at_peak(self) -> float:
-        """:math:`F_z` at the peak: the squeeze's, which the decoupled pull does not move."""
-        return self.normal_force
-
-    @property
-    def curve(self) -> Curve:
-        """The pull curve in the vocabulary of the coupled model (:class:`Curve`): one entry
-        per event, kind ``"break"`` under the break law; :math:`D_z` is not followed (NaN)."""
-        n = self.dx_lim.size
-        kinds = self.kinds if len(self.kinds) == n else (EventKind.BREAK,) * n
-        return Curve(self.dx_lim.copy(), self.fx_lim.copy(), np.full(n, self.normal_force),
-                     np.full(n, math.nan), tuple(kinds), self.broken_site.copy())
+def decoupled_result(b: Bonds, *, friction_force: float, curve: Curve, peak_event: int,
+                     peak_fx: np.ndarray, peak_stick: np.ndarray, t0: float, method: str,
+                     slip_law: str, converged: bool, residual: float = 0.0, solves: int = 0,
+                     message: str = "", early_stopped: bool = False, precision: str = ""
+                     ) -> PullResult:
+    """The :class:`~roughslip.friction.result.PullResult` of a decoupled pull of the bonds
+    ``b``: the normal forces and the contact are the squeeze's (the pull does not move them),
+    the start has every bond holding and no tangential force."""
+    normal = b.normal
+    stick0 = b.mask(np.arange(b.n))
+    return PullResult(
+        friction_force=friction_force, normal_force_at_peak=normal.normal_force,
+        normal_force=normal.normal_force, curve=curve, peak_event=peak_event,
+        peak=PullState(normal.fz, peak_fx, normal.contact, peak_stick),
+        start=PullState(normal.fz, np.zeros(b.shape), normal.contact, stick0),
+        converged=converged, seconds=time.perf_counter() - t0, method=method,
+        slip_law=slip_law, residual=residual, solves=solves, message=message,
+        details=DecoupledDetails(lam=b.lam, n_bonds=b.n,
+                                 early_stopped=early_stopped, precision=precision))
 
 
 @dataclass(frozen=True)
@@ -303,21 +226,25 @@ class BreakCurve:
             self.stopped = True
         return self.stopped
 
-    def result(self, t0: float, method: str, **kw) -> SlipResult:
+    def result(self, t0: float, method: str, *, converged: bool, slip_law: str = "break",
+               residual: float = 0.0, solves: int = 0, message: str = "",
+               precision: str = "") -> PullResult:
+        """The pull's result: the break sequence from its start, and the peak state."""
         b = self.b
         if self.peak_state is None:
             stick, fx = np.zeros(b.shape, bool), np.zeros(b.shape)
         else:
             pos, f, _ = self.peak_state
             stick, fx = b.mask(pos), b.field(f, pos)
-        return SlipResult(
-            friction_force=max(self.best, 0.0), peak_index=self.peak,
-            dx_lim=np.array(self.dx), fx_lim=np.array(self.fx),
-            broken_site=np.array(self.site, dtype=np.int64), stick_at_peak=stick,
-            fx_at_peak=fx, seconds=time.perf_counter() - t0, method=method, lam=b.lam,
-            n_bonds=b.n, steps=len(self.fx), early_stopped=self.stopped,
-            normal_force=b.normal.normal_force, **kw,
-        )
+        n = len(self.fx)
+        curve = Curve.empty() if b.n == 0 else start_curve(
+            np.array(self.dx), np.array(self.fx), (EventKind.BREAK,) * n,
+            np.array(self.site, dtype=np.int64), b.normal.normal_force, b.normal.depth)
+        return decoupled_result(
+            b, friction_force=max(self.best, 0.0), curve=curve,
+            peak_event=self.peak + 1 if n else 0, peak_fx=fx, peak_stick=stick, t0=t0,
+            method=method, slip_law=slip_law, converged=converged, residual=residual,
+            solves=solves, message=message, early_stopped=self.stopped, precision=precision)
 
 
 def shrinking_only(ids: np.ndarray) -> np.ndarray:

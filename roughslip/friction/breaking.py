@@ -10,7 +10,6 @@ lists them).
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np
@@ -20,7 +19,6 @@ from roughslip.friction.bonds import (
     Bonds,
     BreakCurve,
     PullOptions,
-    SlipResult,
     bond_inverse,
     certify,
     select,
@@ -28,6 +26,7 @@ from roughslip.friction.bonds import (
     track,
 )
 from roughslip.friction.breaking_single import break_inverse_single
+from roughslip.friction.result import PullResult
 from roughslip.linalg.cg import CGResult, cg
 
 
@@ -40,17 +39,17 @@ def _solve_phi(b: Bonds, alive_pos: np.ndarray, tol: float, x0: np.ndarray | Non
     return A.gather(r.x), r
 
 
-def break_literal(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def break_literal(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     """The report's algorithm: one CG solve from zero per break, every bond."""
     return _break_solves(b, opt, t0, warm=False)
 
 
-def break_cg(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def break_cg(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     """Matrix-free exact: one warm-started CG solve per break, with the early stop."""
     return _break_solves(b, opt, t0, warm=True)
 
 
-def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> SlipResult:
+def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> PullResult:
     """One CG solve per break (cold from zero, or warm from the previous solution)."""
     tol, max_iter = opt.tol, opt.max_iter
     method = "cg" if warm else "literal"
@@ -76,7 +75,7 @@ def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> SlipR
                         message=f"{solves} CG solves, {iters} iterations")
 
 
-def break_sequence(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def break_sequence(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     r"""Exact break law on the stick solver of ``opt.method`` (the updated inverse,
     :func:`~roughslip.friction.bonds.bond_inverse`): :math:`O(n)` per break plus the solver's
     blocked updates; :math:`\varphi` is certified against the FFT operator after each fold,
@@ -120,20 +119,19 @@ def break_sequence(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
 break_inverse = break_sequence
 
 
-def break_batch(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def break_batch(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     """Approximate: break the ``batch_size`` largest-ratio bonds per solve (biased low).
 
-    It has no error estimate (``error_estimate`` is NaN). Its error is a staircase in the
+    It has no error estimate (``details.error_estimate`` is NaN). Its error is a staircase in the
     batch size, not a smooth function of it: on the rough verify scenes one size gives the
     exact friction force and the next -18 %, so no comparison of batch sizes estimates it
     (docs/methods.rst#estimates-against-truth).
     """
     res = _batch_pass(b, opt, t0, opt.batch_size)
-    return replace(res, error_estimate=math.nan,
-                   message=res.message + "; approximate, no error estimate")
+    return replace(res, message=res.message + "; approximate, no error estimate")
 
 
-def _batch_pass(b: Bonds, opt: PullOptions, t0: float, size: int) -> SlipResult:
+def _batch_pass(b: Bonds, opt: PullOptions, t0: float, size: int) -> PullResult:
     """One batch pass with ``size`` bonds broken per solve."""
     tol, max_iter = opt.tol, opt.max_iter
     curve = BreakCurve(b, opt.early_stop)

@@ -75,12 +75,12 @@ from roughslip.friction.bonds import (
     Bonds,
     BreakCurve,
     PullOptions,
-    SlipResult,
     bond_inverse,
     stick_residual,
     track,
 )
 from roughslip.friction.events import TIE, argext
+from roughslip.friction.result import PullResult
 from roughslip.linalg import jit
 from roughslip.linalg.cg import cg
 from roughslip.linalg.inverse import UpdatableInverse
@@ -440,7 +440,7 @@ class _Peaks:
         return self.curve.stopped
 
 
-def break_inverse_single(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def break_inverse_single(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     r"""The break law on a float32 inverse with certified decisions (module docstring): the
     same break sequence as the double-precision method, and the friction force to its
     accuracy."""

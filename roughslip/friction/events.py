@@ -75,9 +75,8 @@ class Event:
 
 @dataclass(frozen=True)
 class Curve:
-    """A pull curve, one entry per event: the vocabulary the decoupled pull
-    (:attr:`roughslip.friction.bonds.SlipResult.curve`) and the coupled model
-    (:attr:`roughslip.coupling.coupled.CoupledResult.curve`) share."""
+    """A pull curve, one entry per event: the vocabulary of both models
+    (:attr:`roughslip.friction.result.PullResult.curve`)."""
 
     dx: np.ndarray  # D_x
     fx: np.ndarray  # F_x, the total tangential force
@@ -85,6 +84,13 @@ class Curve:
     dz: np.ndarray  # D_z (NaN where the model does not follow it)
     kind: tuple[str, ...]  # :class:`EventKind` per event
     site: np.ndarray  # flat index of the event's site (-1: none)
+
+    @classmethod
+    def empty(cls) -> Curve:
+        """The curve of a pull with nothing to pull (no contact): no event, not even the
+        start."""
+        z = np.zeros(0)
+        return cls(z, z, z, z, (), np.zeros(0, np.int64))
 
     @classmethod
     def of(cls, events: list[Event]) -> Curve:
@@ -240,6 +246,8 @@ class EventPath:
     peak: Snapshot
     transient: int = 0
     message: str = ""
+    #: the index of the peak in :attr:`events` (0: the start)
+    peak_event: int = 0
     #: (contact sites, stick sites) at every recorded event
     counts: list[tuple[int, int]] = field(default_factory=list)
 
@@ -326,6 +334,7 @@ def follow_events(st: EventState, limit: int, record_states: bool,
         F_x, _ = st.totals(at)
         if F_x > path.peak.fx_total:
             path.peak = st.snapshot(at)
+            path.peak_event = len(path.events) - 1  # every call follows the record of ``at``
 
     record(0.0, EventKind.START, -1)
     st.progress.started = True

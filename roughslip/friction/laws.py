@@ -72,7 +72,7 @@ class SlipLaw:
         the normal forces' alone). Otherwise the friction force is the peak of the pull
         curve.
     engine
-        Its decoupled pull, ``engine(bonds, options, t0) -> SlipResult``, on the stick solver
+        Its decoupled pull, ``engine(bonds, options, t0) -> PullResult``, on the stick solver
         of ``options.method`` (:class:`~roughslip.linalg.stick.StickSolver`).
     needs
         What the engine needs of the stick solver beyond :math:`\varphi` on each stick set

@@ -51,7 +51,8 @@ import numpy as np
 
 from roughslip.contact.squeeze import NormalResult
 from roughslip.errors import InputError
-from roughslip.friction.bonds import Bonds, BreakCurve, PullOptions, SlipResult
+from roughslip.friction import result as _result
+from roughslip.friction.bonds import Bonds, BreakCurve, PullOptions
 from roughslip.friction.breaking import break_batch, break_cg, break_literal
 from roughslip.friction.events import TIE
 from roughslip.friction.laws import LAWS, SlipLaw
@@ -61,6 +62,7 @@ from roughslip.friction.pull_estimates import (  # noqa: F401  (public here too)
     normal_share,
     refinement_estimate,
 )
+from roughslip.friction.result import PullResult
 from roughslip.linalg import lapack64
 from roughslip.linalg.inverse import UpdatableInverse, inverse_bytes
 from roughslip.linalg.memory import available_bytes
@@ -72,6 +74,7 @@ from roughslip.registry import Registry
 _DEPRECATED = {
     "SLIP_LAWS": ("roughslip.friction.laws.LAWS.names()", lambda: LAWS.names()),
     "TIE_TOL": ("roughslip.friction.events.TIE (the tie rule is events.argext)", lambda: TIE),
+    "SlipResult": ("roughslip.friction.result.PullResult", lambda: _result.SlipResult),
 }
 
 
@@ -126,7 +129,7 @@ class PullMethod:
         The stick solver's factory (the signature of
         :class:`~roughslip.linalg.inverse.UpdatableInverse`), or None.
     run
-        ``run(bonds, options, t0) -> SlipResult``: a matrix-free engine, or None.
+        ``run(bonds, options, t0) -> PullResult``: a matrix-free engine, or None.
     offers
         What the solver gives (:data:`CAPABILITIES`).
     precisions
@@ -149,7 +152,7 @@ class PullMethod:
     exact: bool
     dense: bool
     solver: SolverFactory | None = None
-    run: Callable[..., SlipResult] | None = None
+    run: Callable[..., PullResult] | None = None
     offers: frozenset[str] = frozenset()
     precisions: tuple[str, ...] = ("double",)
     tiny: int = 0
@@ -219,7 +222,7 @@ def choose_precision(n: int, memory: int | None = None, slip_law: str | SlipLaw 
     return "single" if inverse_memory_bytes(n, block, "single") <= memory else "double"
 
 
-def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
+def coulomb_force_at(result: PullResult, dx: float | np.ndarray) -> np.ndarray:
     """Pull force :math:`Q(D_x)` on the exact piecewise-linear Coulomb curve.
 
     Before the first slip event :math:`Q = K D_x` with the full-stick stiffness. The states
@@ -228,7 +231,7 @@ def coulomb_force_at(result: SlipResult, dx: float | np.ndarray) -> np.ndarray:
     """
     if not LAWS.get(result.slip_law).slides:
         raise InputError("coulomb_force_at needs a result of a law whose bonds slip")
-    x, y = result.dx_lim, result.fx_lim
+    x, y = result.curve.dx[1:], result.curve.fx[1:]
     keep = x >= np.maximum.accumulate(x) if x.size else np.zeros(0, bool)
     xs = np.concatenate([[0.0], x[keep]])
     ys = np.concatenate([[0.0], y[keep]])
@@ -314,7 +317,7 @@ def pull(
     lam_dynamic: float | None = None,
     slip_distance: float | None = None,
     precision: str = "auto",
-) -> SlipResult:
+) -> PullResult:
     r"""Pull a squeezed contact sideways until it slides (docs/theory/pull.rst#break-law).
 
     Parameters
@@ -346,15 +349,15 @@ def pull(
     threads : int, optional
         BLAS threads of the dense methods (default: the problem's threads).
     estimate_error : bool
-        Also estimate the error of the friction force (``error_estimate``: the pull's own part
-        by :func:`refinement_estimate`, one CG solve on the peak state, and the squeeze's part
-        by :func:`normal_share`, one CG solve on the contact set) and the condition number
-        of :math:`G_{xx}` on the bonds (``condition``, :func:`bond_spectrum`, a few hundred
-        operator applications; deterministic) with the bound estimate ``error_bound``
-        :math:`= \hat\kappa\rho`. Both are estimates (docs/methods.rst#estimates-against-truth
-        compares them with the true error). The ``"batch"`` method and the slip-weakening law
-        have no ``error_estimate`` (NaN): the refinement estimate assumes the break law's peak
-        state.
+        Also estimate the error of the friction force (``details.error_estimate``: the
+        pull's own part by :func:`refinement_estimate`, one CG solve on the peak state, and
+        the squeeze's part by :func:`normal_share`, one CG solve on the contact set) and the
+        condition number of :math:`G_{xx}` on the bonds (``details.condition``,
+        :func:`bond_spectrum`, a few hundred operator applications; deterministic) with the
+        bound estimate ``details.error_bound`` :math:`= \hat\kappa\rho`. Both are estimates
+        (docs/methods.rst#estimates-against-truth compares them with the true error). The
+        ``"batch"`` method and the slip-weakening law have no ``error_estimate`` (NaN): the
+        refinement estimate assumes the break law's peak state.
     lam_dynamic, slip_distance : float, optional
         The residual coefficient :math:`\lambda_d \in [0, \lambda]` and the slip
         :math:`d_c > 0` over which the strength falls to it; ``slip_law="slip-weakening"``
@@ -369,7 +372,9 @@ def pull(
 
     Returns
     -------
-    SlipResult
+    PullResult
+        The curve from the start, the peak, and the diagnostics; the error estimates are in
+        its :class:`~roughslip.friction.result.DecoupledDetails`.
     """
     t0 = time.perf_counter()
     check_friction(lam, slip_law)
@@ -420,14 +425,17 @@ def pull(
     if estimate_error:
         lo, hi = bond_spectrum(normal, threads=threads)
         kappa = hi / lo
-        res = replace(res, condition=kappa, error_bound=kappa * res.residual,
+        res = replace(res, details=replace(res.details, condition=kappa,
+                                           error_bound=kappa * res.residual),
                       seconds=time.perf_counter() - t0)
         if impl.estimate and not law.lands:  # batch and slip-weakening: none (NaN)
             # a sliding law's friction force takes no tangential solve
             solve = 0.0 if law.slides else refinement_estimate(normal, res)
             part = abs(normal_share(normal, res))
-            res = replace(res, error_estimate=solve + part, solve_error_estimate=solve,
-                          normal_error_estimate=part, seconds=time.perf_counter() - t0,
+            res = replace(res, details=replace(res.details, error_estimate=solve + part,
+                                               solve_error_estimate=solve,
+                                               normal_error_estimate=part),
+                          seconds=time.perf_counter() - t0,
                           message=f"{res.message}; estimated error {solve + part:.2e} "
                                   f"(solves {solve:.1e}, normal forces {part:.1e})")
     return res

@@ -12,8 +12,9 @@ from roughslip.contact.estimates import REFINE_TOL as SQUEEZE_REFINE_TOL
 from roughslip.contact.estimates import squeeze_correction
 from roughslip.contact.squeeze import NormalResult
 from roughslip.errors import InputError, NumericalError
-from roughslip.friction.bonds import Bonds, SlipResult
+from roughslip.friction.bonds import Bonds
 from roughslip.friction.laws import LAWS
+from roughslip.friction.result import PullResult
 from roughslip.linalg.cg import cg
 from roughslip.linalg.threads import blas_threads
 
@@ -27,7 +28,7 @@ def _peak_force(phi: np.ndarray, cap: np.ndarray) -> float:
     return float(phi.sum()) / float(np.max(np.abs(phi) / cap))
 
 
-def refinement_estimate(normal: NormalResult, result: SlipResult, *,
+def refinement_estimate(normal: NormalResult, result: PullResult, *,
                         tol: float = REFINE_TOL) -> float:
     r"""A-posteriori estimate of the relative error of a break-law friction force.
 
@@ -65,19 +66,19 @@ def refinement_estimate(normal: NormalResult, result: SlipResult, *,
     if LAWS.get(result.slip_law).slides:
         raise InputError("refinement_estimate needs a break-law result, whose friction force "
                          f"is a peak of the pull curve (slip_law = {result.slip_law!r} slides)")
-    stick = np.asarray(result.stick_at_peak, dtype=bool)
+    stick = np.asarray(result.peak.stick, dtype=bool)
     if not stick.any() or not result.peak_dx > 0:
         return 0.0
     A = normal.problem.restricted("xx", stick)
-    phi = A.gather(result.fx_at_peak) / result.peak_dx
-    cap = result.lam * A.gather(normal.fz)
+    phi = A.gather(result.peak.fx) / result.peak_dx
+    cap = result.details.lam * A.gather(normal.fz)
     r = 1.0 - A.matvec(phi)
     delta = A.gather(cg(A, A.scatter(r), tol=tol).x)
     refined = _peak_force(phi + delta, cap)
     return abs(_peak_force(phi, cap) - refined) / refined
 
 
-def normal_share(normal: NormalResult, result: SlipResult, *,
+def normal_share(normal: NormalResult, result: PullResult, *,
                  tol: float = SQUEEZE_REFINE_TOL) -> float:
     r"""Estimated relative error of a friction force caused by the error of the squeeze's
     normal forces, signed: :math:`(F - F^{\rm exact})/F^{\rm exact}`.
@@ -102,12 +103,12 @@ def normal_share(normal: NormalResult, result: SlipResult, *,
     delta = squeeze_correction(normal, tol=tol).ravel()
     fz = normal.fz.ravel()
     if LAWS.get(result.slip_law).slides:  # F = sum of w_i f_z,i, w_i = s_i |w_i|
-        s = np.sign(np.asarray(result.fx_at_peak).ravel())
+        s = np.sign(np.asarray(result.peak.fx).ravel())
         total = float((s * (fz + delta)).sum())
         return -float((s * delta).sum()) / total if total else 0.0
-    if result.steps == 0:
+    if result.peak_event == 0:
         return 0.0
-    k = int(result.broken_site[result.peak_index])
+    k = int(result.curve.site[result.peak_event])
     return -float(delta[k]) / float(fz[k] + delta[k])
 
 

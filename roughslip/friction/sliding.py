@@ -24,7 +24,6 @@ upwards, and the inverse is factorised afresh on it.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
@@ -33,14 +32,15 @@ from roughslip.friction.bonds import (
     BondRows,
     Bonds,
     PullOptions,
-    SlipResult,
     bond_inverse,
     certify,
+    decoupled_result,
     shrinking_only,
     track,
 )
 from roughslip.friction.events import (
     TIE,
+    Curve,
     EventKind,
     Progress,
     Snapshot,
@@ -49,6 +49,7 @@ from roughslip.friction.events import (
     event_table,
     follow_events,
 )
+from roughslip.friction.result import PullResult
 from roughslip.linalg.inverse import Tracked
 
 
@@ -208,24 +209,19 @@ class TangentialState:
         """Nothing to do: every event updates the solutions in place."""
 
 
-def slide(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def slide(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     r"""The decoupled pull under ``opt.slip_law`` to full sliding, by the event loop: the exact
     piecewise-linear :math:`F_x(D_x)` (module docstring). ``friction_force`` is
     :math:`\sum_i f_{L,i}` once every bond slips (:math:`\lambda F_n` under the Coulomb law with
     every force in the pull's direction)."""
     st = TangentialState(b, opt)
     path = follow_events(st, 20 * b.n + 100, False)
-    ev = [e for e in path.events if e.kind != EventKind.START]
-    sticks = sum(e.kind == EventKind.STICK for e in ev)
-    return SlipResult(
-        friction_force=float(st.slip.sum()), peak_index=len(ev) - 1,
-        dx_lim=np.array([e.dx for e in ev]), fx_lim=np.array([e.fx for e in ev]),
-        broken_site=np.array([e.site for e in ev], dtype=np.int64),
-        stick_at_peak=np.zeros(b.shape, bool), fx_at_peak=b.field(st.slip),
-        converged=bool(st.ok) and not path.message, seconds=time.perf_counter() - t0,
-        method=opt.method_name, slip_law=opt.slip_law, lam=b.lam, n_bonds=b.n, steps=len(ev),
-        residual=st.worst, solves=st.refinements, normal_force=b.normal.normal_force,
+    curve = Curve.of(path.events)
+    sticks = curve.kind.count(EventKind.STICK)
+    return decoupled_result(
+        b, friction_force=float(st.slip.sum()), curve=curve, peak_event=curve.dx.size - 1,
+        peak_fx=b.field(st.slip), peak_stick=np.zeros(b.shape, bool), t0=t0,
+        method=opt.method_name, slip_law=opt.slip_law,
+        converged=bool(st.ok) and not path.message, residual=st.worst, solves=st.refinements,
         message=path.message or ("exact event sequence to full sliding"
-                                 + (f", {sticks} bond(s) stuck again" if sticks else "")),
-        kinds=tuple(e.kind for e in ev),
-    )
+                                 + (f", {sticks} bond(s) stuck again" if sticks else "")))

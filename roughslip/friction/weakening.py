@@ -55,15 +55,15 @@ included.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
 from roughslip.errors import MemoryLimitError, NumericalError
-from roughslip.friction.bonds import Bonds, PullOptions, SlipResult
+from roughslip.friction.bonds import Bonds, PullOptions, decoupled_result
 from roughslip.friction.events import (
     RATE_TIE,
     TIE,
+    Curve,
     EventKind,
     Progress,
     Snapshot,
@@ -72,6 +72,7 @@ from roughslip.friction.events import (
     event_table,
     follow_events,
 )
+from roughslip.friction.result import PullResult
 from roughslip.linalg.inverse import Tracked, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 
@@ -450,26 +451,20 @@ class WeakeningState:
         self._retrack()
 
 
-def weaken(b: Bonds, opt: PullOptions, t0: float) -> SlipResult:
+def weaken(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     r"""The decoupled pull under slip-weakening friction to full sliding, on the event loop
     (:func:`~roughslip.friction.events.follow_events`): the exact piecewise-linear path, its
     bursts at constant drive, and the state each lands in (module docstring).
     ``friction_force`` is the largest force of the stable path and the landings."""
     st = WeakeningState(b, opt)
     path = follow_events(st, 20 * b.n + 100, False, landings=True, avalanche_peaks=False)
-    ev = path.events[1:]
+    curve = Curve.of(path.events)
     peak = path.peak
-    at = [i for i, e in enumerate(ev) if e.dx == peak.dx and e.fx == peak.fx_total]
-    n_jumps = sum(e.kind == EventKind.JUMP for e in ev)
-    return SlipResult(
-        friction_force=max(peak.fx_total, 0.0), peak_index=at[0] if at else 0,
-        dx_lim=np.array([e.dx for e in ev]), fx_lim=np.array([e.fx for e in ev]),
-        broken_site=np.array([e.site for e in ev], dtype=np.int64),
-        stick_at_peak=peak.stick, fx_at_peak=peak.fx,
-        converged=bool(st.ok) and not path.message, seconds=time.perf_counter() - t0,
-        method=opt.method_name, slip_law=opt.slip_law, lam=b.lam, n_bonds=b.n, steps=len(ev),
-        residual=st.worst, solves=st.refinements, normal_force=b.normal.normal_force,
+    n_jumps = curve.kind.count(EventKind.JUMP)
+    return decoupled_result(
+        b, friction_force=max(peak.fx_total, 0.0), curve=curve, peak_event=path.peak_event,
+        peak_fx=peak.fx, peak_stick=peak.stick, t0=t0, method=opt.method_name,
+        slip_law=opt.slip_law, converged=bool(st.ok) and not path.message,
+        residual=st.worst, solves=st.refinements,
         message=path.message or (f"exact event path to full sliding, {n_jumps} burst(s), "
-                                 f"{st.snaps} bond(s) failed unstably"),
-        kinds=tuple(e.kind for e in ev),
-    )
+                                 f"{st.snaps} bond(s) failed unstably"))

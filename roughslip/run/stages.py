@@ -15,6 +15,7 @@ configuration asks for (``output.fields``), computed only when asked for.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,7 +25,8 @@ from roughslip.contact.squeeze import NormalResult, NormalSolver
 from roughslip.coupling.coupled import COUPLED_TOL, couple
 from roughslip.errors import ConvergenceError, NumericalError
 from roughslip.friction.laws import LAWS
-from roughslip.friction.pull import SlipResult, pull
+from roughslip.friction.pull import pull
+from roughslip.friction.result import PullResult
 from roughslip.run.scene import Scene
 
 
@@ -102,32 +104,18 @@ class _DecoupledSample:
         cfg, want = self.stage.config, self.stage.want
         pl = cfg.pull
         try:
-            s: SlipResult = pull(r, lam=pl.lam, slip_law=pl.slip_law, method=pl.method,
-                                 tol=pl.tol, batch_size=pl.batch_size,
-                                 estimate_error=pl.error_estimate, early_stop=pl.early_stop,
-                                 lam_dynamic=pl.lam_dynamic, slip_distance=pl.slip_distance,
-                                 precision=pl.precision)
+            s = pull(r, lam=pl.lam, slip_law=pl.slip_law, method=pl.method, tol=pl.tol,
+                     batch_size=pl.batch_size, estimate_error=pl.error_estimate,
+                     early_stop=pl.early_stop, lam_dynamic=pl.lam_dynamic,
+                     slip_distance=pl.slip_distance, precision=pl.precision)
         except NumericalError as exc:
             raise NumericalError(f"{where}: pull: {exc}") from None
         if cfg.execution.strict and not s.converged:
             raise ConvergenceError(f"{where}: pull did not converge: {s.message}")
-        rec.solvers.update(pull_method=s.method, **({"precision": s.precision}
-                                                    if s.precision else {}))
-        rec.scalars.update(friction_force=s.friction_force,
-                           friction_normal_force=s.normal_force, pull_seconds=s.seconds,
-                           pull_converged=s.converged, pull_steps=s.steps)
-        if not s.converged:
-            rec.notes.append(f"pull not converged ({s.message}); left out of the means")
-        if pl.error_estimate and math.isfinite(s.error_estimate):  # batch has none: fill NaN
-            rec.scalars["pull_error_estimate"] = s.error_estimate
-        if "fx" in want:
-            rec.fields["fx"] = s.fx_at_peak
-        if "stick" in want:
-            rec.fields["stick"] = s.stick_at_peak
-        if "ux" in want:
-            rec.fields["ux"] = self.problem.operator("xx").apply("xx", s.fx_at_peak)
-        if "pull_curve" in want:
-            rec.fields.update(dx_lim=s.dx_lim, fx_lim=s.fx_lim, broken_site=s.broken_site)
+        rec.solvers.update(pull_method=s.method, **({"precision": s.details.precision}
+                                                    if s.details.precision else {}))
+        add_pull(rec, s, want, lambda: self.problem.operator("xx").apply("xx", s.peak.fx),
+                 estimate=pl.error_estimate, what="pull", with_start=False)
 
 
 class CoupledStage:
@@ -169,45 +157,69 @@ class _CoupledSample:
         if cfg.execution.strict and not r.converged:
             raise ConvergenceError(f"{where}: coupled model did not converge: {r.message}")
         failed = LAWS.get(r.slip_law).failed
+        d = r.details
         # one solve gives squeeze and pull: the squeeze has no iteration count of its own, and
         # its time is the part of the solve before the pull starts
         rec = Record(
-            scalars=dict(depth_length=r.depth, normal_force=r.normal_force,
-                         contact_area=r.contact_area, residual=r.residual,
-                         converged=r.converged, seconds=r.squeeze_seconds,
-                         friction_force=r.friction_force,
-                         friction_normal_force=r.normal_force_at_peak,
-                         pull_seconds=r.seconds - r.squeeze_seconds, pull_converged=r.converged,
-                         pull_steps=len(r.events), released_bonds=r.released),
-            notes=[f"{r.released} bond(s) {failed} at D_x = 0"] + ([r.fallback] if r.fallback
+            scalars=dict(depth_length=d.depth, normal_force=r.normal_force,
+                         contact_area=d.contact_area, residual=r.residual,
+                         converged=r.converged, seconds=d.squeeze_seconds,
+                         released_bonds=d.released),
+            notes=[f"{d.released} bond(s) {failed} at D_x = 0"] + ([d.fallback] if d.fallback
                                                                    else []),
-            contact=r.contact0, solvers={"coupled_solver": r.method},
+            contact=r.start.contact, solvers={"coupled_solver": r.method},
         )
-        if not r.converged:
-            rec.notes.append(f"coupled solve not converged ({r.message}); left out of the "
-                             "means")
         f = rec.fields
         if "fz" in want:
-            f["fz"] = r.fz0
+            f["fz"] = r.start.fz
         if "contact" in want:
-            f["contact"] = r.contact0
+            f["contact"] = r.start.contact
         op = pb.operator("zz", "zx", "xx")
         if "uz" in want or "gap" in want:
-            uz = op.apply_block(r.fz0, r.fx0)[0]
+            uz = op.apply_block(r.start.fz, r.start.fx)[0]
             if "uz" in want:
                 f["uz"] = uz
             if "gap" in want:
-                f["gap"] = uz - pb.overlap(r.depth)
-        if "fx" in want:
-            f["fx"] = r.fx_peak
-        if "stick" in want:
-            f["stick"] = r.stick_peak
-        if "ux" in want:
-            f["ux"] = op.apply_block(r.fz_peak, r.fx_peak)[1]
-        if "pull_curve" in want:
-            f.update(dx_lim=r.dx, fx_lim=r.fx, fz_lim=r.fz, dz_lim=r.dz,
-                     broken_site=np.array([e.site for e in r.events], dtype=np.int64))
+                f["gap"] = uz - pb.overlap(d.depth)
+        add_pull(rec, r, want, lambda: op.apply_block(r.peak.fz, r.peak.fx)[1],
+                 estimate=False, what="coupled solve", with_start=True)
         return rec
+
+
+def add_pull(rec: Record, r: PullResult, want: set[str], ux: Callable[[], np.ndarray], *,
+             estimate: bool, what: str, with_start: bool) -> None:
+    """Write a pull's columns into ``rec``, the one place for both models: the friction
+    force, :math:`F_z` at the peak, the pull's seconds, convergence and events, the error
+    estimate (``estimate``, where the result has one), and of the fields asked for
+    (``want``) the peak's :math:`f_x`, stick set and :math:`u_x` (``ux``, computed only if
+    asked) and the pull curve. ``with_start``: the stored curve and its count of events
+    begin with the start at :math:`D_x = 0`, and carry :math:`F_z` and :math:`D_z` (the
+    coupled model's columns); otherwise they begin with the first event (the decoupled
+    pull, whose :math:`F_z` and :math:`D_z` do not move). ``what`` names the solve in the
+    note of a result that did not converge."""
+    c = r.curve
+    rec.scalars.update(friction_force=r.friction_force,
+                       friction_normal_force=r.normal_force_at_peak,
+                       pull_seconds=r.pull_seconds,
+                       pull_converged=r.converged,
+                       pull_steps=c.dx.size if with_start else r.steps)
+    if not r.converged:
+        rec.notes.append(f"{what} not converged ({r.message}); left out of the means")
+    est = getattr(r.details, "error_estimate", math.nan)
+    if estimate and math.isfinite(est):  # batch has none: the column is filled with NaN
+        rec.scalars["pull_error_estimate"] = est
+    f = rec.fields
+    if "fx" in want:
+        f["fx"] = r.peak.fx
+    if "stick" in want:
+        f["stick"] = r.peak.stick
+    if "ux" in want:
+        f["ux"] = ux()
+    if "pull_curve" in want:
+        k = 0 if with_start else 1
+        f.update(dx_lim=c.dx[k:], fx_lim=c.fx[k:], broken_site=c.site[k:])
+        if with_start:
+            f.update(fz_lim=c.fz, dz_lim=c.dz)
 
 
 def stage_for(scene: Scene) -> DecoupledStage | CoupledStage:
