@@ -109,3 +109,32 @@ def test_the_old_type_names_still_import_and_warn(module, name):
     assert old.__name__ == name
     assert name not in getattr(mod, "__all__", ())
     assert "PullResult" in roughslip.__all__
+
+
+def test_a_curve_carries_the_drive_and_the_force_as_vectors():
+    """The one-component curve is pulled along x with F_y = 0, its x components are its
+    stored numbers bit for bit; a curve along another unit vector splits its drive into
+    components and gives the force along the drive as F . e."""
+    from roughslip.friction.events import X_AXIS, Curve, unit_vector
+
+    d, fx = np.array([0.0, 0.1, 0.25]), np.array([0.0, 1.5, -0.0])
+    c = Curve.x_only(d, fx, np.ones(3), np.ones(3), ("start", "break", "break"),
+                     np.array([-1, 3, 4]))
+    assert c.direction == X_AXIS and np.array_equal(c.fy, np.zeros(3))
+    assert c.dx.tobytes() == d.tobytes() and c.fx.tobytes() == fx.tobytes()
+    np.testing.assert_array_equal(c.drive_vector, np.column_stack([d, np.zeros(3)]))
+    np.testing.assert_array_equal(c.along, fx)
+    e = unit_vector((3.0, 4.0))
+    assert e == (0.6, 0.8)
+    force = np.array([[0.0, 0.0], [1.0, 2.0], [-2.0, 1.0]])
+    v = Curve(d, force, np.ones(3), np.ones(3), c.kind, c.site, e)
+    np.testing.assert_allclose(v.dx, 0.6 * d)
+    np.testing.assert_allclose(v.dy, 0.8 * d)
+    np.testing.assert_allclose(v.along, [0.0, 2.2, -0.4])
+    for bad in ((0.0, 0.0), (1.0, float("nan")), (1.0,)):
+        with pytest.raises(ValueError, match="direction"):
+            unit_vector(bad)
+    with pytest.raises(ValueError, match="unit vector"):
+        Curve(d, force, np.ones(3), np.ones(3), c.kind, c.site, (1.0, 1.0))
+    with pytest.raises(ValueError, match="shape"):
+        Curve(d, fx, np.ones(3), np.ones(3), c.kind, c.site)

@@ -61,11 +61,52 @@ class EventKind(enum.StrEnum):
         return cls.SLIP_PLUS if force > 0 else cls.SLIP_MINUS
 
 
+#: the direction of the pulls the models drive: the x axis of the surface plane, as the unit
+#: vector :math:`(\hat e_x, \hat e_y)`
+X_AXIS: tuple[float, float] = (1.0, 0.0)
+
+
+#: the tangential force components of a site in the models, the last axis of a slip direction
+#: :math:`\boldsymbol\sigma` (:meth:`roughslip.friction.laws.SlipLaw.failed_direction`): the
+#: x component alone, the report's model, in which a unit vector is :math:`\pm 1`
+TANGENTIAL: tuple[str, ...] = ("x",)
+
+
+def tangential(v: tuple[float, float]) -> np.ndarray:
+    """The plane vector ``v = (x, y)`` in the :data:`TANGENTIAL` components."""
+    return np.array([v[("x", "y").index(c)] for c in TANGENTIAL], dtype=float)
+
+
+#: the index of the x component in :data:`TANGENTIAL`
+X = TANGENTIAL.index("x")
+#: the rigid surface's tangential rate in a pull along x, per unit of the drive, in the
+#: :data:`TANGENTIAL` components
+X_DRIVE = tangential(X_AXIS)
+
+
+def unit_vector(v: tuple[float, float] | np.ndarray) -> tuple[float, float]:
+    r"""The unit vector :math:`v/|v|` of a direction ``v = (x, y)`` in the surface plane.
+
+    Raises
+    ------
+    ValueError
+        When ``v`` is not two finite numbers, or is the zero vector (no direction).
+    """
+    a = np.asarray(v, dtype=float)
+    if a.shape != (2,) or not np.isfinite(a).all():
+        raise ValueError(f"a direction in the surface plane is two finite numbers (x, y), "
+                         f"not {v!r}")
+    norm = math.hypot(float(a[0]), float(a[1]))
+    if norm == 0.0:
+        raise ValueError("a direction in the surface plane cannot be the zero vector")
+    return float(a[0]) / norm, float(a[1]) / norm
+
+
 @dataclass(frozen=True)
 class Event:
-    """One recorded state of the pull."""
+    """One recorded state of the pull, driven along x (:data:`X_AXIS`)."""
 
-    dx: float
+    dx: float  # the drive D_x
     fx: float  # total tangential force F_x
     fz: float  # total normal force F_z at the same D_x
     kind: str  # an :class:`EventKind`
@@ -75,29 +116,108 @@ class Event:
 
 @dataclass(frozen=True)
 class Curve:
-    """A pull curve, one entry per event: the vocabulary of both models
-    (:attr:`roughslip.friction.result.PullResult.curve`)."""
+    r"""A pull curve, one entry per event: the vocabulary of both models
+    (:attr:`roughslip.friction.result.PullResult.curve`).
 
-    dx: np.ndarray  # D_x
-    fx: np.ndarray  # F_x, the total tangential force
-    fz: np.ndarray  # F_z, the total normal force at the same D_x
-    dz: np.ndarray  # D_z (NaN where the model does not follow it)
-    kind: tuple[str, ...]  # :class:`EventKind` per event
-    site: np.ndarray  # flat index of the event's site (-1: none)
+    The drive is a vector in the surface plane, :math:`\mathbf D = D\,\hat{\mathbf e}`: its
+    length ``drive`` along the unit vector ``direction`` (:math:`\hat{\mathbf e}`, as
+    :math:`(x, y)`). The total tangential force is a vector, ``force[:, 0]`` and
+    ``force[:, 1]`` its :math:`x` and :math:`y` components. The one-component model (forces
+    along x only, pulled along x; :meth:`x_only`) has ``direction`` :data:`X_AXIS` and
+    :math:`F_y = 0`.
+
+    Attributes
+    ----------
+    drive : numpy.ndarray
+        :math:`D`, the drive's displacement along ``direction``, per event.
+    force : numpy.ndarray
+        ``(n, 2)``: the total tangential force :math:`(F_x, F_y)`.
+    fz : numpy.ndarray
+        :math:`F_z`, the total normal force at the same drive.
+    dz : numpy.ndarray
+        :math:`D_z` (NaN where the model does not follow it).
+    kind : tuple of str
+        The :class:`EventKind` of each event.
+    site : numpy.ndarray
+        The flat index of each event's site (-1: none).
+    direction : tuple of float
+        :math:`\hat{\mathbf e}`, the unit vector of the drive.
+    """
+
+    drive: np.ndarray
+    force: np.ndarray
+    fz: np.ndarray
+    dz: np.ndarray
+    kind: tuple[str, ...]
+    site: np.ndarray
+    direction: tuple[float, float] = X_AXIS
+
+    def __post_init__(self) -> None:
+        n = self.drive.shape[0]
+        if self.force.shape != (n, 2):
+            raise ValueError(f"a curve of {n} events has a force of shape (n, 2) = ({n}, 2), "
+                             f"not {self.force.shape}")
+        unit_vector(self.direction)  # two finite numbers, not zero
+        if abs(math.hypot(*self.direction) - 1.0) > 4 * np.finfo(float).eps:
+            raise ValueError(f"a curve's direction is a unit vector, not {self.direction!r}")
+
+    @property
+    def drive_vector(self) -> np.ndarray:
+        r"""``(n, 2)``: the drive :math:`\mathbf D = D\,\hat{\mathbf e}` as
+        :math:`(D_x, D_y)`."""
+        return np.outer(self.drive, self.direction)
+
+    @property
+    def dx(self) -> np.ndarray:
+        """:math:`D_x`, the drive's x component."""
+        return self.drive * self.direction[0]
+
+    @property
+    def dy(self) -> np.ndarray:
+        """:math:`D_y`, the drive's y component."""
+        return self.drive * self.direction[1]
+
+    @property
+    def fx(self) -> np.ndarray:
+        """:math:`F_x`, the total tangential force's x component."""
+        return self.force[:, 0]
+
+    @property
+    def fy(self) -> np.ndarray:
+        """:math:`F_y`, the total tangential force's y component."""
+        return self.force[:, 1]
+
+    @property
+    def along(self) -> np.ndarray:
+        r""":math:`\mathbf F\cdot\hat{\mathbf e}`, the total tangential force along the
+        drive (the pull force)."""
+        ex, ey = self.direction
+        return self.force[:, 0] * ex + self.force[:, 1] * ey
+
+    @classmethod
+    def x_only(cls, dx: np.ndarray, fx: np.ndarray, fz: np.ndarray, dz: np.ndarray,
+               kind: tuple[str, ...], site: np.ndarray) -> Curve:
+        """The curve of the one-component model: pulled along x, :math:`F_y = 0`."""
+        dx = np.asarray(dx, dtype=float)
+        force = np.zeros((dx.shape[0], 2))
+        force[:, 0] = fx
+        return cls(dx, force, np.asarray(fz, dtype=float), np.asarray(dz, dtype=float),
+                   tuple(kind), np.asarray(site, dtype=np.int64))
 
     @classmethod
     def empty(cls) -> Curve:
         """The curve of a pull with nothing to pull (no contact): no event, not even the
         start."""
         z = np.zeros(0)
-        return cls(z, z, z, z, (), np.zeros(0, np.int64))
+        return cls.x_only(z, z, z, z, (), np.zeros(0, np.int64))
 
     @classmethod
     def of(cls, events: list[Event]) -> Curve:
-        return cls(np.array([e.dx for e in events]), np.array([e.fx for e in events]),
-                   np.array([e.fz for e in events]), np.array([e.dz for e in events]),
-                   tuple(e.kind for e in events),
-                   np.array([e.site for e in events], dtype=np.int64))
+        """The curve of the events of a pull along x."""
+        return cls.x_only(np.array([e.dx for e in events]), np.array([e.fx for e in events]),
+                          np.array([e.fz for e in events]), np.array([e.dz for e in events]),
+                          tuple(e.kind for e in events),
+                          np.array([e.site for e in events], dtype=np.int64))
 
 
 def argext(a: np.ndarray, mask: np.ndarray | None, how: str) -> int:

@@ -233,9 +233,9 @@ def start_curve(dx: np.ndarray, fx: np.ndarray, kinds: tuple[str, ...], sites: n
     """The curve of a decoupled pull from its events after the start: the start (at
     :math:`D_x = 0`, no force) first; :math:`F_z` and :math:`D_z` stay the squeeze's."""
     n = dx.size
-    return Curve(np.concatenate([[0.0], dx]), np.concatenate([[0.0], fx]),
-                 np.full(n + 1, float(normal_force)), np.full(n + 1, float(depth)),
-                 (EventKind.START, *kinds), np.concatenate([[-1], sites]).astype(np.int64))
+    return Curve.x_only(np.concatenate([[0.0], dx]), np.concatenate([[0.0], fx]),
+                        np.full(n + 1, float(normal_force)), np.full(n + 1, float(depth)),
+                        (EventKind.START, *kinds), np.concatenate([[-1], sites]))
 
 
 def _from_decoupled(old: dict[str, Any]) -> PullResult:
@@ -266,8 +266,7 @@ def _from_coupled(old: dict[str, Any]) -> PullResult:
     """A :class:`PullResult` from the keywords of the coupled result of earlier versions."""
     old = dict(old)
     events = list(old.pop("events"))
-    curve = Curve.of(events) if events else Curve(
-        np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), (), np.zeros(0, np.int64))
+    curve = Curve.of(events) if events else Curve.empty()
     ff, at = old.pop("friction_force"), old.pop("peak_dx", 0.0)
     hits = [i for i, e in enumerate(events) if e.dx == at and e.fx == ff]
     names = {f.name for f in fields(CoupledDetails)}
