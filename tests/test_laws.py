@@ -13,6 +13,7 @@ from roughslip.contact.squeeze import squeeze
 from roughslip.coupling.coupled import couple, indent
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import InputError
+from roughslip.friction.events import TANGENTIAL, X
 from roughslip.friction.laws import LAWS, CoulombLaw
 from roughslip.friction.pull import pull
 from roughslip.friction.result import CoupledDetails, DecoupledDetails, PullResult
@@ -157,3 +158,42 @@ def test_the_pull_and_the_coupled_model_give_one_result_type():
     assert broken.curve.kind[0] == "start" and set(broken.curve.kind[1:]) == {"break"}
     assert broken.curve.fx[broken.peak_event] == broken.friction_force
     assert np.all(broken.curve.dz == normal.depth)  # the decoupled pull holds the depth
+
+
+@pytest.mark.parametrize("name", LAWS.names())
+def test_a_failed_bond_keeps_a_unit_slip_direction_or_none(name):
+    """Each registered law's slip direction after a failure is a unit vector of the tangential
+    components, pointing the way of the failure (slip+ along +x), or the zero vector for a
+    law whose failed bonds carry nothing; what a slipping bond carries is lam times it."""
+    law = LAWS.get(name).bind(0.3, **({"lam_dynamic": 0.1, "slip_distance": 0.05}
+                                      if name == "slip-weakening" else {}))
+    for kind, sign in (("slip+", 1.0), ("slip-", -1.0)):
+        d = law.failed_direction(kind)
+        assert d.shape == (len(TANGENTIAL),)
+        norm = float(np.linalg.norm(d))
+        assert norm == 0.0 if law.sequence else norm == 1.0
+        if norm:
+            assert d[X] == sign
+            np.testing.assert_array_equal(law.carried(law.lam, d[None, :])[0], 0.3 * d)
+
+
+def test_the_decoupled_state_holds_slip_directions_as_unit_vectors():
+    """After a Coulomb pull's first slip events, the state holds one tangential vector per
+    bond: a unit vector on each slipping bond, in the direction of its force, zero elsewhere."""
+    from roughslip.friction.bonds import Bonds, PullOptions
+    from roughslip.friction.sliding import TangentialState
+
+    h = self_affine((16, 16), hurst=0.8, rms_height=1.0, rng=sample_rng(3, 0), oversample=2)
+    normal = squeeze(h, depth=1.6, nu=0.25, tol=1e-12)
+    st = TangentialState(Bonds(normal, 0.2), PullOptions(slip_law="coulomb",
+                                                         law=LAWS.get("coulomb"), tol=1e-12))
+    D = 0.0
+    for _ in range(5):
+        _, hi, kind, j = st.interval(D)
+        D = max(D, hi)
+        st.apply(kind, j, D)
+    assert st.sigma.shape == (st.b.n, len(TANGENTIAL))
+    norms = np.linalg.norm(st.sigma, axis=-1)
+    assert set(np.unique(norms)) <= {0.0, 1.0} and np.count_nonzero(norms) == 5
+    slipping = norms == 1.0
+    assert np.all(np.sign(st.slip[slipping]) == st.sigma[slipping, X])

@@ -12,6 +12,7 @@ from roughslip.contact.squeeze import NormalSolver
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import InputError
 from roughslip.friction import weakening
+from roughslip.friction.events import X
 from roughslip.surfaces import sphere
 
 LAM = 0.2
@@ -87,7 +88,7 @@ def _check_state(st: weakening.WeakeningState, D: float, G: np.ndarray) -> None:
     the dense Hessian of the weakening bonds."""
     f = st.forces(D)
     s = D - G @ f  # slip of the rigid surface over the half-space at each bond
-    fz, sig, ph = st.fz, st.sigma, st.phase
+    fz, sig, ph = st.fz, st.sigma[:, X], st.phase
     fs = fz.max()
     scale = max(st.progress.scale, D)
     stick, weak, res = ph == weakening.STICK, ph == weakening.WEAK, ph == weakening.RESIDUAL

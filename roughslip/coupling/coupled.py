@@ -72,6 +72,7 @@ from roughslip.friction.events import (  # noqa: F401  (TIE, RATE_TIE: public he
     Event,
     EventPath,
     Snapshot,
+    X,
     follow_events,
 )
 from roughslip.friction.pull import check_friction
@@ -380,7 +381,8 @@ def indent(
         depth=float(D), normal_force=float(fz.sum()), tangential_force=float(fx.sum()),
         events=path.events, contact_counts=counts[:, 0], stick_counts=counts[:, 1],
         fz=fz, fx=fx, contact=st.C.copy(), stick=st.S.copy(),
-        slip=np.where(st.C & ~st.S, st.sigma, 0.0).astype(np.int8), converged=out.converged,
+        slip=np.where(st.C & ~st.S, st.sigma[..., X], 0.0).astype(np.int8),
+        converged=out.converged,
         seconds=time.perf_counter() - t0, solves=solver.solves, method=out.method,
         residual=out.residual, slip_law=slip_law, message=out.message, states=path.states)
 

@@ -16,10 +16,13 @@ import numpy as np
 
 from roughslip.errors import NumericalError
 from roughslip.friction.events import (
+    TANGENTIAL,
     TIE,
+    X_DRIVE,
     EventKind,
     Progress,
     Snapshot,
+    X,
     argext,
     digest,
     event_table,
@@ -48,10 +51,10 @@ class ContactState:
         self.gained = gained
         self.slip_law = slip_law
         self.law = LAWS.get(slip_law, "slip_law")
-        #: slip direction of the sites in C but not in S: +-1, a slipping bond carrying
-        #: f_x = sigma lam f_z (Coulomb law); 0, no tangential force (a broken bond, or a
-        #: contact that never was a bond)
-        self.sigma = np.zeros(base.shape)
+        #: slip direction of the sites in C but not in S, on the last axis: a unit vector of
+        #: the tangential components, a slipping bond carrying f_t = sigma lam f_z (Coulomb
+        #: law); zero, no tangential force (a broken bond, or a contact that never was a bond)
+        self.sigma = np.zeros((*base.shape, len(TANGENTIAL)))
         self.u1x: np.ndarray | None = None  # rate of u_x in D_x, with slipping bonds
         #: u_x of each right-hand side's certified solution with slip forces, by key
         self._ux: dict[str, np.ndarray] = {}
@@ -87,10 +90,14 @@ class ContactState:
         self.progress = Progress()
         self.slope = False
 
+    def direction(self, j: int) -> np.ndarray:
+        """The slip direction of site ``j`` (flat index): a view of :attr:`sigma`."""
+        return self.sigma.reshape(-1, self.sigma.shape[-1])[j]
+
     @property
     def slipping(self) -> np.ndarray:
         """The slipping bonds: contact sites off the stick set with a slip direction."""
-        return self.C & ~self.S & (self.sigma != 0)
+        return self.C & ~self.S & self.sigma.any(axis=-1)
 
     def hold_depth(self, depth: float) -> None:
         """Switch to displacement control at ``depth`` (then call :meth:`solve`)."""
@@ -183,7 +190,7 @@ class ContactState:
         self._ux = {}
         if not P.any():
             return self.solver.solve_many(rhs)
-        w = self.law.carried(self.lam, self.sigma[P])
+        w = self.law.carried(self.lam, self.sigma[P])[:, X]  # the block's one component
         out = self.solver.solve_slip(rhs, self.C, self.S, P, w)
         self._ux = {key: ux for (_, _, key), (_, _, _, ux) in zip(rhs, out, strict=True)}
         return [(fz, fx, uz) for fz, fx, uz, _ in out]
@@ -248,17 +255,17 @@ class ContactState:
         if kind == EventKind.LOST:
             C[j] = False
             S[j] = False
-            self.sigma.ravel()[j] = 0.0
+            self.direction(j)[:] = 0.0
         elif kind == EventKind.STICK:  # a slipping bond sticks again where it is
             self._bond_here(j, D)
-            self.sigma.ravel()[j] = 0.0
+            self.direction(j)[:] = 0.0
         elif kind == EventKind.GAINED:
             C[j] = True
             if self.progress.started and self.gained == "bonded":
                 self._bond_here(j, D)
         else:  # a bond fails: what it carries after is the slip law's
             S[j] = False
-            self.sigma.ravel()[j] = self.law.failed_sign(kind)
+            self.direction(j)[:] = self.law.failed_direction(kind)
 
     def _bond_here(self, j: int, D: float) -> None:
         """Bond site ``j`` at the elastic point where it is at ``D``: its offset makes the
@@ -282,8 +289,9 @@ class ContactState:
         start of a state, never inside one."""
         if self.u1x is None:
             return None
-        rigid = 1.0 if self.drive == "x" else 0.0  # the rigid surface's tangential rate
-        return self.law.turned_back(self.slipping, self.sigma, self.u1x, rigid)
+        # the rigid surface's tangential rate: zero when the depth is driven
+        rigid = X_DRIVE if self.drive == "x" else np.zeros_like(X_DRIVE)
+        return self.law.turned_back(self.slipping, self.sigma, self.u1x[..., None], rigid)
 
     def interval(self, D: float) -> tuple[float, float, str, int]:
         r"""The displacements at which this state is admissible, ``[lo, hi]``, and the event

@@ -4,9 +4,11 @@ Every law shares the failure criterion of a stick bond, :math:`|f_x| \le \lambda
 affine constraint rows per stick site, :math:`\lambda f_z - f_x \ge 0` (event ``"slip+"``) and
 :math:`\lambda f_z + f_x \ge 0` (``"slip-"``). A law says the rest:
 
-* **what a failed bond carries**: its slip direction :math:`\sigma` after an event
-  (:meth:`SlipLaw.failed_sign`; 0 for nothing) and the force of a slipping bond,
-  :math:`f_x = w f_z` with :math:`w` from :meth:`SlipLaw.carried`;
+* **what a failed bond carries**: its slip direction :math:`\boldsymbol\sigma` after an event,
+  a unit vector in the tangential components of the model
+  (:data:`~roughslip.friction.events.TANGENTIAL`), or zero for nothing
+  (:meth:`SlipLaw.failed_direction`), and the force of a slipping bond,
+  :math:`\mathbf f_t = \mathbf w f_z` with :math:`\mathbf w` from :meth:`SlipLaw.carried`;
 * **its constraint rows** (:meth:`SlipLaw.stick_rows`) and how overloaded a bond is
   (:meth:`SlipLaw.overload`), which the event loop turns into events;
 * **its reversal rule** (:attr:`SlipLaw.reverses`, :meth:`SlipLaw.turned_back`): whether a
@@ -32,7 +34,7 @@ import numpy as np
 
 from roughslip.errors import InputError
 from roughslip.friction.breaking import break_sequence
-from roughslip.friction.events import RATE_TIE, TIE, EventKind
+from roughslip.friction.events import RATE_TIE, TANGENTIAL, TIE, EventKind
 from roughslip.friction.sliding import slide
 from roughslip.friction.weakening import weaken
 from roughslip.registry import Registry
@@ -125,14 +127,16 @@ class SlipLaw:
                                                        if self.params else ""))
         return replace(self, lam=float(lam))
 
-    def failed_sign(self, kind: str) -> float:
-        """The slip direction a bond keeps after the failure event ``kind`` (``"slip+"`` or
-        ``"slip-"``); 0: it carries no tangential force."""
-        return 0.0
+    def failed_direction(self, kind: str) -> np.ndarray:
+        r"""The slip direction :math:`\boldsymbol\sigma` a bond keeps after the failure event
+        ``kind`` (``"slip+"`` or ``"slip-"``): a unit vector of the tangential components
+        (:data:`~roughslip.friction.events.TANGENTIAL`), or the zero vector when it carries
+        no tangential force (this law)."""
+        return np.zeros(len(TANGENTIAL))
 
     def carried(self, lam: float, sigma: np.ndarray) -> np.ndarray:
-        r""":math:`w` of the slipping bonds with directions ``sigma``: they carry
-        :math:`f_x = w f_z`."""
+        r""":math:`\mathbf w` of the slipping bonds with slip directions ``sigma`` (unit
+        vectors on the last axis): they carry :math:`\mathbf f_t = \mathbf w f_z`."""
         return lam * sigma
 
     def stick_rows(self, lam: float, S: np.ndarray, f0: tuple[np.ndarray, np.ndarray],
@@ -144,20 +148,22 @@ class SlipLaw:
                 (EventKind.SLIP_MINUS, S, lam * fz0 + fx0, lam * fz1 + fx1, scale)]
 
     def turned_back(self, slipping: np.ndarray, sigma: np.ndarray, rate: np.ndarray,
-                    rigid: float) -> int | None:
+                    rigid: np.ndarray) -> int | None:
         r"""The reversal rule: the slipping bond (flat index) that sticks again, or None.
 
-        A bond slipping in direction :math:`\sigma` lags behind the rigid surface,
-        :math:`\sigma\,(\partial u_x/\partial D - v) \le 0`, with ``rate`` the
-        :math:`\partial u_x/\partial D` of the bonds and ``rigid`` the surface's tangential
-        rate :math:`v` (1 in a pull, 0 when the depth is driven). Under a law that
+        A bond slipping in direction :math:`\boldsymbol\sigma` lags behind the rigid surface,
+        :math:`\boldsymbol\sigma\cdot(\partial\mathbf u_t/\partial D - \mathbf v) \le 0`,
+        with ``rate`` the :math:`\partial\mathbf u_t/\partial D` of the bonds and ``rigid``
+        the surface's tangential rate :math:`\mathbf v` (the drive's unit vector in a pull,
+        zero when the depth is driven), vectors of the tangential components
+        (:data:`~roughslip.friction.events.TANGENTIAL`) on the last axis. Under a law that
         :attr:`reverses`, the bond whose slip would run against its force by the most (above
         ``RATE_TIE``; ties to the lowest index) sticks again where it is: its force is
         continuous, starting at its bound and moving inwards.
         """
         if not self.reverses:
             return None
-        back = np.where(slipping, sigma * (rate - rigid), -np.inf).ravel()
+        back = np.where(slipping, (sigma * (rate - rigid)).sum(axis=-1), -np.inf).ravel()
         top = float(back.max())
         if not top > RATE_TIE:
             return None
@@ -186,8 +192,8 @@ class CoulombLaw(SlipLaw):
     :math:`f_x = \sigma\lambda f_z` as :math:`f_z` changes, and sticks again where it is
     when the drive would turn its slip around."""
 
-    def failed_sign(self, kind: str) -> float:
-        return 1.0 if kind == EventKind.SLIP_PLUS else -1.0
+    def failed_direction(self, kind: str) -> np.ndarray:
+        return np.array([1.0 if kind == EventKind.SLIP_PLUS else -1.0])
 
 
 @dataclass(frozen=True)
@@ -217,8 +223,8 @@ class SlipWeakeningLaw(SlipLaw):
             raise LawParameterError("slip_distance", dc, "must be a finite number > 0")
         return replace(self, lam=float(lam), lam_dynamic=float(ld), slip_distance=float(dc))
 
-    def failed_sign(self, kind: str) -> float:
-        return 1.0 if kind == EventKind.SLIP_PLUS else -1.0
+    def failed_direction(self, kind: str) -> np.ndarray:
+        return np.array([1.0 if kind == EventKind.SLIP_PLUS else -1.0])
 
 
 #: the slip laws, by name (the configuration's ``pull.slip_law``)

@@ -39,11 +39,14 @@ from roughslip.friction.bonds import (
     track,
 )
 from roughslip.friction.events import (
+    TANGENTIAL,
     TIE,
+    X_DRIVE,
     Curve,
     EventKind,
     Progress,
     Snapshot,
+    X,
     argext,
     digest,
     event_table,
@@ -64,7 +67,9 @@ class TangentialState:
         track(self.inv, "phi", np.ones(n))
         self.inv.tracked["psi"] = Tracked(np.zeros(n), np.zeros(n), shrinking_only)
         self.rows = BondRows(b)
-        self.sigma = np.zeros(n)  # slip direction per bond position (0: sticks or carries 0)
+        #: slip direction per bond position, a unit vector of the law's tangential components
+        #: (zero: sticks, or carries nothing)
+        self.sigma = np.zeros((n, len(TANGENTIAL)))
         self.slip = np.zeros(n)  # f_x carried by each failed bond (bond positions)
         self.offset = np.zeros(n)  # a bond stuck again holds u_x = D + offset
         self.slip_sum = 0.0
@@ -145,7 +150,7 @@ class TangentialState:
         """A slipping bond whose slip the pull would turn around (the slip law's
         :meth:`~roughslip.friction.laws.SlipLaw.turned_back`): one FFT product per stick set,
         only under a law that reverses and while bonds slip."""
-        slipping = self.sigma != 0
+        slipping = self.sigma.any(axis=-1)
         if not (self.law.reverses and slipping.any()):
             return None
         if self._rate is None:
@@ -153,7 +158,8 @@ class TangentialState:
             v = np.zeros(self.b.shape)
             v.ravel()[self.b.sites[self.inv.ids[live]]] = phi[live]
             self._rate = self.b.apply(v, np.empty(self.b.shape)).ravel()
-        pos = self.law.turned_back(slipping, self.sigma, self._rate[self.b.sites], 1.0)
+        pos = self.law.turned_back(slipping, self.sigma, self._rate[self.b.sites, None],
+                                   X_DRIVE)
         return None if pos is None else int(self.b.sites[pos])
 
     # -- events --------------------------------------------------------------------------------
@@ -166,8 +172,8 @@ class TangentialState:
         if kind not in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
             raise NumericalError(f"decoupled pull: no event {kind!r} (internal error)")
         r = int(self.inv.row[pos])
-        s = self.law.failed_sign(kind)
-        carried = float(self.law.carried(self.b.lam, np.array([s]))[0] * self.b.fz[pos])
+        s = self.law.failed_direction(kind)
+        carried = float(self.law.carried(self.b.lam, s)[X] * self.b.fz[pos])
         # psi <- psi - c (psi_k + f_L,k) / c_k: the removal does it with psi_k so raised
         self.rows.remove(self.inv, r, held={"psi": -carried})
         self.sigma[pos], self.slip[pos] = s, carried
@@ -194,7 +200,8 @@ class TangentialState:
         ux = self.b.apply(fx, np.empty(self.b.shape)).ravel()[j]
         self.offset[pos] = ux - D
         self.slip_sum -= self.slip[pos]
-        self.sigma[pos] = self.slip[pos] = 0.0
+        self.sigma[pos] = 0.0
+        self.slip[pos] = 0.0
         self.S.ravel()[j] = True
         stick = self.position[np.flatnonzero(self.S.ravel())]
         self.inv.factor(stick)

@@ -62,11 +62,13 @@ from roughslip.errors import MemoryLimitError, NumericalError
 from roughslip.friction.bonds import Bonds, PullOptions, decoupled_result
 from roughslip.friction.events import (
     RATE_TIE,
+    TANGENTIAL,
     TIE,
     Curve,
     EventKind,
     Progress,
     Snapshot,
+    X,
     argext,
     digest,
     event_table,
@@ -88,7 +90,7 @@ class WeakeningState:
     """The bonds of a squeeze under slip-weakening, affine in the pull (module docstring)."""
 
     def __init__(self, b: Bonds, opt: PullOptions) -> None:
-        law = opt.law
+        law = self.law = opt.law
         self.b, self.opt = b, opt
         self.lam_s, self.lam_d = float(b.lam), float(law.lam_dynamic)
         self.dc = float(law.slip_distance)
@@ -96,7 +98,9 @@ class WeakeningState:
         self.fz = b.fz
         self.k = (self.lam_s - self.lam_d) * self.fz / self.dc  # weakening stiffness
         self.phase = np.zeros(n, dtype=np.int8)
-        self.sigma = np.zeros(n)
+        #: slip direction per bond, a unit vector of the tangential components (zero: sticks);
+        #: the slip s, the strength and the forces below are its x components
+        self.sigma = np.zeros((n, len(TANGENTIAL)))
         self.lam_cur = np.full(n, self.lam_s)  # strength reached, lambda(delta)
         self.delta = np.zeros(n)  # slip accumulated up to the phase's start
         self.s0 = np.zeros(n)  # slip where the phase started
@@ -257,7 +261,7 @@ class WeakeningState:
         fz = self.fz[ids]
         fs = max(float(np.abs(self.fz).max()), np.finfo(float).tiny)
         S, W = live & (ph == STICK), live & (ph == WEAK)
-        sg = self.sigma[ids]
+        sg = self.sigma[ids, X]
         lam = self.lam_cur[ids]
         cons = [(EventKind.SLIP_PLUS, S, lam * fz + psi, -phi, fs),
                 (EventKind.SLIP_MINUS, S, lam * fz - psi, phi, fs),
@@ -307,7 +311,7 @@ class WeakeningState:
         pick = rows[diag > 0] if np.any(diag > 0) else rows
         margin = np.full(phi.shape, np.inf)
         q = ids[pick]
-        margin[pick] = (self.sigma[q] * (D * phi[pick] - psi[pick]) - self.lam_d * self.fz[q]
+        margin[pick] = (self.sigma[q, X] * (D * phi[pick] - psi[pick]) - self.lam_d * self.fz[q]
                         ) / self.fz[q]
         return int(ids[argext(margin, None, "min")])
 
@@ -336,7 +340,7 @@ class WeakeningState:
         can = (self.phase == WEAK) | ((self.phase == RESIDUAL) & (self.lam_d > 0))
         if not can.any():
             return None
-        back = np.where(can, -self.sigma * self._slip_rates(), -np.inf)
+        back = np.where(can, -self.sigma[:, X] * self._slip_rates(), -np.inf)
         top = float(back.max())
         if not top > RATE_TIE:
             return None
@@ -384,8 +388,8 @@ class WeakeningState:
         inv = self.inv
         snaps = self.snaps
         if kind in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
-            s = 1.0 if kind == EventKind.SLIP_PLUS else -1.0
-            self.sigma[p] = s
+            self.sigma[p] = self.law.failed_direction(kind)
+            s = self.sigma[p, X]
             col = inv.column(int(inv.row[p])) if self.k[p] > 0 else None
             if col is not None and self.lam_cur[p] > self.lam_d and \
                     col[inv.row[p]] > self.k[p] * (1 + TIE):
@@ -399,15 +403,15 @@ class WeakeningState:
                 self.delta[p] = max(self.delta[p], self.dc)
                 self._leave(p, s * self.lam_d * self.fz[p], col)
         elif kind == EventKind.RESIDUAL:
-            s = self.sigma[p]
+            s = self.sigma[p, X]
             self.delta[p] += s * (self._slip(p, D) - self.s0[p])
             self._leave(p, s * self.lam_d * self.fz[p])
         elif kind == EventKind.SNAP:  # a weakening bond runs away to its residual strength
             self.snaps += 1
             self.delta[p] = max(self.delta[p], self.dc)
-            self._leave(p, self.sigma[p] * self.lam_d * self.fz[p])
+            self._leave(p, self.sigma[p, X] * self.lam_d * self.fz[p])
         elif kind == EventKind.STICK:
-            s = self.sigma[p]
+            s = self.sigma[p, X]
             slip = self._slip(p, D)
             if self.phase[p] == WEAK:
                 f = float(self.forces(D)[p])
