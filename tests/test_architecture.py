@@ -145,6 +145,59 @@ def test_method_names_come_from_the_registries():
         roughslip.squeeze_pull_coupled(h, depth=0.1, method="lu")
 
 
+def _registered_names() -> set[str]:
+    """The names of the registered slip laws, pull methods, coupled block solvers and squeeze
+    methods."""
+    from roughslip.contact import squeeze
+    from roughslip.coupling.blocksolvers import SOLVERS
+    from roughslip.friction.laws import LAWS
+    from roughslip.friction.pull import METHODS
+
+    return {*LAWS.names(), *METHODS.names(), *SOLVERS.names(), *squeeze.METHODS.names()}
+
+
+def _name_comparisons(source: str, names: set[str]) -> list[str]:
+    """The comparisons (``==``, ``!=``, ``in``) of ``source`` with a literal that is one of
+    ``names``; a comparison of a ``precision`` (whose choices include ``"auto"`` too) is not
+    one of a method."""
+    import ast
+
+    def literals(node):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str):
+            yield node.value
+        elif isinstance(node, ast.Tuple | ast.List | ast.Set):
+            for e in node.elts:
+                yield from literals(e)
+
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, ast.Compare):
+            continue
+        sides = [node.left, *node.comparators]
+        if any("precision" in ast.unparse(x) for x in sides):
+            continue
+        if {v for x in sides for v in literals(x)} & names:
+            found.append(f"{node.lineno}: {ast.unparse(node)}")
+    return found
+
+
+def test_no_law_or_method_name_is_compared_outside_the_registries():
+    """What a law, a pull method, a block solver or a squeeze method does is read from its
+    registered object (its capabilities), never from its name: no code of the package
+    compares a name from the registries."""
+    names = _registered_names()
+    found = [f"{f.relative_to(PKG)}:{hit}" for f in sorted(PKG.rglob("*.py"))
+             for hit in _name_comparisons(f.read_text(), names)]
+    assert not found, found
+
+
+def test_the_name_comparison_check_sees_one():
+    names = _registered_names()
+    code = ("if method == 'cg': pass\nif law in ('coulomb', 'x'): pass\n"
+            "if precision == 'auto': pass\nif kind == EventKind.BREAK: pass\n")
+    assert [x.split(":")[0] for x in _name_comparisons(code, names)] == ["1", "2"]
+
+
 def test_coulomb_law_is_refused_by_the_methods_that_do_not_implement_it():
     """The matrix-free methods solve for phi afresh on each stick set: the Coulomb law needs
     solutions tracked through its slipping bonds, so they refuse it, naming the methods that

@@ -147,7 +147,11 @@ class Outcome:
 
 
 class SqueezeMethod(Protocol):
-    """A squeeze method: built once per :class:`NormalSolver`, then solved at many targets."""
+    """A squeeze method: built once per :class:`NormalSolver`, then solved at many targets.
+    ``removes_only``: it can only take sites out of contact, never add them, so its result
+    is checked for penetration off contact."""
+
+    removes_only: bool
 
     def __init__(self, solver: NormalSolver) -> None: ...
 
@@ -262,7 +266,7 @@ class NormalSolver:
         F = float(fz.sum())
         load = force is not None
         message = out.message
-        if self.method == "active-set" and pen > self.tol:
+        if self._impl.removes_only and pen > self.tol:
             message = (f"{message}; penetration off contact {pen:.2e} (relative to the depth) "
                        "exceeds the tolerance: the removal-only loop missed contact sites")
         return NormalResult(
@@ -305,6 +309,8 @@ class PolonskyKeer:
     contact set changes inside the iteration (a projection after every step, and conjugacy
     restarts when sites enter), so no fixed restricted operator describes it.
     """
+
+    removes_only = False
 
     def __init__(self, solver: NormalSolver) -> None:
         self.solver = solver
@@ -468,6 +474,8 @@ class ActiveSet:
     :math:`G_{KK} f_K = \\bar u_K` by CG (:func:`roughslip.linalg.cg.cg`), drop the sites with
     :math:`f < 0`, repeat. It can only remove sites, so penetration off contact is checked at
     the end. Load control is a bracketed root search on the depth."""
+
+    removes_only = True
 
     def __init__(self, solver: NormalSolver) -> None:
         self.solver = solver

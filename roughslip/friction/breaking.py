@@ -52,7 +52,6 @@ def break_cg(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
 def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> PullResult:
     """One CG solve per break (cold from zero, or warm from the previous solution)."""
     tol, max_iter = opt.tol, opt.max_iter
-    method = "cg" if warm else "literal"
     curve = BreakCurve(b, opt.early_stop and warm)
     alive = np.arange(b.n)
     phi = None
@@ -71,8 +70,8 @@ def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> PullR
             break
         alive = np.delete(alive, j)
         phi = np.delete(phi, j)
-    return curve.result(t0, method, converged=bool(ok), solves=solves, residual=worst,
-                        message=f"{solves} CG solves, {iters} iterations")
+    return curve.result(t0, opt.method_name, converged=bool(ok), solves=solves,
+                        residual=worst, message=f"{solves} CG solves, {iters} iterations")
 
 
 def break_sequence(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
@@ -154,5 +153,5 @@ def _batch_pass(b: Bonds, opt: PullOptions, t0: float, size: int) -> PullResult:
         keep = np.ones(alive.size, bool)
         keep[order] = False
         alive, phi = alive[keep], phi[keep]
-    return curve.result(t0, "batch", converged=bool(ok), solves=solves, residual=worst,
+    return curve.result(t0, opt.method_name, converged=bool(ok), solves=solves, residual=worst,
                         message=f"{solves} CG solves, {size} bonds per solve")

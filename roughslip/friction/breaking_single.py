@@ -483,6 +483,6 @@ def break_inverse_single(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
            f"{bound.sharpened} of {bound.states} decisions sharpened, {bound.full} refined in "
            f"full, bound exceeded {bound.exceeded} times, {peaks.solved} peak candidates "
            f"solved; curve points within {peaks.curve_error:.1e} relative, the peak exact")
-    return curve.result(t0, "inverse", converged=bool(ok), residual=worst,
+    return curve.result(t0, opt.method_name, converged=bool(ok), residual=worst,
                         solves=bound.refinements + peaks.solved, message=msg,
                         precision="single")

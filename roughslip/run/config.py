@@ -465,7 +465,7 @@ def _check_cross(cfg: RunConfig, ctx: Context, errors: Errors) -> None:
                    "bilinear constraint); needs coupling.enabled = false")
     if cfg.pull.enabled and not cfg.coupling.enabled:
         laws = methods_for(cfg.pull.slip_law)
-        if laws == ["auto"]:
+        if all(METHODS.get(m).chooses for m in laws):  # only the method that chooses
             errors.add("pull.slip_law", cfg.pull.slip_law,
                        "has no decoupled pull method; needs coupling.enabled = true")
         if cfg.pull.method not in laws:
