@@ -691,27 +691,57 @@ def test_legends_cover_no_data_in_the_fit_of_four_files(model_runs, tmp_path, fi
 
 
 def test_legends_cover_no_data_in_the_verify_figures(quick_rows, tmp_path, figures):
+    """The one legend of a work-precision figure lies below its panels and their axis
+    labels; the labels of the lines' ends lie inside their panels, none over another."""
     verify.plot(quick_rows[0], tmp_path / "wp")
+    assert len(figures) == len(quick_rows[0].scenes())
     for name, fig in figures.items():
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
         for ax in fig.axes:
             if ax.get_legend() is not None:
                 assert _legend_covers(ax) == [], (name, ax.get_title())
+        assert len(fig.legends) == 1, name
+        box = fig.legends[0].get_window_extent(renderer)
+        for ax in fig.axes:
+            assert box.y1 <= ax.xaxis.label.get_window_extent(renderer).y0 + 1, name
+        ends = [(ax, t.get_window_extent(renderer)) for ax in fig.axes for t in ax.texts]
+        assert ends, name
+        for i, (ax, b) in enumerate(ends):
+            assert ax.bbox.x0 <= b.x0 and b.x1 <= ax.bbox.x1, (name, ax.get_title())
+            assert ax.bbox.y0 <= b.y0 and b.y1 <= ax.bbox.y1, (name, ax.get_title())
+            assert not any(b.overlaps(c) for _, c in ends[i + 1:]), (name, ax.get_title())
 
 
-def test_a_legend_with_data_everywhere_goes_beside_the_axes(tmp_path, figures):
+def test_a_legend_with_data_everywhere_goes_below_the_axes(tmp_path, figures):
     from roughslip.analysis.legends import place_legends
     from roughslip.analysis.plotting import pyplot, save
 
     plt = pyplot()
-    fig, ax = plt.subplots()
     g = np.linspace(0, 1, 15)
     xx, yy = np.meshgrid(g, g)
-    ax.plot(xx.ravel(), yy.ravel(), "o", label="a grid of points")
-    ax.legend()
-    save(plt, fig, tmp_path / "full.png")
+    heights = {}
+    for name, labels in (("empty.png", 0), ("full.png", 3)):
+        fig, ax = plt.subplots(figsize=(5, 4))
+        ax.plot(xx.ravel(), yy.ravel(), "o", label="a grid of points")
+        ax.set_xlabel("x")
+        for k in range(1, labels):
+            ax.plot([], [], "-", label=f"line {k}")
+        if labels:
+            ax.legend()
+        save(plt, fig, tmp_path / name)
+        fig = figures[name]
+        fig.canvas.draw()
+        heights[name] = (fig.axes[0].bbox.width, fig.axes[0].bbox.height)
     ax = figures["full.png"].axes[0]
     assert _legend_covers(ax) == []
-    assert ax.get_legend().get_window_extent().x0 > ax.bbox.x1  # beside, on the right
+    box = ax.get_legend().get_window_extent()
+    label = ax.xaxis.label.get_window_extent()
+    assert box.y1 <= label.y0 + 1 and ax.bbox.x0 <= box.x0 < box.x1 <= ax.bbox.x1 + 1
+    # below the axes and their label, in a figure grown to keep the axes' size
+    w, h = heights["full.png"]
+    assert abs(w - heights["empty.png"][0]) < 2 and abs(h - heights["empty.png"][1]) < 4
+    assert figures["full.png"].get_size_inches()[1] > 4
     fig, ax = plt.subplots()
     ax.plot([0.05, 0.95], [0.95, 0.95], "o", label="two points at the top")
     ax.legend(loc="upper right")  # covers a point

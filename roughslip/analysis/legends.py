@@ -1,6 +1,6 @@
 """Legends that never cover data: each legend is placed, on the drawn figure, where its box
-holds none of the plotted points, line segments and annotations of its axes, or else beside
-the axes.
+holds none of the plotted points, line segments and annotations of its axes, or else below
+the axes, with the figure made taller by as much, so that the axes keep their size.
 
 The test is made in display coordinates after drawing (:func:`covered`), on what the figure
 shows: markers with their size, lines sampled every couple of pixels, error bars, and the text
@@ -113,41 +113,89 @@ def covered(ax, legend=None, found=None) -> int:
     return n
 
 
-def _outside(legend, ax) -> None:
-    legend.set_loc("upper left")
-    legend.set_bbox_to_anchor((1.02, 1.0), transform=ax.transAxes)
+def _below(legend, ax) -> bool:
+    """Anchor ``legend`` under ``ax``, below its tick labels and axis label, centred; whether
+    the anchor moved (by more than a pixel)."""
+    renderer = ax.figure.canvas.get_renderer()
+    legend.set_visible(False)  # the axes' extent without the legend
+    try:
+        box = ax.get_tightbbox(renderer)
+    finally:
+        legend.set_visible(True)
+    height = max(ax.bbox.height, 1.0)
+    y = (box.y0 - ax.bbox.y0 - PAD) / height
+    old = legend.get_bbox_to_anchor()
+    moved = legend._loc != legend.codes["upper center"] or \
+        abs(old.y0 - ax.transAxes.transform((0.5, y))[1]) > 1.0
+    legend.set_loc("upper center")
+    legend.set_bbox_to_anchor((0.5, y), transform=ax.transAxes)
+    return moved
 
 
 def place_legend(ax) -> str:
-    """Put the legend of ``ax`` where it covers nothing (:data:`INSIDE`, in order), or beside
-    the axes, on the right; returns where it went (``"outside"`` for beside). The figure must
-    be drawn (its layout done)."""
+    """Put the legend of ``ax`` where it covers nothing (:data:`INSIDE`, in order), or below
+    the axes; returns where it went (``"below"``). The figure must be drawn (its layout
+    done)."""
     legend = ax.get_legend()
     found = obstacles(ax)
     for loc in INSIDE:
         legend.set_loc(loc)
         if covered(ax, legend, found) == 0:
             return loc
-    _outside(legend, ax)
-    return "outside"
+    _below(legend, ax)
+    return "below"
+
+
+def _grow(fig, legends: list) -> None:
+    """Make ``fig`` taller by the height of the legends just put below their axes (the
+    tallest of each row of axes), so that the layout keeps the axes' size."""
+    renderer = fig.canvas.get_renderer()
+    rows: dict[int, float] = {}
+    for ax, legend in legends:
+        row = round(ax.bbox.y0)
+        # the legend, its gap below the axes' label and its pad from the anchor
+        gap = legend.borderaxespad * legend._fontsize * fig.dpi / 72.0
+        height = legend.get_window_extent(renderer).height + gap + 2 * PAD
+        rows[row] = max(rows.get(row, 0.0), height)
+    if rows:
+        w, h = fig.get_size_inches()
+        fig.set_size_inches(w, h + sum(rows.values()) / fig.dpi)
 
 
 def place_legends(fig, relayout=None) -> dict[int, str]:
-    """Place every legend of ``fig`` (:func:`place_legend`), laying the figure out again with
-    ``relayout`` (e.g. ``fig.tight_layout``) after a legend moved beside its axes, until no
-    legend covers anything; returns the place of each axes' legend, by axes index."""
+    """Place every legend of ``fig`` (:func:`place_legend`): inside its axes where it covers
+    nothing, else below them, the figure grown to keep the axes' size (:func:`_grow`) and
+    laid out again with ``relayout`` (e.g. ``fig.tight_layout``; a figure with a layout
+    engine lays itself out), until no legend covers anything; returns the place of each axes'
+    legend, by axes index."""
     where: dict[int, str] = {}
-    for _ in range(3):  # a new layout resizes the axes: check again
+    fig.canvas.draw()
+    size = {i: ax.bbox.height for i, ax in enumerate(fig.axes)}  # to keep
+    for _ in range(4):  # a new layout resizes the axes: check again
         moved = False
         fig.canvas.draw()
+        below = []
+        # what the layout took from axes with a legend below them, given back (once a row)
+        short = {round(ax.bbox.y0): size[i] - ax.bbox.height for i, ax in enumerate(fig.axes)
+                 if where.get(i) == "below" and i in size}
+        if short and max(abs(s) for s in short.values()) > 1.0:
+            w, h = fig.get_size_inches()
+            fig.set_size_inches(w, h + sum(short.values()) / fig.dpi)
+            moved = True
         for i, ax in enumerate(fig.axes):
             legend = ax.get_legend()
-            if legend is None or where.get(i) == "outside":
+            if legend is None:
+                continue
+            if where.get(i) == "below":
+                moved |= _below(legend, ax)  # follow the axes' new size
                 continue
             if i in where and covered(ax, legend) == 0:
                 continue
             where[i] = place_legend(ax)
             moved = True
+            if where[i] == "below":
+                below.append((ax, legend))
+        _grow(fig, below)
         if not moved:
             break
         if relayout is not None:

@@ -91,13 +91,26 @@ def log_ticks(axis, most: int = 6) -> None:
     if len(picked) > most:  # powers of ten alone, thinned to every n-th
         step = math.ceil(len(picked) / most)
         picked = [10.0**k for k in range(k0, k1 + 1) if k % step == 0 and lo <= 10.0**k <= hi]
+    digits = 1
+    if len(picked) < 2:  # a span too short for one-digit values: steps of 1, 2 or 5 in the
+        # second digit (or further), at least two of them
+        k = math.floor(math.log10(hi - lo))
+        for step in (d * 10.0**e for e in range(k, k - 4, -1) for d in (5, 2, 1)):
+            ticks = [n * step for n in range(math.ceil(lo / step - 1e-9),
+                                            math.floor(hi / step + 1e-9) + 1)]
+            if len(ticks) >= 2:
+                picked = ticks[:: max(1, math.ceil(len(ticks) / most))]
+                digits = max(2, math.floor(math.log10(max(picked))) - math.floor(
+                    math.log10(step)) + 1)
+                break
 
     def label(t: float, _pos: int) -> str:
         k = math.floor(math.log10(t) + 1e-9)
-        m = round(t / 10.0**k)
+        m = round(t / 10.0**k, digits - 1)
         if -2 <= k <= 3:  # plain numbers where they are short: 0.05, 3, 200
-            return f"{m * 10.0**k:.{max(0, -k)}f}"
-        return f"$10^{{{k}}}$" if m == 1 else f"${m}\\times10^{{{k}}}$"
+            return f"{m * 10.0**k:.{max(0, digits - 1 - k)}f}"
+        mantissa = f"{m:.{digits - 1}f}"
+        return f"$10^{{{k}}}$" if m == 1 else f"${mantissa}\\times10^{{{k}}}$"
 
     axis.set_major_locator(FixedLocator(sorted(picked)))
     axis.set_major_formatter(FuncFormatter(label))

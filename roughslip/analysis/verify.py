@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import statistics
 import time
 from collections.abc import Callable, Sequence
@@ -635,11 +636,15 @@ def summarize_checks(checks: Sequence[dict]) -> list[dict]:
     return rows
 
 
-def _panel(ax, s: Study, scene: str, series: str) -> None:
+def _panel(ax, s: Study, scene: str, series: str) -> list[tuple]:
+    """One panel of a work-precision diagram; returns the labels of the lines' ends
+    ``(ax, x, y, text, colour)``, which :func:`_place_labels` puts where they overlap
+    nothing once the figure is laid out."""
     from roughslip.analysis.plotting import log_ticks
 
     markers = "osD^v<>"
     floor_hit = noted = False
+    labels = []
     for i, m in enumerate(s.methods(scene, series)):
         pts = s.line(scene, series, m)
         if not pts:
@@ -667,31 +672,96 @@ def _panel(ax, s: Study, scene: str, series: str) -> None:
         apart = math.hypot(math.log10(x[-1] / x[0]), math.log10(y[-1] / y[0])) > 0.3
         ends = [(0, tag(pts[0])), (len(pts) - 1, tag(pts[-1]))] if apart else [
             (0, f"{tag(pts[0])} to {tag(pts[-1])}")]
-        for j, text in ends:
-            ax.annotate(text, (x[j], y[j]), textcoords="offset points", xytext=(4, 4),
-                        fontsize=8, color=color)
+        labels += [(ax, x[j], y[j], text, color) for j, text in ends]
     ax.set_xscale("log")
     ax.set_yscale("log")
     if floor_hit:
         ax.axhline(FLOOR, color="0.4", ls="--", lw=0.8,
-                   label=f"floor {FLOOR:.0e}: exact to rounding (open)")
+                   label=f"floor {FLOOR:.0e}: exact to rounding (open markers)")
+        lo, hi = ax.get_ylim()  # room below the floor for the labels of the ends on it
+        ax.set_ylim(min(lo, FLOOR * (FLOOR / hi) ** 0.1), hi)
     if noted:
         ax.plot([], [], "o", color="0.2", ms=11, mfc="none", mew=0.8,
                 label="ringed: released another set of bonds")
     pts = [p for p in s.points if (p.scene, p.series) == (scene, series)]
     log_ticks(ax.xaxis)
     log_ticks(ax.yaxis)
-    what = pts[0].truth if pts else ""
+    # the truth as the terminal writes it ("nu = 1/2"), with its symbols typeset
+    what = re.sub(r"\bnu = ", r"$\\nu$ = ", pts[0].truth if pts else "")
     if series == "resolution":
         fixed, legend = f"tol {RES_TOL:g}", pts[0].resolution.split("=")[0] if pts else ""
     else:
         fixed, legend = (pts[0].resolution if pts else ""), "tol"
-    ax.set_title(f"{scene}: by {series} ({fixed}),\nagainst the {what}", fontsize=10)
-    ax.set_xlabel("run time [s] (median of repeats)", fontsize=9)
-    ax.set_ylabel(f"|relative error| of the {PRIMARY[scene]}", fontsize=9)
+    ax.set_title(f"{scene}: by {series} ({fixed}),\nagainst the {what}; labels: {legend}",
+                 fontsize=9)
+    ax.set_xlabel("run time (s, median of repeats)", fontsize=8)
+    ax.set_ylabel(f"|relative error| of the {PRIMARY[scene]}", fontsize=8)
     ax.tick_params(labelsize=8)
     ax.grid(True, which="major", alpha=0.3)
-    ax.legend(fontsize=8, loc="best", title=f"labels: {legend}", title_fontsize=8)
+    return labels
+
+
+#: where a line's end label may go, tried in order: offset (points) and alignment; the
+#: rings farther out, for ends crowded by another line's end or an edge of the axes
+_LABEL_PLACES = ((4, 4, "left", "bottom"), (4, -4, "left", "top"),
+                 (-4, 4, "right", "bottom"), (-4, -4, "right", "top"),
+                 (0, 7, "center", "bottom"), (0, -7, "center", "top"),
+                 (7, 0, "left", "center"), (-7, 0, "right", "center"),
+                 (4, 14, "left", "bottom"), (-4, 14, "right", "bottom"),
+                 (4, -14, "left", "top"), (-4, -14, "right", "top"),
+                 (0, 17, "center", "bottom"), (0, -17, "center", "top"),
+                 (-4, 26, "right", "bottom"), (4, 26, "left", "bottom"),
+                 (-4, -26, "right", "top"), (4, -26, "left", "top"))
+
+
+def _place_labels(fig, labels: list[tuple]) -> None:
+    """The end labels of :func:`_panel` on the laid-out figure, each at the place of
+    :data:`_LABEL_PLACES` that covers least: inside its axes before all, then no label placed
+    before, then the fewest plotted points and lines (of the other ends too:
+    :func:`roughslip.analysis.legends.obstacles`); the first such place in order."""
+    from roughslip.analysis.legends import obstacles
+
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    found = {id(ax): obstacles(ax)[0] for ax, *_ in labels}
+    placed = []
+    for ax, x, y, text, color in labels:
+        anchor = ax.transData.transform((x, y))
+        best = None
+        for dx, dy, ha, va in _LABEL_PLACES:
+            ann = ax.annotate(text, (x, y), textcoords="offset points", xytext=(dx, dy),
+                              ha=ha, va=va, fontsize=8, color=color)
+            ann.set_in_layout(False)  # the labels do not move the axes
+            box = ann.get_window_extent(renderer)
+            # inside, clear of the spines by a couple of pixels
+            inside = (box.x0 >= ax.bbox.x0 + 2 and box.x1 <= ax.bbox.x1 - 2
+                      and box.y0 >= ax.bbox.y0 + 2 and box.y1 <= ax.bbox.y1 - 2)
+            hits = 0
+            for xy, r in found[id(ax)]:
+                near = np.hypot(*(xy - anchor).T) <= r + 1.5  # the labelled point itself
+                hits += int(np.sum(~near & (xy[:, 0] > box.x0 - r) & (xy[:, 0] < box.x1 + r)
+                                   & (xy[:, 1] > box.y0 - r) & (xy[:, 1] < box.y1 + r)))
+            score = (not inside, sum(box.overlaps(b) for b in placed), hits)
+            if best is None or score < best[0]:
+                if best is not None:
+                    best[1].remove()
+                best = (score, ann, box)
+                if score == (False, 0, 0):
+                    break
+            else:
+                ann.remove()
+        placed.append(best[2])
+
+
+def _figure_legend(fig, axes) -> None:
+    """One legend below the figure for the methods and markers of all its panels."""
+    found: dict[str, object] = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            found.setdefault(label, handle)
+    if found:
+        fig.legend(list(found.values()), list(found), loc="outside lower center",
+                   ncol=min(3, len(found)), fontsize=8, frameon=False)
 
 
 def plot_scene(s: Study, scene: str, path: str | Path) -> Path:
@@ -699,9 +769,12 @@ def plot_scene(s: Study, scene: str, path: str | Path) -> Path:
     from roughslip.analysis.plotting import pyplot, save
 
     plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(9.5, 4.2))
+    fig, axes = plt.subplots(1, 2, figsize=(7.5, 3.6), layout="constrained")
+    labels = []
     for ax, series in zip(axes, SERIES, strict=True):
-        _panel(ax, s, scene, series)
+        labels += _panel(ax, s, scene, series)
+    _figure_legend(fig, axes)
+    _place_labels(fig, labels)
     return save(plt, fig, path)
 
 
@@ -730,10 +803,13 @@ def plot(s: Study, path: str | Path) -> list[Path]:
     prepare_plot(path)
     if path.suffix.lower() in FIGURE_SUFFIXES:
         plt = pyplot()
-        fig, axes = plt.subplots(len(scenes), 2, figsize=(9.5, 4.2 * len(scenes)),
-                                 squeeze=False)
+        fig, axes = plt.subplots(len(scenes), 2, figsize=(7.5, 3.4 * len(scenes)),
+                                 squeeze=False, layout="constrained")
+        labels = []
         for row, scene in zip(axes, scenes, strict=True):
             for ax, series in zip(row, SERIES, strict=True):
-                _panel(ax, s, scene, series)
+                labels += _panel(ax, s, scene, series)
+        _figure_legend(fig, axes.ravel())
+        _place_labels(fig, labels)
         return [save(plt, fig, path)]
     return [plot_scene(s, scene, path / f"verify-{scene}.png") for scene in scenes]
