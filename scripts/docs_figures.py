@@ -32,8 +32,13 @@ writes into ``OUT_DIR``:
 * ``coupled_events.png``: the coupled theory page's event path and stick/slip maps, from two
   coupled pulls of one 24 x 24 rough surface (H = 0.8, seed 7, depth 1.6 rms, lambda = 0.2,
   nu = 0.25 and 0.45, the ``bonded`` history) computed here (about a second).
-* ``histories.png``: the friction ratio of the squeeze-histories study against N, drawn from
-  the table of ``docs/results.md`` (recorded numbers; the study takes hours).
+* ``histories.png``, ``hertz_exponents.png``, ``rough_exponents.png``,
+  ``coupled_finite_size.png``, ``indentation.png``, ``weakening_rough.png``,
+  ``burst_exponents.png``: the studies of ``docs/results.md`` (the squeeze histories, the
+  Hertz and the rough-surface exponents against N, the coupled finite-size study, the
+  frictional indentation, slip-weakening on rough surfaces, the burst exponents), drawn from
+  the page's own tables (:func:`results_figures`; recorded numbers: the studies take minutes
+  to hours).
 * ``bench_scaling.png``: time against size with fitted slopes, and against the peer codes,
   drawn from the tables of ``docs/benchmarks.md`` (recorded numbers, not measured here).
 * ``python_<cell>.py``, ``python_<cell>.txt``, ``python_*.png``: the Python tutorial
@@ -132,10 +137,12 @@ def index_picture(path: Path, out: Path) -> None:
     from matplotlib.patches import Patch
 
     from roughslip.analysis.bursts import pull_curve
+    from roughslip.analysis.model import law_label, units
     from roughslip.analysis.plotting import pyplot, save
     from roughslip.run.reading import read_run
 
     run = read_run(path)
+    u = units(run)  # the run's units: "(dimensionless)" without [units], as `plot` says
     s, k = int(run.sample_index[run.complete][0]), len(run.axis) - 1
     h = run.surface(s)
     contact, stick = run.field(s, k, "contact"), run.field(s, k, "stick")
@@ -168,9 +175,10 @@ def index_picture(path: Path, out: Path) -> None:
     right.annotate(f"static friction force $F_x$ = {c.fx[i]:.3g}", (c.dx[i], c.fx[i]),
                    xytext=(-8, 8), textcoords="offset points", ha="right", fontsize=8)
     right.set_ylim(0, 1.15 * c.fx[i])  # room for the label above the curve
-    right.set_xlabel("pull displacement $D_x$", fontsize=8)
-    right.set_ylabel("pull force $F_x$ ($E\\,\\times$ pixel$^2$)", fontsize=8)
-    right.set_title("its pull curve: bonds break, in bursts, until the peak", fontsize=9)
+    right.set_xlabel("pull displacement $D_x$" + u.label("length"), fontsize=8)
+    right.set_ylabel("pull force $F_x$" + u.label("force"), fontsize=8)
+    right.set_title(f"its pull curve, {law_label(cfg, tex=True)}:\nbonds break, in bursts, "
+                    "until the peak", fontsize=9)
     right.tick_params(labelsize=8)
     right.grid(True, alpha=0.3)
     save(plt, fig, out / "index_pull.png")
@@ -264,28 +272,30 @@ def hertz_resolution(out: Path, ratios=(4, 8, 16, 32), coupled_max: int = 16,
     (out / "hertz_resolution.txt").write_text("\n".join(lines) + "\n")
 
     plt = pyplot()
-    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.0))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(7.5, 3.5), layout="constrained")
     x = r[:, 0]
     left.loglog(x, np.abs(r[:, 2]), "o-", color="C0", label="$|F_n / F_{Hertz} - 1|$")
     left.loglog(x, np.abs(r[0, 2]) * (x / x[0]) ** -2.0, "--", color="0.5",
                 label="slope $-2$ ($\\propto h^2$)")
     left.set_title("squeeze: converges", fontsize=9)
-    left.set_ylabel("relative error of the normal force")
+    left.set_ylabel("relative error of the normal force", fontsize=8)
     right.loglog(x, r[:, 3], "o-", color="C0", label="break law, decoupled")
     ok = np.isfinite(r[:, 4])
     right.loglog(x[ok], r[ok, 4], "s-", color="C1", label=f"break law, coupled ($\\nu$ = {nu})")
     right.loglog(x, r[0, 3] * (x / x[0]) ** -0.5, "--", color="0.5",
                  label="slope $-1/2$ ($\\propto (h/a)^{1/2}$)")
     right.set_title("pull: falls with the pixel size", fontsize=9)
-    right.set_ylabel("friction coefficient $F_f / (\\lambda F_n)$")
+    right.set_ylabel("friction coefficient $F_f / (\\lambda F_n)$", fontsize=8)
+    right.set_ylim(top=1.5)  # room for the legend above the curves
     for ax in (left, right):
-        ax.set_xlabel("contact radius over pixel size, $a/h$")
+        ax.set_xlabel("contact radius over pixel size, $a/h$", fontsize=8)
         log_ticks(ax.xaxis)
         log_ticks(ax.yaxis)
+        ax.tick_params(labelsize=8)
         ax.grid(True, which="major", alpha=0.3)
         ax.legend(fontsize=8)
-    fig.suptitle(f"one Hertz contact (R = {R:g}, a = {a:.3g}, $\\lambda$ = {lam}) at "
-                 "ever finer pixels", fontsize=10)
+    fig.suptitle(f"one Hertz contact (R = {R:g}, a = {a:.3g}, $\\nu$ = {nu}), break law, "
+                 f"$\\lambda$ = {lam}, at ever finer pixels", fontsize=10)
     save(plt, fig, out / "hertz_resolution.png")
 
 
@@ -328,22 +338,24 @@ def weakening_resolution(out: Path, ratios=(4, 8, 16, 32), nu: float = 0.3,
     (out / "weakening_resolution.txt").write_text("\n".join(lines) + "\n")
 
     plt = pyplot()
-    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.0))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(7.5, 3.5), layout="constrained")
     x = np.array(ratios, dtype=float)
     for j, (name, _) in enumerate(laws):
         left.semilogx(x, mu[:, j], "os^"[j] + "-", color=f"C{j}", label=name)
         if 16 in ratios:
             right.plot(*curves[j], "-", color=f"C{j}", lw=0.9, label=name)
-    left.set_xlabel("contact radius over pixel size, $a/h$")
-    left.set_ylabel("friction coefficient $F_f / (\\lambda_s F_n)$")
+    left.set_xlabel("contact radius over pixel size, $a/h$", fontsize=8)
+    left.set_ylabel("friction coefficient $F_f / (\\lambda_s F_n)$", fontsize=8)
     left.set_ylim(0, 1.0)
     left.set_xticks(x, [f"{r:g}" for r in ratios])
     left.minorticks_off()
     left.set_title("friction against the pixel size", fontsize=9)
-    right.set_xlabel("pull displacement over the slip distance, $D_x / d_c$")
-    right.set_ylabel("$F_x / (\\lambda_s F_n)$")
+    right.set_xlabel("pull displacement over the slip distance, $D_x / d_c$", fontsize=8)
+    right.set_ylabel("$F_x / (\\lambda_s F_n)$", fontsize=8)
+    right.set_ylim(top=1.0)  # room for the legend above the curves
     right.set_title("pull curves under a monotone drive, $a/h$ = 16", fontsize=9)
     for ax in (left, right):
+        ax.tick_params(labelsize=8)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(f"one Hertz contact (a = {a:.3g}, $\\nu$ = {nu}, $\\lambda_s$ = {lam}, "
@@ -542,7 +554,313 @@ def histories(out: Path) -> None:
     fig.legend(handles, labels, loc="outside lower center", ncol=4, fontsize=8, frameon=False,
                title="squeeze history (mean over 20 samples, $\\pm$ bootstrap s.d.)",
                title_fontsize=8)
+    fig.suptitle("coupled over decoupled friction force, break law, $\\lambda$ = 0.2; "
+                 "H = 0.8, 6 depths 0.3-2 rms", fontsize=10)
     save(plt, fig, out / "histories.png")
+
+
+#: the results page, whose tables the figures of :func:`results_figures` are drawn from
+RESULTS = ROOT / "docs" / "results.md"
+
+
+def _number(cell: str) -> float:
+    """The first number of a table cell (``0.853 ± 0.010``, ``+7.46e-03``, ``0.087 / 0.082``)."""
+    m = re.search(r"[-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?", cell.replace("−", "-"))
+    if m is None:
+        raise RuntimeError(f"docs/results.md: no number in the cell {cell!r}")
+    return float(m.group(0))
+
+
+def _numbers(cell: str) -> list[float]:
+    """Every number of a table cell, in order."""
+    # a hyphen after a digit is a range (0.073-0.091), not a sign
+    return [float(x) for x in re.findall(r"(?<![\d.])[-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?",
+                                         cell.replace("−", "-"))]
+
+
+def _size_axis(ax, sizes, label: str = "grid size N") -> None:
+    """A log2 axis of grid sizes, labelled at each size."""
+    ax.set_xscale("log", base=2)
+    ax.set_xticks(sizes, [f"{n:g}" for n in sizes])
+    ax.minorticks_off()
+    ax.set_xlim(min(sizes) / 1.3, max(sizes) * 1.3)
+    ax.set_xlabel(label, fontsize=8)
+
+
+def _reference(ax, y: float, text: str, style: str = "--", color: str = "0.4") -> None:
+    """A reference value across the axes, named on the line at its right end (not in the
+    legend, which then has fewer entries to place)."""
+    ax.axhline(y, color=color, lw=0.9, ls=style)
+    ax.annotate(text, (1.0, y), xycoords=("axes fraction", "data"), xytext=(-4, 2),
+                textcoords="offset points", ha="right", va="bottom", fontsize=8, color=color)
+
+
+def _style(ax) -> None:
+    ax.tick_params(labelsize=8)
+    ax.grid(True, alpha=0.3)
+
+
+def hertz_exponents(out: Path) -> None:
+    """The Hertz table of the results page: the load and friction exponents against N, with
+    the report's values at N = 24 and 32."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    rows = _markdown_table(RESULTS, "| N | a | $\\beta$")
+    N = np.array([_number(r[0]) for r in rows])
+    beta, dbeta = (np.array([_number(r[k]) for r in rows]) for k in (2, 3))
+    alpha, dalpha = (np.array([_number(r[k]) for r in rows]) for k in (5, 6))
+    plt = pyplot()
+    fig, (left, right) = plt.subplots(1, 2, figsize=(7.5, 3.3), layout="constrained")
+    report = np.array([24, 32]) * 1.06  # beside our points at the same N
+    _reference(left, 1.5, "Hertz, $\\beta$ = 3/2", "--")
+    left.errorbar(N, beta, yerr=dbeta, fmt="o-", color="C0", ms=4, capsize=2,
+                  label="here (± regression)")
+    left.errorbar(report, [1.53, 1.53], yerr=0.1, fmt="s", color="C3", mfc="white", ms=4,
+                  capsize=2, label="report, N = 24 and 32")
+    left.set_ylabel("load exponent $\\beta$ ($F_n \\propto D_z^{\\beta}$)", fontsize=8)
+    left.set_title("squeeze: converges to Hertz's 3/2", fontsize=9)
+    _reference(right, 1.0, "Amontons, $\\alpha$ = 1", ":")
+    _reference(right, 2 / 3, "$\\alpha$ = 2/3", "--")
+    right.errorbar(N, alpha, yerr=dalpha, fmt="o-", color="C0", ms=4, capsize=2,
+                   label="here (± regression)")
+    right.errorbar(report, [0.86, 0.86], yerr=0.1, fmt="s", color="C3", mfc="white", ms=4,
+                   capsize=2, label="report, N = 24 and 32")
+    right.set_ylabel("friction exponent $\\alpha$ ($F_{\\rm friction} \\propto F_n^{\\alpha}$)",
+                     fontsize=8)
+    right.set_title("pull: break law, $\\lambda$ = 0.2", fontsize=9)
+    right.set_ylim(0.6, 1.2)  # room for the legend above the line of Amontons
+    for ax in (left, right):
+        _size_axis(ax, N, "grid size N (pixel 1.28/N: a finer grid)")
+        _style(ax)
+        ax.legend(fontsize=8)
+    fig.suptitle("one Hertz contact ($R$ = 1, $\\nu$ = 0.3), eight depths, against the grid size",
+                 fontsize=10)
+    save(plt, fig, out / "hertz_exponents.png")
+
+
+def rough_exponents(out: Path) -> None:
+    """The rough-surface table of the results page: the exponents against N for both Hurst
+    exponents, with the report's values at N = 24 and Batrouni et al.'s."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    rows = _markdown_table(RESULTS, "| H | N | samples | quantity |")
+    data: dict[tuple[str, float], list[tuple[float, float, float]]] = {}
+    for r in rows:
+        symbol = re.search(r"\\(beta|alpha|gamma)", r[3]).group(1)
+        data.setdefault((symbol, float(r[0])), []).append(
+            (float(r[1]), _number(r[4]), _number(r[5])))
+    report = {("beta", 0.6): 1.14, ("beta", 0.8): 1.11, ("alpha", 0.6): 1.23,
+              ("alpha", 0.8): 1.27}
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(7.5, 3.4), layout="constrained")
+    titles = {"beta": "load: $F_n \\propto D_z^{\\beta}$",
+              "alpha": "friction: $F_{\\rm friction} \\propto F_n^{\\alpha}$",
+              "gamma": "area: $A \\propto F_n^{\\gamma}$"}
+    for ax, symbol in zip(axes, ("beta", "alpha", "gamma"), strict=True):
+        for j, H in enumerate((0.6, 0.8)):
+            N, value, err = (np.array(c) for c in zip(*sorted(data[(symbol, H)]), strict=True))
+            shift = 1.04 if j else 1 / 1.04
+            ax.errorbar(N * shift, value, yerr=err, fmt="os"[j] + "-", color=f"C{j}", ms=4,
+                        capsize=2, label=f"here, H = {H}")
+            if (symbol, H) in report:
+                ax.plot([24 * shift], [report[(symbol, H)]], "os"[j], color=f"C{j}",
+                        mfc="white", ms=6, label=f"report, H = {H}")
+        if symbol == "beta":
+            for j, (H, limit) in enumerate(((0.6, 2.25), (0.8, 2.05))):
+                ax.axhline(limit, color=f"C{j}", lw=0.9, ls="--",
+                           label=f"Batrouni et al., $L \\to \\infty$, H = {H}")
+        if symbol == "gamma":
+            ax.axhline(0.91, color="0.4", lw=0.9, ls="--", label="Batrouni et al., 0.91")
+        ax.set_title(titles[symbol], fontsize=9)
+        ax.set_ylabel(f"exponent $\\{symbol}$ (± bootstrap)", fontsize=8)
+        _size_axis(ax, [24, 128, 256])
+        _style(ax)
+    found = {lab: h for ax in axes for h, lab in zip(*ax.get_legend_handles_labels(),
+                                                      strict=True)}
+    order = [f"{who}, H = {H}" for who in ("here", "report") for H in (0.6, 0.8)]
+    order += [f"Batrouni et al., $L \\to \\infty$, H = {H}" for H in (0.6, 0.8)]
+    order.append("Batrouni et al., 0.91")
+    fig.legend([found[lab] for lab in order], order, loc="outside lower center", ncol=4,
+               fontsize=8, frameon=False)
+    fig.suptitle("self-affine surfaces (rms 1, pixel 1, open), ten depths 0.1-2 rms, "
+                 "$\\nu$ = 0.3; friction: break law, $\\lambda$ = 0.2", fontsize=10)
+    save(plt, fig, out / "rough_exponents.png")
+
+
+def coupled_finite_size(out: Path) -> None:
+    """The coupled finite-size table of the results page: the coupled/decoupled friction
+    ratio, the exponents and the bonds released at D_x = 0 against N, per Poisson ratio."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    rows = _markdown_table(RESULTS, "| scene | N | $\\nu$ | $\\alpha$ decoupled | $\\alpha$ "
+                           "coupled | $F_{\\rm fric}$ coupled / decoupled | bonds released")
+    nus = sorted({float(r[2]) for r in rows})
+    plt = pyplot()
+    fig, (ratio_ax, alpha_ax, freed_ax) = plt.subplots(1, 3, figsize=(7.5, 3.4),
+                                                       layout="constrained")
+    for j, nu in enumerate(nus):
+        sel = sorted((r for r in rows if float(r[2]) == nu), key=lambda r: float(r[1]))
+        N = np.array([float(r[1]) for r in sel])
+        dec, ddec = (np.array([_numbers(r[3])[k] for r in sel]) for k in (0, 1))
+        cou, dcou = (np.array([_numbers(r[4])[k] for r in sel]) for k in (0, 1))
+        ratio_ax.plot(N, [_number(r[5]) for r in sel], "os"[j] + "-", color=f"C{j}", ms=4,
+                      label=f"$\\nu$ = {nu:g}")
+        shift = 1.03 if j else 1 / 1.03
+        alpha_ax.errorbar(N * shift, cou, yerr=dcou, fmt="os"[j] + "-", color=f"C{j}", ms=4,
+                          capsize=2)
+        alpha_ax.errorbar(N * shift, dec, yerr=ddec, fmt="os"[j] + "--", color=f"C{j}", ms=4,
+                          mfc="white", capsize=2)
+        freed_ax.plot(N, [_number(r[6]) for r in sel], "os"[j] + "-", color=f"C{j}", ms=4,
+                      label=f"$\\nu$ = {nu:g}")
+    alpha_ax.plot([], [], "o-", color="0.3", ms=4, label="coupled")
+    alpha_ax.plot([], [], "o--", color="0.3", mfc="white", ms=4, label="decoupled")
+    ratio_ax.axhline(1.0, color="0.5", lw=0.8, ls=":")
+    ratio_ax.set_ylim(0, 1.25)  # room for the legend above the dotted line (no coupling)
+    ratio_ax.set_ylabel("$F_{\\rm fric}$ coupled / decoupled", fontsize=8)
+    ratio_ax.set_title("friction force", fontsize=9)
+    alpha_ax.set_ylim(0.4, 1.0)
+    alpha_ax.set_ylabel("$\\alpha$ ($F_{\\rm fric} \\propto F_n^{\\alpha}$, ± bootstrap)",
+                        fontsize=8)
+    alpha_ax.set_title("friction exponent", fontsize=9)
+    freed_ax.set_ylim(0, 1.05)
+    freed_ax.set_ylabel("fraction of the contact sites", fontsize=8)
+    freed_ax.set_title("bonds released at $D_x = 0$", fontsize=9)
+    sizes = sorted({float(r[1]) for r in rows})
+    for ax in (ratio_ax, alpha_ax, freed_ax):
+        _size_axis(ax, sizes, "grid size N (unit pixels)")
+        _style(ax)
+        ax.legend(fontsize=8)
+    fig.suptitle("coupled model, break law, $\\lambda$ = 0.2, history bonded; H = 0.8, "
+                 "20 samples, 6 depths 0.3-2 rms", fontsize=10)
+    save(plt, fig, out / "coupled_finite_size.png")
+
+
+def indentation(out: Path) -> None:
+    """The frictional-indentation table of the results page: the stick fraction c/a against
+    lambda/beta, the limit and the model at each Poisson ratio."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    rows = _markdown_table(RESULTS, "| $\\lambda/\\beta$ | $c/a$ limit")
+    x = np.array([_number(r[0]) for r in rows])
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.0, 4.0), layout="constrained")
+    ax.plot(x, [_number(r[1]) for r in rows], "-", color="0.3", lw=2.5, alpha=0.5,
+            label="limit $\\beta\\lambda \\to 0$ (singular integral equation)")
+    spread = np.array([_numbers(r[2])[2:4] for r in rows])
+    ax.fill_between(x, spread[:, 0], spread[:, 1], color="C0", alpha=0.2, lw=0,
+                    label="$\\nu$ = 0.49, $a$ = 107: smallest to largest")
+    for j, (col, nu) in enumerate(((2, 0.49), (3, 0.4), (4, 0.25), (5, 0.0))):
+        small, large = (np.array([_numbers(r[col])[k] for r in rows]) for k in (0, 1))
+        ax.plot(x, large, "osD^"[j] + "-", color=f"C{j}", ms=4, lw=1,
+                label=f"$\\nu$ = {nu:g}, $a$ = {107 if nu == 0.49 else 105}")
+        ax.plot(x, small, "x", color="k", ms=4, mew=0.9, zorder=3)
+    ax.plot([], [], "x", color="k", ms=4, mew=0.9,
+            label="each $\\nu$ at $a$ = 37 (35) pixels")
+    ax.set_xlabel("$\\lambda/\\beta$, $\\beta = (1 - 2\\nu)/(2(1 - \\nu))$", fontsize=8)
+    ax.set_ylabel("stick fraction $c/a$ (median over the loading)", fontsize=8)
+    ax.set_ylim(0, 1.05)
+    _style(ax)
+    ax.legend(fontsize=8)
+    ax.set_title("frictional indentation of a parabolic cylinder (plane strain),\n"
+                 "coupled model, Coulomb law", fontsize=9)
+    save(plt, fig, out / "indentation.png")
+
+
+def weakening_rough(out: Path) -> None:
+    """The slip-weakening table of rough surfaces on the results page: the friction
+    coefficient at three depths and the exponent, per law and grid."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    rows = _markdown_table(RESULTS, "| scene | law | $\\alpha$")
+    depths = np.geomspace(0.1, 2.0, 10)[[0, 4, 9]]  # depths 1, 5 and 10 of the study
+    scenes = list(dict.fromkeys(r[0] for r in rows))
+    laws = list(dict.fromkeys(r[1] for r in rows))
+    plt = pyplot()
+    fig, (left, right) = plt.subplots(1, 2, figsize=(7.5, 3.6), layout="constrained",
+                                      gridspec_kw={"width_ratios": [1.5, 1]})
+    styles = ("-", "--", ":")
+    for r in rows:
+        i, j = scenes.index(r[0]), laws.index(r[1])
+        values = _numbers(r[4])
+        mean, err = np.array(values[0::2]), np.array(values[1::2])
+        left.errorbar(depths * 1.03 ** (i - 1), mean, yerr=err, fmt="osD"[j] + styles[i],
+                      color=f"C{j}", ms=4, capsize=2, lw=1)
+        right.errorbar([i + 0.15 * (j - 1)], [_number(r[2])], yerr=[_number(r[3])],
+                       fmt="osD"[j], color=f"C{j}", ms=5, capsize=2)
+    names = ["break law" if law == "break" else law for law in laws]
+    for j, name in enumerate(names):
+        left.plot([], [], "osD"[j], color=f"C{j}", label=name)
+    for i, scene in enumerate(scenes):
+        left.plot([], [], styles[i], color="0.3", label=scene)
+    left.axhline(0.5, color="0.5", lw=0.8, ls=":")
+    left.set_xscale("log")
+    left.set_xticks(depths, [f"{d:.2g}" for d in depths])
+    left.minorticks_off()
+    left.set_xlabel("depth from first touch (rms heights)", fontsize=8)
+    left.set_ylabel("$F_f / (\\lambda_s F_n)$ (± s.e.)", fontsize=8)
+    left.set_ylim(0, 1.25)
+    left.set_title("friction coefficient (dotted: the residual $\\lambda_d/\\lambda_s$)",
+                   fontsize=9)
+    right.set_xticks(range(len(scenes)),
+                     [re.sub(r" \(patch \d+\)", "", s).replace(", h", "\nh") for s in scenes])
+    right.set_xlim(-0.5, len(scenes) - 0.5)
+    right.set_ylabel("$\\alpha$ ($F_f \\propto F_n^{\\alpha}$, ± bootstrap)", fontsize=8)
+    right.set_title("friction exponent (the last two:\none patch of 64 × 64)", fontsize=9)
+    for ax in (left, right):
+        _style(ax)
+    right.tick_params(axis="x", labelsize=7)
+    left.legend(fontsize=7, ncol=2)
+    fig.suptitle("rough surfaces (H = 0.8, $\\nu$ = 0.3), break law and slip-weakening: "
+                 "$\\lambda_s$ = 0.2, $\\lambda_d$ = 0.1", fontsize=10)
+    save(plt, fig, out / "weakening_rough.png")
+
+
+def burst_exponents(out: Path) -> None:
+    """The burst table of the results page: the exponents of the burst sizes and of the
+    force drops, per phase, against N for both Hurst exponents."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    rows = _markdown_table(RESULTS, "| H | N | samples | pulls | phase |")
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(7.5, 3.5), layout="constrained", sharey=True)
+    phases = ("before", "after", "all")
+    for ax, (col, what) in zip(axes, ((6, "burst sizes"), (10, "force drops")), strict=True):
+        for j, phase in enumerate(phases):
+            for k, H in enumerate((0.6, 0.8)):
+                sel = sorted((r for r in rows if r[4] == phase and float(r[0]) == H),
+                             key=lambda r: float(r[1]))
+                N = np.array([float(r[1]) for r in sel]) * 1.04 ** (j - 1 + 0.3 * k)
+                ax.errorbar(N, [float(r[col]) for r in sel],
+                            yerr=[float(r[col + 1]) for r in sel], fmt="os"[k] + "-:"[k],
+                            color=f"C{j}", ms=4, capsize=2, lw=1,
+                            mfc=f"C{j}" if k else "white")
+        if col == 6:
+            _reference(ax, 2.5, "5/2, fibre bundles", "--")
+        ax.set_title(f"exponent of the {what}, $p(x) \\propto x^{{-\\alpha}}$", fontsize=9)
+        _size_axis(ax, [128, 256])
+        _style(ax)
+    handles = [axes[0].plot([], [], "-", color=f"C{j}", label=f"{phase} the peak"
+                            if phase != "all" else "the whole pull")[0]
+               for j, phase in enumerate(phases)]
+    handles += [axes[0].plot([], [], "o-", color="0.3", mfc="white", label="H = 0.6")[0],
+                axes[0].plot([], [], "s:", color="0.3", label="H = 0.8")[0]]
+    axes[0].set_ylabel("exponent $\\alpha$ (± statistical)", fontsize=8)
+    fig.legend(handles=handles, loc="outside lower center", ncol=5, fontsize=8, frameon=False)
+    fig.suptitle("bursts of the pull: break law, $\\lambda$ = 0.2, $\\nu$ = 0.3, three depths "
+                 "(1-2 rms), exact pull to the last bond", fontsize=10)
+    save(plt, fig, out / "burst_exponents.png")
+
+
+def results_figures(out: Path) -> None:
+    """The figures of the results page drawn from its own tables (recorded numbers: the
+    studies take minutes to hours and are not run again)."""
+    histories(out)
+    hertz_exponents(out)
+    rough_exponents(out)
+    coupled_finite_size(out)
+    indentation(out)
+    weakening_rough(out)
+    burst_exponents(out)
 
 
 def _text_rows(page: str, start: str, first: str, occurrence: int = 0) -> list[list[str]]:
@@ -600,6 +918,7 @@ def benchmarks(out: Path) -> None:
                   label=f"{scene}, {bound} (slope {_slope(N, t):.2f})")
     sq.set_title("squeeze to 5 % contact, tol $10^{-8}$", fontsize=9)
     sq.set_ylabel("time per squeeze (s)", fontsize=8)
+    sq.set_ylim(top=2e3)  # room for the legend above the curves
     for ax in (op, sq):
         ax.set_xlabel("grid size N ($N \\times N$)", fontsize=8)
         ax.set_xticks([256, 512, 1024], ["256", "512", "1024"])
@@ -700,7 +1019,7 @@ def main(argv: list[str] | None = None) -> None:
     hertz_resolution(args.out)
     weakening_resolution(args.out)
     coupled_events(args.out)
-    histories(args.out)
+    results_figures(args.out)
     benchmarks(args.out)
     python_tutorial(args.out)
 

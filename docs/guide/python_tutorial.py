@@ -65,8 +65,9 @@ ax.plot([], [], "-", color="0.75", lw=0.8, label="each sample")
 ax.set_xscale("log")
 ax.set_xlabel("contact area (fraction of the grid)")
 ax.set_ylabel(r"friction coefficient $F_{\rm friction} / (\lambda F_n)$")
-ax.set_title(f"{df.attrs['title']}: {df.attrs['grid.n']} x {df.attrs['grid.n']} pixels",
-             fontsize=10)
+n = df.attrs["grid.n"]
+ax.set_title(f"{df.attrs['title']}, {n} x {n} pixels\n"
+             f"{df.attrs['pull.slip_law']} law, $\\lambda$ = {lam}", fontsize=10)
 ax.legend(loc="upper right", fontsize=9)
 ax.grid(True, alpha=0.3)
 fig.savefig("friction_coefficient.png", dpi=120)
@@ -86,7 +87,10 @@ print("equal to the run file's fields:", same)
 
 # %% netcdf_plot
 fig, ax = plt.subplots(figsize=(5.2, 4.0), layout="constrained")
-back["fz"].isel(depth=-1).plot(ax=ax, cmap="viridis")
+deepest = back["fz"].isel(depth=-1)
+deepest.plot(ax=ax, cmap="viridis")  # labels from the file: long_name, units if any
+ax.set_title(f"sample 0, depth {float(deepest.depth):g} rms "
+             "(a run without units: dimensionless)", fontsize=10)
 ax.set_aspect("equal")
 fig.savefig("sample0_fz.png", dpi=120)
 back.close()

@@ -455,20 +455,22 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
 
 def plot_bursts(sample, fits, out: str | Path) -> Path:
     """Burst-size and force-drop distributions (log bins) with their power-law fits, per
-    phase."""
+    phase; titled with the slip law and its parameters when the files share them."""
     from roughslip.analysis.bursts import log_binned
 
     plt = pyplot()
     force = (sample.units or Units(sample.length_unit)).label("force")  # of the pull force
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    fig, axes = plt.subplots(1, 2, figsize=(7.5, 3.6))
     for ax, name, data, discrete in ((axes[0], "size", sample.sizes, True),
                                      (axes[1], "drop", sample.drops, False)):
+        handles, labels = [], []
         for j, bf in enumerate(fits):
             vals = np.asarray(data[bf.phase], dtype=float)
             x, dens = log_binned(vals, discrete=discrete)
             if not x.size:
                 continue
-            ax.loglog(x, dens, "o", color=f"C{j}", ms=4, label=f"{bf.phase} ({vals.size})")
+            points = ax.loglog(x, dens, "o", color=f"C{j}", ms=4)[0]
+            label = f"{bf.phase} ({vals.size})"
             fit = getattr(bf, name)
             if fit is not None:
                 xx = np.geomspace(fit.xmin, fit.xmax, 50)
@@ -479,22 +481,48 @@ def plot_bursts(sample, fits, out: str | Path) -> Path:
                     yy = frac * xx ** -fit.alpha / zeta(fit.alpha, fit.xmin)
                 else:
                     yy = frac * (fit.alpha - 1) / fit.xmin * (xx / fit.xmin) ** -fit.alpha
-                ax.loglog(xx, yy, "-", color=f"C{j}",
-                          label=f"{bf.phase}: $\\alpha$ = {fit.alpha:.2f} ± {fit.sigma:.2f}")
+                line = ax.loglog(xx, yy, "-", color=f"C{j}")[0]
+                handles.append((points, line))  # one entry: the points and their fit
+                labels.append(f"{label}: $\\alpha$ = {fit.alpha:.2f} ± {fit.sigma:.2f}")
+            else:
+                handles.append(points)
+                labels.append(label)
         ref = {"size": "burst size (breaks)", "drop": f"force drop $\\Delta F_x${force}"}[name]
-        finish_axes(ax, ref, "probability density", fontsize=7)
-    fig.suptitle(f"bursts of {sample.pulls} pulls (log bins; fits from x_min)", fontsize=10)
+        ax.set_xlabel(ref)
+        ax.set_ylabel("probability density")
+        ax.grid(True, which="major", alpha=0.3)
+        if handles:
+            lo, hi = ax.get_ylim()
+            ax.set_ylim(lo, hi * (hi / lo) ** 0.3)  # room above the data for the legend
+            ax.legend(handles, labels, fontsize=8)
+        ax.set_title({"size": "burst sizes", "drop": "force drops"}[name], fontsize=9)
+    laws = {model.law_label(read_run(p).config_dict(), tex=True) for p in sample.files}
+    law = laws.pop() if len(laws) == 1 else ""
+    fig.suptitle(f"bursts of {sample.pulls} pulls, log bins, fits from $x_{{min}}$"
+                 + (f"\n{law}" if law else ""), fontsize=10)
     return save(plt, fig, out)
+
+
+#: the symbol of the exponent of each law the documentation names (:doc:`/results`):
+#: :math:`F_{\\rm friction} \\propto F_n^\\alpha`, :math:`F_n \\propto D_z^\\beta`,
+#: :math:`A \\propto F_n^\\gamma`
+EXPONENTS = {("normal_force", "friction_force"): "\\alpha",
+             ("friction_normal_force", "friction_force"): "\\alpha",
+             ("depth", "normal_force"): "\\beta", ("depth_length", "normal_force"): "\\beta",
+             ("normal_force", "contact_area"): "\\gamma"}
 
 
 def plot_fits(paths: list[str], fits, x: str, y: str, out: str | Path) -> Path:
     """One log-log panel with every file's ensemble means (error bars: the standard error
-    over samples; open markers: points outside the fitted range) and its fit, labelled
-    :math:`\\alpha \\pm \\sigma` (bootstrap over samples, or the regression's standard error
-    with one sample)."""
+    over samples; open markers: points outside the fitted range) and its fit, labelled with
+    its exponent (:data:`EXPONENTS`: :math:`\\alpha`, :math:`\\beta`, :math:`\\gamma`) and
+    :math:`\\sigma` (bootstrap over samples, or the regression's standard error with one
+    sample)."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6, 4.4))
     excluded = False
+    symbol = EXPONENTS.get((x, y))
+    exponent = f"${symbol}$" if symbol else "exponent"
     for i, (p, f) in enumerate(zip(paths, fits, strict=True)):
         run = read_run(p)
         xv, yv, _ = pair(run, x, y)
@@ -519,7 +547,7 @@ def plot_fits(paths: list[str], fits, x: str, y: str, out: str | Path) -> Path:
         err = f" ± {sigma:.3f}" if np.isfinite(sigma) else ""
         xx = np.geomspace(lo, hi, 50)
         ax.loglog(xx, f.fit.prefactor * xx**f.fit.alpha, "-", color=f"C{i}",
-                  label=f"{name}: $\\alpha$ = {f.fit.alpha:.3f}{err} ({n} sample"
+                  label=f"{name}: {exponent} = {f.fit.alpha:.3f}{err} ({n} sample"
                         f"{'s' if n != 1 else ''})")
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -534,6 +562,8 @@ def plot_fits(paths: list[str], fits, x: str, y: str, out: str | Path) -> Path:
     ax.legend(fontsize=8)
     laws = {model.law_label(read_run(p).config_dict(), tex=True) for p in paths}
     law = laws.pop() if len(laws) == 1 else ""
-    ax.set_title("ensemble means ± standard error, with the fits"
+    what = {"\\alpha": "friction law", "\\beta": "load law", "\\gamma": "area law"}.get(
+        symbol, "power law")
+    ax.set_title(f"{what}: ensemble means ± standard error, with the fits"
                  + (f"\n{law}" if law and y in ("friction_force",) else ""), fontsize=10)
     return save(plt, fig, out)
