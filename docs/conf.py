@@ -39,6 +39,18 @@ numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 autodoc_member_order = "bysource"
 autodoc_typehints = "none"  # numpydoc sections carry the types
+# defaults as written in the source (dtype=np.float64, not "<class 'numpy.float64'>")
+autodoc_preserve_defaults = True
+# every cross-reference must resolve (with -W, an unresolved one fails the build). A name that
+# a module imports resolves to where it is documented (roughslip_docs.resolve_imported). Not
+# checked: the outside packages and the standard library (no inventories of theirs are
+# loaded: the build is offline), and private names (a leading underscore), which a docstring
+# may name but the API reference does not document.
+nitpicky = True
+nitpick_ignore_regex = [
+    (r"py:.*", r"(numpy|scipy|pandas|xarray|h5py|matplotlib|click|collections|typing)\..*"),
+    (r"py:.*", r"(.*\.)?_[a-zA-Z]\w*"),
+]
 html_theme = "alabaster"
 # the theme's files, the MathJax copy and roughslip.css (wide console blocks and tables fit
 # the column)

@@ -247,3 +247,73 @@ def test_the_raw_maths_check_catches_what_it_should(tmp_path):
                     "<pre>lam = 0.2 in code is fine</pre>")
     found = [m.group(0) for m in _RAW_MATH.finditer(_visible_text(page, maths=False))]
     assert found == ["nu = ", "$\\alpha$", "n^3"]
+
+
+#: cross-references that may stay unlinked, as in conf.py's ``nitpick_ignore_regex``: names of
+#: outside packages and of the standard library (no inventories are loaded: the build is
+#: offline), and private names
+_UNLINKED_OK = re.compile(r"^~?(?:(?:numpy|scipy|pandas|xarray|h5py|matplotlib|click|"
+                          r"collections|typing)\.|(?:.*\.)?_[A-Za-z]\w*$|(?:dict|str|int|float|"
+                          r"bool|list|tuple|Any|None|Callable)$)")
+
+
+def _unlinked_references(page: Path) -> list[str]:
+    """The cross-references of a rendered page (``<code class="xref ...">``) that are not
+    inside a link: a role whose target Sphinx did not find."""
+    from html.parser import HTMLParser
+
+    class Parser(HTMLParser):
+        def __init__(self) -> None:
+            super().__init__()
+            self.open: list[str] = []
+            self.xref: tuple[bool, str] | None = None
+            self.bad: list[str] = []
+
+        def handle_starttag(self, tag, attrs):
+            if tag == "code" and "xref" in (dict(attrs).get("class") or "").split():
+                self.xref = ("a" in self.open, "")
+            self.open.append(tag)
+
+        def handle_endtag(self, tag):
+            if tag == "code" and self.xref is not None:
+                linked, text = self.xref
+                if not linked and not _UNLINKED_OK.match(text.removesuffix("()")):
+                    self.bad.append(text)
+                self.xref = None
+            while self.open and self.open.pop() != tag:
+                pass
+
+        def handle_data(self, data):
+            if self.xref is not None:
+                self.xref = (self.xref[0], self.xref[1] + data)
+
+    parser = Parser()
+    parser.feed(page.read_text())
+    return parser.bad
+
+
+@pytest.mark.skipif(not (HTML / "index.html").exists(),
+                    reason="the documentation is not built (make test builds it first)")
+def test_every_cross_reference_of_the_pages_is_a_link():
+    """Every role that names code (``:func:``, ``:class:``, ``:data:``, ...), on the pages
+    and in the docstrings of the API reference, links to where it is documented. ``make docs``
+    refuses an unresolved one (nitpicky, warnings are errors); this checks the built site."""
+    conf = (DOCS / "conf.py").read_text()
+    assert re.search(r"^nitpicky = True$", conf, re.M)
+    bad = []
+    for page in sorted(HTML.rglob("*.html")):
+        if {"_sources", "_static", "_modules"} & set(page.relative_to(HTML).parts):
+            continue
+        bad += [f"{page.relative_to(HTML)}: {name}" for name in _unlinked_references(page)]
+    assert not bad, "\n".join(bad[:20])
+
+
+def test_the_unlinked_reference_check_catches_what_it_should(tmp_path):
+    page = tmp_path / "p.html"
+    page.write_text('<p><a href="api.html#x"><code class="xref py py-func docutils">'
+                    '<span class="pre">roughslip.squeeze()</span></code></a> '
+                    '<code class="xref py py-class docutils"><span class="pre">InputError'
+                    '</span></code> <code class="xref py py-class docutils"><span class="pre">'
+                    'numpy.ndarray</span></code> <code class="xref py py-data docutils">'
+                    '<span class="pre">_BOOT</span></code></p>')
+    assert _unlinked_references(page) == ["InputError"]

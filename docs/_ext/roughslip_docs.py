@@ -194,6 +194,81 @@ def _links(line: str) -> str:
                            line)
 
 
+def _lookup(path: str):
+    """The object that the dotted ``path`` names (a module, or an attribute of one); None
+    when there is none."""
+    import importlib
+
+    parts = path.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        try:
+            for name in parts[i:]:
+                obj = getattr(obj, name)
+        except AttributeError:
+            return None
+        return obj
+    return None
+
+
+def resolve_imported(app, env, node, contnode):
+    """A Python reference to a name as a module imports it (``roughslip.load_config``,
+    ``InputError`` in a module that imports it), resolved to where the object is documented:
+    its own module's name for it, or any documented name of the same object."""
+    if node.get("refdomain") != "py":
+        return None
+    target = node["reftarget"].lstrip("~.")
+    module, cls = node.get("py:module"), node.get("py:class")
+    places = [target]
+    if module and cls:
+        places.append(f"{module}.{cls}.{target}")
+    if module:
+        places.append(f"{module}.{target}")
+    domain = env.get_domain("py")
+    for place in places:
+        owner_name, _, attr = place.rpartition(".")
+        owner = _lookup(owner_name) if owner_name else None
+        if node["reftype"] in ("attr", "meth") and isinstance(owner, type) and (
+                hasattr(owner, attr) or attr in getattr(owner, "__annotations__", {})
+                or re.search(rf"^\s*{attr}\b", owner.__doc__ or "", re.M)):
+            # an attribute that its class documents in its Attributes section (numpydoc
+            # gives those no target of their own), or a method of a protocol: the link goes
+            # to the class
+            for name in (f"{owner.__module__}.{owner.__qualname__}", owner_name):
+                if name in domain.objects:
+                    return domain.resolve_xref(env, node["refdoc"], app.builder, "obj",
+                                               name, node, contnode)
+        obj = _lookup(place)
+        if obj is None:
+            continue
+        names = []
+        if isinstance(obj, type(sys)):
+            names.append(obj.__name__)
+        elif getattr(obj, "__module__", None) and getattr(obj, "__qualname__", None):
+            names.append(f"{obj.__module__}.{obj.__qualname__}")
+        last = target.rsplit(".", 1)[-1]
+        names += [name for name in domain.objects
+                  if name.rsplit(".", 1)[-1] == last and _lookup(name) is obj]
+        for name in names:
+            if name != target and (name in domain.objects or name in domain.modules):
+                found = domain.resolve_xref(env, node["refdoc"], app.builder, "obj", name,
+                                            node, contnode)
+                if found is not None:
+                    return found
+    # a bare name that one documented object of its kind ends with (``couple`` in a module
+    # that does not import it)
+    kinds = domain.objtypes_for_role(node["reftype"]) or []
+    names = [name for name, entry in domain.objects.items()
+             if name.endswith("." + target) and entry.objtype in kinds]
+    if len(names) == 1:
+        return domain.resolve_xref(env, node["refdoc"], app.builder, "obj", names[0], node,
+                                   contnode)
+    return None
+
+
 def link_references(app, what, name, obj, options, lines: list[str]) -> None:
     """Links in the rendered docstrings (:func:`_links`)."""
     for i, line in enumerate(lines):
@@ -244,6 +319,7 @@ def setup(app):
     app.add_directive("roughslip-config", ConfigReference)
     app.add_directive("roughslip-schema", SchemaReference)
     app.connect("autodoc-process-docstring", link_references)
+    app.connect("missing-reference", resolve_imported)
     app.connect("builder-inited", make_verify_figure)
     app.connect("builder-inited", make_docs_figures)
     # env_version: the stored doctrees carry the classes of fit_wide_blocks; a change to what

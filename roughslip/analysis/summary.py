@@ -112,11 +112,18 @@ def closed_form(run) -> tuple[str, np.ndarray] | None:
     return ("Hertz" if kind == "sphere" else "flat punch"), out
 
 
-#: ``solves_table``'s default: compute the closed form
-_COMPUTE = object()
+class _ClosedForm:
+    """The default of :func:`solves_table`'s ``exact``: the run's closed form, computed."""
+
+    def __repr__(self) -> str:
+        return "CLOSED_FORM"
 
 
-def solves_table(run, exact: Any = _COMPUTE) -> list[dict[str, float]]:
+#: ``solves_table``'s default ``exact``: compute the run's :func:`closed_form`
+CLOSED_FORM = _ClosedForm()
+
+
+def solves_table(run, exact: Any = CLOSED_FORM) -> list[dict[str, float]]:
     """Per depth (or load): the record of the solves over the complete samples.
 
     Worst squeeze residual, mean iterations, median squeeze and pull seconds, worst pull
@@ -126,7 +133,7 @@ def solves_table(run, exact: Any = _COMPUTE) -> list[dict[str, float]]:
     run has none.
     """
     sel = run.complete
-    if exact is _COMPUTE:
+    if exact is CLOSED_FORM:
         exact = closed_form(run)
     pull_cfg = run.config_dict().get("pull", {})
     # files of earlier versions stored 0 for an estimate nobody asked for

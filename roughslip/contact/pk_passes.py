@@ -1,5 +1,5 @@
-r"""The element-wise passes of the Polonsky–Keer iteration (:class:`~roughslip.contact.squeeze.
-PolonskyKeer`), fused.
+r"""The element-wise passes of the Polonsky–Keer iteration
+(:class:`~roughslip.contact.squeeze.PolonskyKeer`), fused.
 
 One iteration of the constrained conjugate gradients reads and writes the whole grid about
 twenty times outside its one convolution: the gap, the contact mask, the gap on contact and
