@@ -6,7 +6,8 @@
 writes into ``OUT_DIR``:
 
 * ``quickstart_*.txt``: the console output of the quickstart's commands, run on a smaller
-  demo (``configs/demo.toml`` with 64 x 64 pixels and 8 samples) exactly as a user types them;
+  demo (``configs/demo.toml`` with 64 x 64 pixels and 8 samples) exactly as a user types them,
+  and of ``roughslip show-config``;
 * ``demo_friction.png``, ``demo_normal.png``, ``demo_maps.png``, ``demo_pull.png``:
   ``roughslip plot`` of that run;
 * ``fit_friction.png``, ``fit_area.png``: ``roughslip fit --plot`` of the friction law
@@ -22,7 +23,8 @@ writes into ``OUT_DIR``:
 
 * ``topography_scan.txt``, ``topography_scan.png``: ``roughslip topography --plot`` on the
   shipped example scan ``configs/data/scan.x3p`` (``scripts/make_example_scan.py``), as the
-  topographies guide shows it;
+  topographies guide shows it, and ``topography_formats.txt``: ``roughslip topography
+  --formats``;
 * ``weakening_resolution.png``, ``weakening_resolution.txt``: the same Hertz problem at
   nu = 0.3 under the break law and under slip-weakening (lambda_s = 0.2, lambda_d = 0.1 and
   0, d_c = 5e-4) at a/h = 4 ... 32, and the three pull curves at a/h = 16.
@@ -79,6 +81,7 @@ QUICKSTART = (
                  "--plot runs/fit_area.png"),
     ("plot", "roughslip plot runs/demo.h5 -o runs/demo"),
     ("bursts", "roughslip bursts runs/demo.h5 --min-tail 20 --plot runs/bursts.png"),
+    ("show_config", "roughslip show-config configs/demo.toml --set surface.hurst=0.6"),
 )
 #: the Hurst loop's runs (one per exponent) and its joint fit
 HURST = (0.5, 0.7, 0.9)
@@ -186,6 +189,8 @@ def index_picture(path: Path, out: Path) -> None:
 
 #: the topographies guide's command, on the shipped example scan
 TOPOGRAPHY = "roughslip topography configs/data/scan.x3p --plot runs/scan.png"
+#: the list of the formats read (with the topography extra: SurfaceTopography's too)
+FORMATS = "roughslip topography --formats"
 
 
 def topography(out: Path) -> None:
@@ -195,6 +200,8 @@ def topography(out: Path) -> None:
         shutil.copy(ROOT / "configs" / "data" / "scan.x3p", work / "configs" / "data")
         text = _roughslip(TOPOGRAPHY, work)
         (out / "topography_scan.txt").write_text(f"$ {TOPOGRAPHY}\n{text}")
+        text = _roughslip(FORMATS, work)
+        (out / "topography_formats.txt").write_text(f"$ {FORMATS}\n{text}")
         shutil.copy(work / "runs" / "scan.png", out / "topography_scan.png")
 
 
@@ -259,8 +266,8 @@ def hertz_resolution(out: Path, ratios=(4, 8, 16, 32), coupled_max: int = 16,
                      dec.friction_force / (lam * normal.normal_force), fc, released,
                      t_dec, t_c))
     r = np.array(rows, dtype=float)
-    lines = [f"# Hertz R = {R}, d = {d}, a = {a:.3g}, E = 1, nu = {nu}, lambda = {lam}; "
-             "open grid of side 4a",
+    lines = [f"# Hertz R = {R}, d = {d}, a = {a:.3g}, E = 1, nu = {nu}, lambda = {lam}",
+             "# open grid of side 4a",
              f"{'a/h':>4} {'N':>4} {'F_n/Hertz-1':>12} {'F_f/(lam F_n)':>14} "
              f"{'coupled':>8} {'released':>8} {'s (dec)':>8} {'s (coup)':>8}"]
     for row in rows:
@@ -318,7 +325,8 @@ def weakening_resolution(out: Path, ratios=(4, 8, 16, 32), nu: float = 0.3,
     mu = np.zeros((len(ratios), len(laws)))
     curves = {}
     lines = [f"# Hertz R = {R}, d = {d}, a = {a:.3g}, E = 1, nu = {nu}, lambda_s = {lam}, "
-             f"d_c = {slip_distance}; open grid of side 4a; F_f / (lambda_s F_n)",
+             f"d_c = {slip_distance}",
+             "# open grid of side 4a; friction coefficients F_f / (lambda_s F_n)",
              f"{'a/h':>4} {'bonds':>6} {'break':>8} {'sw 0.1':>8} {'sw 0':>8}"]
     for i, ratio in enumerate(ratios):
         h, n = a / ratio, 4 * ratio

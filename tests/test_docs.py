@@ -108,11 +108,12 @@ def _console_commands() -> list[tuple[str, str]]:
 
 
 def test_guide_commands_are_found():
-    """The typed commands of the guide. The quickstart's run and the Hurst loop are shown
-    with their output, made by running them at every docs build (scripts/docs_figures.py),
-    so a failing one fails ``make docs``; the commands typed on those pages are run here."""
+    """The typed commands of the guide. The quickstart's commands (``show-config`` among
+    them), ``topography --formats`` and the Hurst loop are shown with their output, made by
+    running them at every docs build (scripts/docs_figures.py), so a failing one fails
+    ``make docs``; the commands typed on the pages are run here."""
     pages = {p for p, _ in _console_commands()}
-    assert {"quickstart.rst", "topographies.rst", "resume.rst"} <= pages
+    assert {"topographies.rst", "resume.rst"} <= pages
 
 
 def test_the_generated_guide_output_is_what_the_script_writes():
@@ -127,7 +128,7 @@ def test_the_generated_guide_output_is_what_the_script_writes():
     cells = re.findall(r"^# %% (\w+)$", (DOCS / "guide" / "python_tutorial.py").read_text(),
                        flags=re.M)
     written = ({f"quickstart_{n}.txt" for n, _ in mod.QUICKSTART} | set(mod.FIGURES)
-               | {"topography_scan.txt", "topography_scan.png"}
+               | {"topography_scan.txt", "topography_scan.png", "topography_formats.txt"}
                | {"hurst_loop.txt", "hurst_fit.png", "hertz_resolution.png",
                   "hertz_resolution.txt", "weakening_resolution.png",
                   "weakening_resolution.txt", "index_pull.png", "coupled_events.png",

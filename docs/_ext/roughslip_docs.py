@@ -283,30 +283,130 @@ WIDEST = 150
 WIDE_TABLE = 9
 
 
-def block_class(text: str) -> list[str]:
+def _tabular(line: str) -> bool:
+    """Whether a line is a row of aligned columns (two spaces or more between its fields)."""
+    return bool(re.search(r"\S {2,}\S", line.strip()))
+
+
+def block_class(text: str, language: str = "default") -> list[str]:
     """The classes that fit a literal block of ``text`` to the column (``_static/roughslip.css``).
 
     A few long lines among many short ones (a comment above a table, a command before its
-    output) wrap at the column's edge, and so do lines longer than :data:`WIDEST` (error
-    messages, whole commands), which no font size would fit: ``wrap``. Any other block is a
-    table of text, or a command or two: ``wide-<n>`` shrinks its font until ``n`` columns fit
-    (its longest line, rounded up to 5).
+    output), lines longer than :data:`WIDEST`, which no font size would fit, and in console
+    output and messages (:data:`REWRAP`) lines of text rather than of columns (a message, a
+    command) wrap at the column's edge: ``wrap`` (:func:`rewrap` breaks those of console
+    output and messages into lines of their own where it can). Any other block is a table of
+    text, or code: ``wide-<n>`` shrinks its font until ``n`` columns fit (its longest line,
+    rounded up to 5).
     """
     lines = text.splitlines() or [""]
     width = max(len(line) for line in lines)
     if width <= COLUMNS:
         return []
-    long = sum(len(line) > COLUMNS for line in lines)
-    if width > WIDEST or (len(lines) > 3 and long <= len(lines) // 4):
+    long = [line for line in lines if len(line) > COLUMNS]
+    prose = language in REWRAP and not any(_tabular(line) for line in long)
+    if width > WIDEST or (len(lines) > 3 and len(long) <= len(lines) // 4) or prose:
         return ["wrap"]
     return [f"wide-{5 * math.ceil(width / 5)}"]
 
 
+def _hang(line: str) -> int:
+    """Where the continuation lines of a long ``line`` start: under its value when it is a
+    ``key   value`` line (the first run of two spaces or more, in the first half of the
+    column), else four columns in from the line's own indent."""
+    indent = len(line) - len(line.lstrip())
+    m = re.match(r"\s*\S.*?\S? {2,}(?=\S)", line)
+    if m and m.end() <= COLUMNS // 2:
+        return m.end()
+    return indent + 4
+
+
+def _split(units: list[str], first: str, rest: str, width: int, end: str = "") -> list[str]:
+    """``units`` (words, or an option with its value) over lines of at most ``width``
+    columns: the first line starts with ``first``, the others with ``rest``; every line but
+    the last ends with ``end``."""
+    lines, line = [], first
+    for unit in units:
+        if line not in (first, rest) and len(line) + 1 + len(unit) + len(end) > width:
+            lines.append(line + end)
+            line = rest
+        line += ("" if line in (first, rest) else " ") + unit
+    return [*lines, line]
+
+
+def _options(words: list[str]) -> list[str]:
+    """The words of a command grouped into what a line break must not split: each option
+    with the values that follow it (``--set grid.n=64``)."""
+    units: list[str] = []
+    for word in words:
+        if units and units[-1].startswith("-") and not word.startswith("-"):
+            units[-1] += " " + word
+        else:
+            units.append(word)
+    return units
+
+
+def rewrap(text: str, width: int = COLUMNS) -> str | None:
+    """``text`` with its lines longer than ``width`` broken at spaces, as a terminal of that
+    width would show them but with hanging indents: a command (``$ ...``) goes on over lines
+    ending with a backslash, broken before an option; a comment (``# ...``) over comment
+    lines; a message or a ``key   value`` line under its start (:func:`_hang`), together
+    with the lines that already continue it there. None when a word is too long for any
+    line."""
+    src = text.splitlines()
+    out: list[str] = []
+    i = 0
+    while i < len(src):
+        line = src[i]
+        indent = line[:len(line) - len(line.lstrip())]
+        body = line.strip()
+        i += 1
+        if body.startswith(("$ ", "#")):
+            if len(line) <= width:
+                out.append(line)
+            elif body.startswith("$ "):
+                out += _split(_options(body[2:].split()), indent + "$ ", indent + "    ",
+                              width, " \\")
+            else:
+                out += _split(body.lstrip("# ").split(), indent + "# ", indent + "#   ",
+                              width)
+            continue
+        # a paragraph: the line and those that continue it already, indented to its hang
+        hang = _hang(line)
+        group = [line]
+        while i < len(src) and src[i].strip() and len(src[i]) - len(src[i].lstrip()) == hang:
+            group.append(src[i])
+            i += 1
+        if max(map(len, group)) <= width:
+            out += group
+            continue
+        words = [w for x in group for w in x[hang:].split()]
+        out += _split(words, line[:hang], " " * hang, width)
+    if any(len(x) > width for x in out):
+        return None
+    return "\n".join(out) + ("\n" if text.endswith("\n") else "")
+
+
+#: the languages whose long lines :func:`rewrap` may break (console output and messages; not
+#: code, whose lines would change meaning)
+REWRAP = ("console", "text", "none", "default")
+
+
 def fit_wide_blocks(app, doctree) -> None:
-    """Classes on the literal blocks too wide for the text column (:func:`block_class`), and
-    ``wide-table`` on the tables of :data:`WIDE_TABLE` columns or more."""
+    """Classes on the literal blocks too wide for the text column (:func:`block_class`), with
+    the long lines of console output and messages broken (:func:`rewrap`), and ``wide-table``
+    on the tables of :data:`WIDE_TABLE` columns or more."""
     for node in doctree.findall(nodes.literal_block):
-        node["classes"].extend(c for c in block_class(node.astext()) if c not in node["classes"])
+        text = node.astext()
+        language = node.get("language", "default")
+        classes = block_class(text, language)
+        if classes == ["wrap"] and language in REWRAP:
+            wrapped = rewrap(text)
+            if wrapped is not None:
+                node.rawsource = wrapped
+                node.children = [nodes.Text(wrapped)]
+                classes = []
+        node["classes"].extend(c for c in classes if c not in node["classes"])
     for table in doctree.findall(nodes.table):
         groups = list(table.findall(nodes.tgroup))
         if groups and int(groups[0].get("cols", 0)) >= WIDE_TABLE:
@@ -322,6 +422,7 @@ def setup(app):
     app.connect("missing-reference", resolve_imported)
     app.connect("builder-inited", make_verify_figure)
     app.connect("builder-inited", make_docs_figures)
-    # env_version: the stored doctrees carry the classes of fit_wide_blocks; a change to what
-    # the extension puts into them raises it, so that every page is read again
-    return {"parallel_read_safe": True, "parallel_write_safe": True, "env_version": 2}
+    # env_version: the stored doctrees carry the classes and the broken lines of
+    # fit_wide_blocks; a change to what the extension puts into them raises it, so that every
+    # page is read again
+    return {"parallel_read_safe": True, "parallel_write_safe": True, "env_version": 3}

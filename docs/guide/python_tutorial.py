@@ -18,7 +18,8 @@ config = roughslip.load_config(data={
     "title": "depth sweep, H = 0.8",
     "grid": {"n": 48, "pixel_size": 1.0},
     "material": {"E": 1.0, "nu": 0.3},
-    "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1.0, "oversample": 2},
+    "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": 1.0,
+                "oversample": 2},
     "squeeze": {"depths": [0.25, 0.5, 1.0, 1.5, 2.0], "depth_unit": "rms"},
     "pull": {"enabled": True, "lam": 0.2},
     "ensemble": {"samples": 4, "seed": 4},
@@ -33,7 +34,8 @@ from roughslip.analysis.tables import to_dataframe
 
 df = to_dataframe("sweep.h5")
 print(df.shape)
-print(df[["sample", "depth", "normal_force", "contact_area", "friction_force"]].head(7))
+columns = ["sample", "depth", "normal_force", "contact_area", "friction_force"]
+print(df[columns].head(7))
 print("H =", df.attrs["surface.hurst"], " lambda =", df.attrs["pull.lam"],
       " depths in", df.attrs["squeeze.depth_unit"])
 
