@@ -41,6 +41,8 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "none"  # numpydoc sections carry the types
 # defaults as written in the source (dtype=np.float64, not "<class 'numpy.float64'>")
 autodoc_preserve_defaults = True
+# "--set" stays two hyphens and quotes stay straight, on every page as typed
+smartquotes = False
 # every cross-reference must resolve (with -W, an unresolved one fails the build). A name that
 # a module imports resolves to where it is documented (roughslip_docs.resolve_imported). Not
 # checked: the outside packages and the standard library (no inventories of theirs are

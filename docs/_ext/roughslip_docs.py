@@ -60,15 +60,95 @@ def _default(f: dataclasses.Field) -> str:
     return f"``{v!r}``"
 
 
+#: a placeholder address (``tcp://host:port``), which docutils would make a link
+_PLACEHOLDER_URI = re.compile(r"\b[a-z]+://host:port\b")
+#: literals and roles already marked up, which :func:`typeset` leaves alone
+_MARKED = re.compile(r"(``.*?``|:\w+:`[^`]*`)")
+
+
+def _outside_markup(text: str, pattern: str, repl) -> str:
+    """``re.sub`` of ``pattern`` in the parts of ``text`` that are not literals or roles."""
+    parts = _MARKED.split(text)
+    parts[::2] = [re.sub(pattern, repl, part) for part in parts[::2]]
+    return "".join(parts)
+
+
+def typeset(text: str, names: tuple[str, ...] = ()) -> str:
+    """The plain text of the code (the terminal's, the run file's) as reStructuredText for
+    the references: configuration keys, quoted values and the ``names`` (datasets) as
+    literals, the symbols of the model (``D_z``, ``lam f_z``, ``G_xx``, ``10^4``, ``E*``) as
+    maths, a placeholder address as a literal, not a link."""
+    from roughslip.run import config as C
+
+    sub = _outside_markup
+    text = sub(text, _PLACEHOLDER_URI.pattern, r"``\g<0>``")
+    maths = [
+        (r"\b0 <= lam_dynamic <= lam\b", r"0 \\le \\lambda_d \\le \\lambda"),
+        (r"\blam_dynamic f_z\b", r"\\lambda_d f_z"),
+        (r"\blam f_z\b", r"\\lambda f_z"),
+        (r"\blambda_d\b", r"\\lambda_d"),
+        (r"\blambda\b", r"\\lambda"),
+        (r"\bO\(n\^2\)", r"O(n^2)"),
+        (r"\bu_z - overlap\b", r"u_z - \\text{overlap}"),
+        (r"\b([Du]_[xz]) = (\d+)\b", r"\1 = \2"),
+        (r"\b([DdFfGu])_([a-z]{1,2})\b", r"\1_{\2}"),
+        (r"\b10\^(\d+)\b", r"10^{\1}"),
+        (r"~1e-(\d+)\b", r"\\sim 10^{-\1}"),
+        (r"\bE\*", r"E^*"),
+    ]
+    for pattern, tex in maths:
+        text = sub(text, pattern, lambda m, tex=tex: f":math:`{m.expand(tex)}`")
+    sections = "|".join(sorted(C.SECTIONS, key=len, reverse=True))
+    text = sub(text, rf"\b(?:{sections})\.[A-Za-z_]+\b", r"``\g<0>``")
+    text = sub(text, r"'([^'\s]*)'\|'([^'\s]*)'", r"'\1' or '\2'")
+    text = sub(text, r"\b(\w+) = '([^']*)'", r'``\1 = "\2"``')
+    text = sub(text, r"(?<!\w)'([^'\s]+)'(?!\w)", r'``"\1"``')
+    text = sub(text, r"\biy \* nx \+ ix\b", r"``iy * nx + ix``")
+    if names:
+        text = sub(text, r"\b(?:" + "|".join(map(re.escape, names)) + r")\b", r"``\g<0>``")
+    units = [(r"\bx length\^2\b", "× length²"), (r"\bx um\^2\b", "× µm²"),
+             (r"\bMPa x\b", "MPa ×"), (r"\buN\b", "µN")]
+    for pattern, plain in units:
+        text = sub(text, pattern, plain)
+    return text
+
+
+def _names() -> tuple[str, ...]:
+    """The names that :func:`typeset` sets as literals: the stored datasets and the
+    configuration keys with an underscore (``friction_force``, ``slip_distance``)."""
+    from roughslip.run import config as C
+    from roughslip.run import schema as S
+
+    keys = {f.name for cls in C.SECTIONS.values() for f in dataclasses.fields(cls)}
+    return tuple(sorted({c.name for c in S.COLUMNS} | keys | {"pull_curve"}
+                        - {"E"}, key=len, reverse=True))
+
+
+def _rule_text(rule: str) -> str:
+    """A rule of :func:`_rule` with its inequalities as maths (``-1 < nu <= 0.5``)."""
+    def tex(part: str) -> str:
+        # the left operand: a number or a short symbol (``nu``, ``H``, ``y0``), not a word
+        m = re.fullmatch(r"(.*?)((?:(?<!\S)-?[\d.]+ |(?<!\S)[A-Za-z]\w{0,2} )?[<>]=?.*)", part)
+        if m is None or not re.fullmatch(r"[-\w. <>=]+", m.group(2)):
+            return part
+        expr = m.group(2).replace("<=", r"\le").replace(">=", r"\ge")
+        expr = re.sub(r"\bnu\b", r"\\nu", re.sub(r"\btol\b", r"\\mathrm{tol}", expr))
+        return f"{m.group(1)}:math:`{expr}`"
+    if "``" in rule:
+        return rule
+    return ", ".join(tex(part) for part in rule.split(", "))
+
+
 def config_reference() -> list[str]:
     """reStructuredText of every section and key."""
     from roughslip.run import config as C
     from roughslip.run import digest as D
 
     lines: list[str] = []
+    names = tuple(n for n in _names() if "_" in n)
     for name, cls in C.SECTIONS.items():
         hints = typing.get_type_hints(cls)
-        doc = _links((cls.__doc__ or "").strip().splitlines()[0])
+        doc = typeset(_links((cls.__doc__ or "").strip().splitlines()[0]))
         title = f"[{name}]"
         lines += [f".. _config-{name}:", "", title, "-" * len(title), "", doc, "",
                   ".. list-table::", "   :header-rows: 1", "   :widths: 18 12 12 22 36", "",
@@ -76,7 +156,7 @@ def config_reference() -> list[str]:
                   "     - meaning"]
         for f in dataclasses.fields(cls):
             meta = f.metadata
-            text = _links(meta.get("doc", "").replace("|", "\\|"))
+            text = typeset(_links(meta.get("doc", "")), names).replace("|", "\\|")
             if name in ("surface", "elastic_surface"):
                 kinds = [k for k, (allowed, _) in C.SURFACE_KEYS.items() if f.name in allowed]
                 if f.name != "kind" and kinds:
@@ -85,7 +165,8 @@ def config_reference() -> list[str]:
             if meta.get("dimension"):  # roughslip.run.units
                 kind += f", or a {meta['dimension']} with a unit"
             lines += [f"   * - ``{f.name}``", f"     - {kind}",
-                      f"     - {_default(f)}", f"     - {_rule(meta)}", f"     - {text}"]
+                      f"     - {_default(f)}", f"     - {_rule_text(_rule(meta))}",
+                      f"     - {text}"]
         lines.append("")
     renamed = ", ".join(f"``{s}.{old}`` (now ``{new}``)" for (s, old), new in
                         D.RENAMED.items())
@@ -100,18 +181,21 @@ def schema_reference() -> list[str]:
     """reStructuredText tables of the output schema (:mod:`roughslip.run.schema`)."""
     from roughslip.run import schema as S
 
+    names = tuple(n for n in _names() if "_" in n)
     lines = [".. list-table::", "   :header-rows: 1", "   :widths: 24 12 10 54", "",
              "   * - dataset", "     - stage", "     - kind", "     - meaning"]
     for name, text in {**S.AXES, **S.ROOT}.items():
-        lines += [f"   * - ``/{name}``", "     - ", "     - axis", f"     - {text}"]
+        lines += [f"   * - ``/{name}``", "     - ", "     - axis",
+                  f"     - {typeset(text, names)}"]
     for c in S.COLUMNS:
         lines += [f"   * - ``/{c.name}``", f"     - {c.stage}", f"     - {c.kind}",
-                  f"     - {_links(c.description)}"]
+                  f"     - {typeset(_links(c.description), names)}"]
     lines += ["", ".. list-table::", "   :header-rows: 1", "   :widths: 24 22 54", "",
               "   * - field", "     - shape", "     - meaning"]
     for f in S.FIELDS:
         shape = "``(ny, nx)``" + (", boolean" if f.boolean else "") if f.grid else "one per event"
-        lines += [f"   * - ``{f.name}``", f"     - {shape}", f"     - {f.description}"]
+        lines += [f"   * - ``{f.name}``", f"     - {shape}",
+                  f"     - {typeset(f.description, names)}"]
     groups = "; ".join(f"``{g}`` stores {', '.join(f'``{x}``' for x in xs)}"
                        for g, xs in S.FIELD_GROUPS.items())
     return [*lines, "", f"In ``output.fields``, {groups}.", ""]
@@ -413,6 +497,27 @@ def fit_wide_blocks(app, doctree) -> None:
             table["classes"].append("wide-table")
 
 
+def literal_placeholders(app, ctx, lines: list[str]) -> None:
+    """The command-line reference (sphinx-click): a placeholder address in an option's help
+    as a literal, not a link."""
+    for i, line in enumerate(lines):
+        lines[i] = _outside_markup(line, _PLACEHOLDER_URI.pattern, r"``\g<0>``")
+
+
+#: the symbols of the commands' descriptions, which the terminal shows as plain text
+_CLI_MATHS = ((r"\by = c x\^alpha\b", r":math:`y = c\,x^\alpha`"),
+              (r"\bF_n\(D_z\)", r":math:`F_n(D_z)`"))
+
+
+def cli_maths(app, ctx, lines: list[str]) -> None:
+    """The command-line reference (sphinx-click): the symbols of a command's description
+    (``y = c x^alpha``, ``F_n(D_z)``) as maths."""
+    for i, line in enumerate(lines):
+        for pattern, tex in _CLI_MATHS:
+            line = _outside_markup(line, pattern, lambda m, tex=tex: tex)  # as written
+        lines[i] = line
+
+
 def setup(app):
     app.add_css_file("roughslip.css")
     app.connect("doctree-read", fit_wide_blocks)
@@ -420,9 +525,11 @@ def setup(app):
     app.add_directive("roughslip-schema", SchemaReference)
     app.connect("autodoc-process-docstring", link_references)
     app.connect("missing-reference", resolve_imported)
+    app.connect("sphinx-click-process-options", literal_placeholders)
+    app.connect("sphinx-click-process-description", cli_maths)
     app.connect("builder-inited", make_verify_figure)
     app.connect("builder-inited", make_docs_figures)
     # env_version: the stored doctrees carry the classes and the broken lines of
     # fit_wide_blocks; a change to what the extension puts into them raises it, so that every
     # page is read again
-    return {"parallel_read_safe": True, "parallel_write_safe": True, "env_version": 3}
+    return {"parallel_read_safe": True, "parallel_write_safe": True, "env_version": 4}

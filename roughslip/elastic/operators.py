@@ -279,7 +279,7 @@ class ElasticOperator:
 
         Used by the dense pull and coupled solvers: right after a threaded BLAS-3 call,
         OpenBLAS's spinning threads made a two-thread FFTW convolution about 40 times slower
-        than a single-threaded one on two cores (a 256^2 padded grid). Views are cached per
+        than a single-threaded one on two cores (a padded grid of 256 x 256). Views are cached per
         thread count; the operator itself is never modified, so views can be used side by side.
         """
         threads = int(threads)

@@ -67,16 +67,17 @@ from roughslip.errors import InputError
 PER_OCTAVE = 4
 
 #: variance of the log of a bin's mean power times its number of modes, for a Gaussian
-#: random surface under the Hann window: 2 (modes at +-q) x 1.5^2 (the window's equivalent
-#: noise bandwidth per axis, squared)
+#: random surface under the Hann window: 2 (modes at :math:`\pm q`) times :math:`1.5^2` (the
+#: window's equivalent noise bandwidth per axis, squared)
 KAPPA = 2 * 1.5**2
 
 #: the fewest octaves the fit range may be cut to by a detected break
 MIN_OCTAVES = 2.0
 
-#: decrease of chi^2 that makes a break of the slope significant: for one more parameter at
-#: one place the decrease is chi^2 with one degree of freedom, and P(chi2_1 > 25) = 6e-7,
-#: so about 1e-5 over the 20 places a 512 x 512 scan offers
+#: decrease of :math:`\chi^2` that makes a break of the slope significant: for one more
+#: parameter at one place the decrease is :math:`\chi^2` with one degree of freedom, and
+#: :math:`P(\chi^2_1 > 25) = 6\cdot10^{-7}`, so about :math:`10^{-5}` over the 20 places a
+#: 512 x 512 scan offers
 BREAK_CHI2 = 25.0
 
 #: the range keeps this factor away from a detected break (its knee is not sharp)
