@@ -115,8 +115,10 @@ def test_netcdf_export_round_trips_bit_for_bit(sweep, tmp_path):
         assert np.array_equal(_bits(back["rigid_surface"].values),
                               _bits(f["samples/s000002/rigid_surface"][()]))
         assert np.array_equal(back["x"].values, np.arange(16) * 0.5)
-        assert back["fz"].attrs["units"] == "E x length^2"
-        assert back["gap"].attrs["units"] == "length"
+        # a run without units names none: no "length" or "E x length^2" on the plots
+        assert "units" not in back["fz"].attrs and "units" not in back["gap"].attrs
+        assert "units" not in back["x"].attrs and back["depth"].attrs["units"] == "rms"
+        assert back["x"].attrs["long_name"] == "x, the pull direction"
         assert back.attrs["sample"] == 2 and back.attrs["grid.n"] == 16
         assert back.attrs["config"] == f.attrs["config"]
 
@@ -136,3 +138,21 @@ def test_a_missing_extra_is_named_in_one_line(sweep, monkeypatch):
         tables.to_dataframe(sweep)
     assert "pip install 'roughslip[tables]'" in str(err.value)
     assert "\n" not in str(err.value)
+
+
+def test_sample_fields_carry_the_named_units(tmp_path):
+    """With a length and a stress unit the fields and coordinates carry them (forces in the
+    named force unit), as the figures label them."""
+    path = tmp_path / "units.h5"
+    config = roughslip.load_config(data={
+        "grid": {"n": 8, "pixel_size": "0.5 um"},
+        "material": {"E": "70 GPa", "nu": 0.3},
+        "surface": {"kind": "self-affine", "hurst": 0.8, "rms_height": "1 um"},
+        "squeeze": {"depths": [1.0], "depth_unit": "rms"},
+        "ensemble": {"samples": 1, "seed": 3},
+        "output": {"fields": ["fz", "gap"]},
+    })
+    run(config, path, workers=1)
+    ds = tables.sample_fields(path, 0)
+    assert ds["fz"].attrs["units"] == "mN" and ds["gap"].attrs["units"] == "um"
+    assert ds["x"].attrs["units"] == "um" and ds["rigid_surface"].attrs["units"] == "um"

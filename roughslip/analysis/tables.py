@@ -203,17 +203,21 @@ def sample_fields(path: str | Path, sample: int, *,
         ``depth`` under load control); the surfaces (``rigid_surface``, and
         ``elastic_surface`` for two rough surfaces) of dimensions ``(y, x)``. ``x`` and ``y``
         are the pixel positions, index times pixel size; ``x`` is the pull direction. Each
-        variable and coordinate has the attributes ``long_name`` and ``units`` of the
-        NetCDF conventions, which plotting tools label axes with: lengths in the run's length
-        unit (``units.length``; ``"length"`` when the run has none) and forces in
-        ``E x length^2``. ``attrs`` holds :func:`config_attrs` and ``sample``.
+        variable and coordinate has the attribute ``long_name`` of the NetCDF conventions,
+        and ``units`` where the run names one, which plotting tools label axes with: lengths
+        in the run's length unit (``units.length``) and forces in its force unit (``uN``, or
+        ``E x um^2`` with only a length unit named). A dimensionless run (no ``[units]``)
+        names none, so its lengths and forces have no ``units`` attribute (its numbers are
+        in the units of ``grid.pixel_size`` and ``material.E``, as ``attrs["units"]`` says).
+        ``attrs`` holds :func:`config_attrs` and ``sample``.
 
     Raises
     ------
     InputError
         When the sample is not complete, a field was not stored, or xarray is not installed.
     """
-    from roughslip.analysis.summary import length_unit, pixel_size
+    from roughslip.analysis.model import units as run_units
+    from roughslip.analysis.summary import axis_unit, pixel_size
 
     xr = _extra("xarray")
     run = read_run(path)
@@ -224,8 +228,13 @@ def sample_fields(path: str | Path, sample: int, *,
                          f"(complete: {sorted(done)[:8]}{' ...' if len(done) > 8 else ''})")
     grid = {f.name for f in schema.FIELDS if f.grid}
     attrs = config_attrs(run)
-    length = length_unit(run) or "length"
-    units = {"length": length, "force": f"E x {length}^2"}
+    u = run_units(run)
+
+    def unit(dimension: str) -> dict[str, str]:
+        """The ``units`` attribute of a ``dimension``: none where the run names no unit."""
+        text = u.of_dimension(dimension)
+        return {"units": text} if text else {}
+
     group = f"samples/{group_name(sample)}"
     with open_file(run.path) as f:
         stored = [k for k in f[f"{group}/d000"].keys() if k in grid] if "d000" in f[group] else []
@@ -245,21 +254,23 @@ def sample_fields(path: str | Path, sample: int, *,
         a = np.stack([run.field(sample, k, name) for k in range(nd)])
         meta = {"long_name": schema.FIELD_BY_NAME[name].description}
         if name in _FIELD_UNIT:
-            meta["units"] = units[_FIELD_UNIT[name]]
+            meta.update(unit(_FIELD_UNIT[name]))
         data[name] = ((run.axis_name, "y", "x"), a, meta)
     for name in surfaces:
         data[name] = (("y", "x"), run.surface(sample, name),
                       {"long_name": f"heights of the {name.split('_')[0]} surface",
-                       "units": length})
+                       **unit("length")})
     if not data:
         raise InputError(f"{run.path}: sample {sample} has no fields stored")
     ny, nx = next(iter(data.values()))[1].shape[-2:]
     a = pixel_size(run)
-    axis = {"long_name": schema.AXES[run.axis_name], "units": run.axis_unit}
+    depth_unit = axis_unit(run)  # rms, range, pressure, or the run's named unit
+    axis = {"long_name": schema.AXES[run.axis_name],
+            **({"units": depth_unit} if depth_unit else {})}
     coords = {run.axis_name: (run.axis_name, run.axis, axis),
-              "y": ("y", np.arange(ny) * a, {"long_name": "y", "units": length}),
+              "y": ("y", np.arange(ny) * a, {"long_name": "y", **unit("length")}),
               "x": ("x", np.arange(nx) * a,
-                    {"long_name": "x, the pull direction", "units": length})}
+                    {"long_name": "x, the pull direction", **unit("length")})}
     return xr.Dataset(data, coords=coords, attrs={**attrs, "sample": sample})
 
 
