@@ -4,9 +4,9 @@ one's own, and one sample's fields exported for other tools (docs/guide/python.r
     pip install 'roughslip[tables,plot]'
     python python_tutorial.py
 
-writes ``sweep.h5``, ``friction_coefficient.png``, ``sample0.nc`` and ``sample0_fz.png`` into
-the current folder, in a few seconds. The documentation runs it cell by cell (the ``# %%``
-lines, which notebook editors read as cells) at every build and shows what each cell prints.
+writes ``sweep.h5``, ``friction_coefficient.png``, ``sample0.nc`` and ``sample0_fz.png``
+into the current folder. The documentation runs it cell by cell (the ``# %%`` lines, which
+notebook editors read as cells) at every build and shows what each cell prints.
 """
 # ruff: noqa: E402 (each cell imports what it uses, as notebook cells do)
 
