@@ -63,6 +63,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -261,7 +262,7 @@ def hertz_resolution(out: Path, ratios=(4, 8, 16, 32), coupled_max: int = 16,
             c = couple(problem, depth=d, lam=lam)
             t_c = time.perf_counter() - t0
             fc = c.friction_force / (lam * c.normal_force_at_peak)
-            released = c.released / max(int(c.contact0.sum()), 1)
+            released = c.details.released / max(int(c.start.contact.sum()), 1)
         rows.append((ratio, n, normal.normal_force / hertz(R=R, d=d, E=1.0, nu=nu).force - 1,
                      dec.friction_force / (lam * normal.normal_force), fc, released,
                      t_dec, t_c))
@@ -338,8 +339,9 @@ def weakening_resolution(out: Path, ratios=(4, 8, 16, 32), nu: float = 0.3,
                       slip_distance=slip_distance))
             mu[i, j] = r.friction_force / (lam * normal.normal_force)
             if ratio == 16:
-                c = (pull_curve(r.dx_lim, r.fx_lim, exhausted=True) if ld is None else
-                     landing_curve(r.dx_lim, r.fx_lim, r.broken_site))
+                dx, fx = r.curve.dx[1:], r.curve.fx[1:]  # the events after the start
+                c = (pull_curve(dx, fx, exhausted=True) if ld is None else
+                     landing_curve(dx, fx, r.curve.site[1:]))
                 curves[j] = (c.dx / slip_distance, c.fx / (lam * normal.normal_force))
         lines.append(f"{ratio:4d} {int(normal.contact.sum()):6d} " +
                      " ".join(f"{m:8.4f}" for m in mu[i]))
@@ -394,7 +396,7 @@ def _event_path(problem, depth: float, result) -> tuple[np.ndarray, np.ndarray, 
     n = problem.base.size
     ubar = problem.overlap(depth).ravel()
     drive, xs, ys, at = 0.0, [], [], []
-    for (D, _, _, _, C, S), event in zip(result.states, result.events, strict=True):
+    for (D, _, _, _, C, S), event in zip(result.details.states, result.events, strict=True):
         C, S = C.ravel(), S.ravel()
         nc, ns = int(C.sum()), int(S.sum())
         rows = np.concatenate([np.flatnonzero(C), n + np.flatnonzero(S)])
@@ -450,7 +452,7 @@ def coupled_events(out: Path, n: int = 24, seed: int = 7, depth: float = 1.6,
             pick = [i for i, e in enumerate(r.events) if e.kind == kind]
             if pick:
                 kinds_seen.add(kind)
-                drive = np.maximum.accumulate(r.dx)[pick]
+                drive = np.maximum.accumulate(r.curve.dx)[pick]
                 path_ax.plot(drive, at[pick], marker, color=colour, ms=4.5, mfc="none", mew=0.9)
         path_ax.plot(r.peak_dx, r.friction_force, "*", color="k", ms=11, zorder=5)
         path_ax.annotate(f"peak, $\\nu$ = {nu}", (r.peak_dx, r.friction_force),
@@ -458,26 +460,27 @@ def coupled_events(out: Path, n: int = 24, seed: int = 7, depth: float = 1.6,
         # 0 out of contact, 1 contact without a bond since D_x = 0, 2 bond failed in the
         # pull, 3 stuck at the peak, 4 gained during the pull (unbonded)
         sets = np.zeros((n, n))
-        sets[r.contact_peak & ~r.contact0] = 4
-        sets[r.contact_peak & r.contact0 & ~r.stick0] = 1
-        sets[r.contact_peak & r.stick0 & ~r.stick_peak] = 2
-        sets[r.stick_peak] = 3
+        start, peak = r.start, r.peak
+        sets[peak.contact & ~start.contact] = 4
+        sets[peak.contact & start.contact & ~start.stick] = 1
+        sets[peak.contact & start.stick & ~peak.stick] = 2
+        sets[peak.stick] = 3
         sets[sets == 0] = np.nan
         ax.imshow(sets, origin="lower", cmap=colours, vmin=1, vmax=4, extent=(0, n, 0, n),
                   interpolation="nearest")
         ax.contour(np.arange(n) + 0.5, np.arange(n) + 0.5, h, levels=6, colors="0.8",
                    linewidths=0.6, linestyles="solid")
-        ax.set_title(f"$\\nu$ = {nu}: {int(r.contact0.sum())} contacts, "
-                     f"{int(r.stick0.sum())} bonds at $D_x = 0$", fontsize=9)
+        ax.set_title(f"$\\nu$ = {nu}: {int(start.contact.sum())} contacts, "
+                     f"{int(start.stick.sum())} bonds at $D_x = 0$", fontsize=9)
         ax.set_xlabel("x, pull direction (pixels)", fontsize=8)
         ax.set_ylabel("y (pixels)", fontsize=8)
         ax.tick_params(labelsize=8)
         kinds = ", ".join(f"{k} {sum(e.kind == k for e in r.events)}" for k in EVENT_MARKERS
                           if any(e.kind == k for e in r.events))
-        lines += [f"nu = {nu}: {int(r.contact0.sum())} contacts, {int(r.stick0.sum())} bonds at "
-                  f"D_x = 0 ({r.released} released)",
+        lines += [f"nu = {nu}: {int(start.contact.sum())} contacts, {int(start.stick.sum())} "
+                  f"bonds at D_x = 0 ({r.details.released} released)",
                   f"{'':11}peak F_x = {r.friction_force:.4g} at D_x = {r.peak_dx:.4g}, "
-                  f"{int(r.stick_peak.sum())} bonds stuck there",
+                  f"{int(peak.stick.sum())} bonds stuck there",
                   f"{'':11}events: {kinds}"]
     handles = path_ax.get_legend_handles_labels()[0]
     handles += [path_ax.plot([], [], m, color=c, mfc="none", label=text)[0]
@@ -1020,6 +1023,9 @@ def main(argv: list[str] | None = None) -> None:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out", type=Path, help="folder for the figures and text files")
     args = ap.parse_args(argv)
+    # the pages show the package's current names: a deprecated one fails the build
+    warnings.filterwarnings("error", r"(roughslip\.|PullResult\.|SlipResult|CoupledResult)",
+                            DeprecationWarning)
     args.out.mkdir(parents=True, exist_ok=True)
     quickstart(args.out)
     topography(args.out)
