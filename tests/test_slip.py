@@ -390,3 +390,53 @@ def test_a_slipping_bond_that_sticks_again_keeps_its_force_and_the_equilibrium()
         st.apply(kind, k, D)
         check(D)
     assert st.ok and st.worst <= 1e-12
+
+
+class _Gaps:
+    """A test observer of a break sequence: for each break, the relative gap between the two
+    largest ratios |phi_i| / (lam f_z,i) (a near tie is a choice rounding may decide)."""
+
+    def __init__(self, b) -> None:
+        self.b, self.gaps, self.sites, self.drive = b, [], [], []
+
+    def record(self, phi_sum, m, site_pos, stick) -> None:
+        pos, phi = stick()
+        r = np.sort(np.abs(phi) / self.b.cap[pos])[::-1]
+        self.gaps.append(1.0 if r.size < 2 else (r[0] - r[1]) / r[0])
+        self.sites.append(int(self.b.sites[site_pos]))
+        self.drive.append(1.0 / m)
+
+    def should_stop(self, cap_sum_after) -> bool:
+        return False
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_break_fast_path_breaks_what_the_event_path_breaks(seed):
+    """The break law's fast path and the event path are two strategies of one tangential
+    state: on rough scenes they break the same bonds in the same order (an avalanche's next
+    failure is the largest ratio too), up to the first near tie (relative gap below 1e-8, where
+    the choice is rounding's), and give the same friction force. An observer of the fast path
+    sees every break at the drive the curve records."""
+    from roughslip.friction.bonds import PullOptions
+    from roughslip.friction.events import EventKind, follow_events
+    from roughslip.friction.laws import LAWS
+    from roughslip.friction.sliding import BreakSequence, TangentialState
+
+    h = self_affine((24, 24), hurst=0.8, rms_height=1.0, rng=sample_rng(seed, 0), oversample=2)
+    normal = squeeze(h, depth=1.8, nu=0.3, tol=1e-13)
+    b = _Bonds(normal, 0.2)
+    opt = PullOptions(slip_law="break", law=LAWS.get("break"), tol=1e-12, block=8,
+                      early_stop=False)
+    fast = TangentialState(b, opt)
+    gaps = fast.observe(_Gaps(b))
+    res = fast.run(BreakSequence(), 0.0)
+    assert gaps.sites == list(res.curve.site[1:])
+    assert np.array_equal(np.array(gaps.drive), res.curve.drive[1:])
+
+    path = follow_events(TangentialState(b, opt), 20 * b.n + 100, False)
+    failed = [e.site for e in path.events
+              if e.kind in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS)]
+    tie = next((k for k, g in enumerate(gaps.gaps) if g < 1e-8), len(gaps.gaps))
+    assert failed[:tie] == gaps.sites[:tie] and tie > len(gaps.sites) // 2
+    # both certified to 1e-12 on sets whose condition number is below 20 (bond_spectrum)
+    assert path.peak.fx_total == pytest.approx(res.friction_force, rel=1e-8)

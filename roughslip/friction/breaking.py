@@ -15,18 +15,14 @@ from dataclasses import replace
 import numpy as np
 
 from roughslip.friction.bonds import (
-    BondRows,
     Bonds,
     BreakCurve,
     PullOptions,
-    bond_inverse,
-    certify,
     select,
-    stick_residual,
-    track,
 )
-from roughslip.friction.breaking_single import break_inverse_single
+from roughslip.friction.breaking_single import SingleSequence
 from roughslip.friction.result import PullResult
+from roughslip.friction.sliding import BreakSequence, TangentialState
 from roughslip.linalg.cg import CGResult, cg
 
 
@@ -75,43 +71,16 @@ def _break_solves(b: Bonds, opt: PullOptions, t0: float, *, warm: bool) -> PullR
 
 
 def break_sequence(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
-    r"""Exact break law on the stick solver of ``opt.method`` (the updated inverse,
-    :func:`~roughslip.friction.bonds.bond_inverse`): :math:`O(n)` per break plus the solver's
-    blocked updates; :math:`\varphi` is certified against the FFT operator after each fold,
-    and the sequence stops exactly once :math:`\lambda\sum_S f_z` falls below the best.
-    ``opt.precision == "single"``: the float32 inverse with certified decisions
-    (:func:`~roughslip.friction.breaking_single.break_inverse_single`).
+    r"""Exact break law on the stick solver of ``opt.method``: the tangential state
+    (:class:`~roughslip.friction.sliding.TangentialState`) advanced by the break law's fast
+    path (:class:`~roughslip.friction.sliding.BreakSequence`): :math:`O(n)` per break plus the
+    solver's blocked updates, :math:`\varphi` certified against the FFT operator after each
+    fold, and the exact early stop once :math:`\lambda\sum_S f_z` falls below the best.
+    ``opt.precision == "single"``: a float32 inverse with certified decisions
+    (:class:`~roughslip.friction.breaking_single.SingleSequence`).
     """
-    if opt.precision == "single":
-        return break_inverse_single(b, opt, t0)
-    tol, block = opt.tol, opt.block
-    curve = BreakCurve(b, opt.early_stop)
-    inv = bond_inverse(b, block, opt.threads, solver=opt.solver())
-    track(inv, "phi", np.ones(b.n))
-    rows = BondRows(b)
-    cap_sum = float(b.cap.sum())
-    worst, refinements, ok = 0.0, 0, True
-    while rows.alive:
-        phi, cap, pos = inv.tracked["phi"].x, rows.cap, inv.ids
-        j, m = select(phi, cap)
-        live = np.isfinite(cap)
-        curve.record(float(phi.sum()), m, pos[j],
-                     lambda p=pos, f=phi, lv=live: (p[lv], f[lv]))
-        cap_sum -= float(cap[j])
-        if curve.should_stop(cap_sum) or rows.alive == 1:
-            break
-        rows.remove(inv, j)
-        if rows.fold(inv):
-            res, nref = certify(b, inv, "phi", None, tol)
-            worst, refinements = max(worst, res), refinements + nref
-            ok &= res <= tol
-    if curve.peak_state is not None:  # the state that gives the friction force, certified
-        pos, f, dx = curve.peak_state
-        _, res = stick_residual(b, pos, f / dx, 1.0)
-        worst, ok = max(worst, res), ok and res <= tol
-    return curve.result(t0, opt.method_name, converged=bool(ok), residual=worst,
-                        solves=refinements, precision="double",
-                        message=f"{b.n} bonds, block {block}, {refinements} refinements")
+    strategy = SingleSequence() if opt.precision == "single" else BreakSequence()
+    return TangentialState(b, opt).run(strategy, t0)
 
 
 #: the break sequence on the dense inverse (the name of earlier versions)

@@ -65,22 +65,21 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, eigsh
 
 from roughslip.errors import NumericalError
 from roughslip.friction.bonds import (
-    BondRows,
     Bonds,
     BreakCurve,
     PullOptions,
-    bond_inverse,
     stick_residual,
-    track,
 )
 from roughslip.friction.events import TIE, argext
 from roughslip.friction.result import PullResult
+from roughslip.friction.sliding import TangentialState
 from roughslip.linalg import jit
 from roughslip.linalg.cg import cg
 from roughslip.linalg.inverse import UpdatableInverse
@@ -440,49 +439,58 @@ class _Peaks:
         return self.curve.stopped
 
 
+class SingleSequence:
+    r"""The break law on a float32 inverse with certified decisions (module docstring), a
+    strategy of :class:`~roughslip.friction.sliding.TangentialState` (whose stick solver holds
+    the inverse in float32 under ``precision = "single"``): the same break sequence as the
+    double-precision method, and the friction force to its accuracy. The curve's recorder is
+    the state's observer; its peak is settled by the kept candidates (:class:`_Peaks`)."""
+
+    def run(self, st: TangentialState, t0: float) -> PullResult:
+        b, opt, inv, rows = st.b, st.opt, st.inv, st.rows
+        tol, block = opt.tol, opt.block
+        curve = st.observe(BreakCurve(b, opt.early_stop))
+        bound = _Bound(b, inv, tol)
+        bound.certify(rows.cap)
+        peaks = _Peaks(b, curve, tol, opt.max_iter)
+        cap_sum = float(b.cap.sum())
+        while rows.alive:
+            phi, cap, pos = inv.tracked["phi"].x, rows.cap, inv.ids
+            j, m, dm = bound.decide(phi, cap)
+            phi = inv.tracked["phi"].x  # a full refinement replaces it
+            live = np.isfinite(cap)
+            on = phi[live]
+            dx = 1.0 / m
+            F = float(on.sum()) * dx
+            R = bound.residual_bound()
+            err = (math.sqrt(float(on @ on)) * R * dx + abs(F) * dm / m) * 1.01
+            curve.dx.append(dx)
+            curve.fx.append(F)
+            curve.site.append(int(b.sites[pos[j]]))
+            peaks.add(len(curve.fx) - 1, F, err, lambda p=pos, lv=live, o=on: (p[lv], o))
+            cap_sum -= float(cap[j])
+            if peaks.stop(cap_sum) or rows.alive == 1:
+                break
+            c = inv.column(j)
+            bound.removed(phi[j] / c[j], c)
+            rows.remove(inv, j, c)
+            if rows.fold(inv, dead=COMPACT_DEAD):
+                bound.certify(rows.cap)
+        if peaks.kept:
+            peaks.solve()
+        worst = max(bound.worst, peaks.worst)
+        ok = worst <= tol
+        msg = (f"{b.n} bonds, block {block}, single precision: {bound.refinements} "
+               f"refinements, {bound.sharpened} of {bound.states} decisions sharpened, "
+               f"{bound.full} refined in full, bound exceeded {bound.exceeded} times, "
+               f"{peaks.solved} peak candidates solved; curve points within "
+               f"{peaks.curve_error:.1e} relative, the peak exact")
+        return curve.result(t0, opt.method_name, converged=bool(ok), residual=worst,
+                            solves=bound.refinements + peaks.solved, message=msg,
+                            precision="single")
+
+
 def break_inverse_single(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
-    r"""The break law on a float32 inverse with certified decisions (module docstring): the
-    same break sequence as the double-precision method, and the friction force to its
-    accuracy."""
-    tol, block = opt.tol, opt.block
-    curve = BreakCurve(b, opt.early_stop)
-    inv = bond_inverse(b, block, opt.threads, dtype=np.float32)
-    track(inv, "phi", np.ones(b.n))
-    rows = BondRows(b)
-    bound = _Bound(b, inv, tol)
-    bound.certify(rows.cap)
-    peaks = _Peaks(b, curve, tol, opt.max_iter)
-    cap_sum = float(b.cap.sum())
-    while rows.alive:
-        phi, cap, pos = inv.tracked["phi"].x, rows.cap, inv.ids
-        j, m, dm = bound.decide(phi, cap)
-        phi = inv.tracked["phi"].x  # a full refinement replaces it
-        live = np.isfinite(cap)
-        on = phi[live]
-        dx = 1.0 / m
-        F = float(on.sum()) * dx
-        R = bound.residual_bound()
-        err = (math.sqrt(float(on @ on)) * R * dx + abs(F) * dm / m) * 1.01
-        curve.dx.append(dx)
-        curve.fx.append(F)
-        curve.site.append(int(b.sites[pos[j]]))
-        peaks.add(len(curve.fx) - 1, F, err, lambda p=pos, lv=live, o=on: (p[lv], o))
-        cap_sum -= float(cap[j])
-        if peaks.stop(cap_sum) or rows.alive == 1:
-            break
-        c = inv.column(j)
-        bound.removed(phi[j] / c[j], c)
-        rows.remove(inv, j, c)
-        if rows.fold(inv, dead=COMPACT_DEAD):
-            bound.certify(rows.cap)
-    if peaks.kept:
-        peaks.solve()
-    worst = max(bound.worst, peaks.worst)
-    ok = worst <= tol
-    msg = (f"{b.n} bonds, block {block}, single precision: {bound.refinements} refinements, "
-           f"{bound.sharpened} of {bound.states} decisions sharpened, {bound.full} refined in "
-           f"full, bound exceeded {bound.exceeded} times, {peaks.solved} peak candidates "
-           f"solved; curve points within {peaks.curve_error:.1e} relative, the peak exact")
-    return curve.result(t0, opt.method_name, converged=bool(ok), residual=worst,
-                        solves=bound.refinements + peaks.solved, message=msg,
-                        precision="single")
+    r"""The break law on a float32 inverse with certified decisions: the tangential state in
+    single precision advanced by :class:`SingleSequence`."""
+    return TangentialState(b, replace(opt, precision="single")).run(SingleSequence(), t0)

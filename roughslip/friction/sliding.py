@@ -19,11 +19,24 @@ after each block. The events, the avalanches at constant drive and the reversal 
 event loop's (:func:`~roughslip.friction.events.follow_events`), the same as in the coupled
 model. A bond that sticks again (rare: none on the rough test scenes) changes the stick set
 upwards, and the inverse is factorised afresh on it.
+
+One state serves every law (:class:`TangentialState`); a strategy advances it
+(:class:`PullStrategy`): the event path (:class:`FollowEvents`), or, under the break law,
+whose failed bonds carry nothing and never stick again, the break sequence on :math:`\varphi`
+alone (:class:`BreakSequence`, and
+:class:`~roughslip.friction.breaking_single.SingleSequence` on a float32 inverse). Both give
+the same bonds in the same order; the sequence uses the break law's own arithmetic and stops
+exactly once no later state can beat the peak. Its recorder is an observer of the state
+(:class:`BreakObserver`). Slip-weakening extends the state with a weakening phase
+(:class:`~roughslip.friction.weakening.WeakeningState`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -31,11 +44,14 @@ from roughslip.errors import NumericalError
 from roughslip.friction.bonds import (
     BondRows,
     Bonds,
+    BreakCurve,
     PullOptions,
     bond_inverse,
     certify,
     decoupled_result,
+    select,
     shrinking_only,
+    stick_residual,
     track,
 )
 from roughslip.friction.events import (
@@ -44,6 +60,7 @@ from roughslip.friction.events import (
     X_DRIVE,
     Curve,
     EventKind,
+    EventPath,
     Progress,
     Snapshot,
     X,
@@ -57,34 +74,73 @@ from roughslip.linalg.inverse import Tracked
 
 
 class TangentialState:
-    """The bonds of a squeeze under a slip law, affine in the pull (module docstring); an
-    :class:`~roughslip.friction.events.EventState`."""
+    r"""The bonds of a squeeze under a slip law, affine in the pull (module docstring): one
+    state for every law, advanced by a :class:`PullStrategy`. As it stands it holds the
+    stick and slip phases of the break and the Coulomb laws (an
+    :class:`~roughslip.friction.events.EventState`);
+    :class:`~roughslip.friction.weakening.WeakeningState` adds the weakening phase.
+
+    The inverse of :math:`G_{xx}` on the bonds is held by the stick solver of ``opt.method``
+    (:class:`~roughslip.linalg.stick.StickSolver`), in the precision ``opt.precision``.
+    :math:`\varphi` is tracked always, :math:`\psi` once a strategy needs it
+    (:meth:`track_slip`). Observers (:meth:`observe`) are told of each step a strategy
+    takes.
+    """
 
     def __init__(self, b: Bonds, opt: PullOptions) -> None:
-        self.b, self.law, self.opt = b, opt.law, opt
+        self._common(b, opt)
         n = b.n
-        self.inv = bond_inverse(b, opt.block, opt.threads, solver=opt.solver())
+        dtype = np.float32 if opt.precision == "single" else np.float64
+        self.inv = bond_inverse(b, opt.block, opt.threads, dtype=dtype, solver=opt.solver())
         track(self.inv, "phi", np.ones(n))
-        self.inv.tracked["psi"] = Tracked(np.zeros(n), np.zeros(n), shrinking_only)
         self.rows = BondRows(b)
-        #: slip direction per bond position, a unit vector of the law's tangential components
-        #: (zero: sticks, or carries nothing)
-        self.sigma = np.zeros((n, len(TANGENTIAL)))
         self.slip = np.zeros(n)  # f_x carried by each failed bond (bond positions)
         self.offset = np.zeros(n)  # a bond stuck again holds u_x = D + offset
         self.slip_sum = 0.0
         self.fz_total = float(b.normal.fz.sum())
+        self.S = self.C.copy()
+
+    def _common(self, b: Bonds, opt: PullOptions) -> None:
+        """What the state of every law holds besides its solver and its phases."""
+        self.b, self.law, self.opt = b, opt.law, opt
+        n = b.n
+        #: slip direction per bond position, a unit vector of the law's tangential components
+        #: (zero: sticks, or carries nothing)
+        self.sigma = np.zeros((n, len(TANGENTIAL)))
         self.position = np.full(b.shape[0] * b.shape[1], -1, dtype=np.int64)
         self.position[b.sites] = np.arange(n)
         self.C = b.mask(np.arange(n))
-        self.S = self.C.copy()
         self.progress = Progress()
         self.worst, self.refinements, self.ok = 0.0, 0, True
-        self._rate: np.ndarray | None = None  # u_x rate on the grid, per stick set
+        self.observers: list[BreakObserver] = []
+        self._rate: np.ndarray | None = None  # slip rates on the grid, per stick set
+
+    def track_slip(self) -> None:
+        r"""Track :math:`\psi` too (the forces of failed bonds that carry force, and offsets),
+        from here on: what the event path needs beyond :math:`\varphi`; a break sequence does
+        without."""
+        if "psi" not in self.inv.tracked:
+            m = self.inv.m
+            self.inv.tracked["psi"] = Tracked(np.zeros(m), np.zeros(m), shrinking_only)
+
+    def run(self, strategy: PullStrategy, t0: float) -> PullResult:
+        """Advance the state by ``strategy`` to the end of the pull; its result."""
+        return strategy.run(self, t0)
+
+    def observe(self, observer: BreakObserver) -> BreakObserver:
+        """Tell ``observer`` of every step from here; it is returned."""
+        self.observers.append(observer)
+        return observer
+
+    def stops(self, cap_sum_after: float) -> bool:
+        """Whether an observer stops the pull (the exact early stop of a break sequence):
+        every one is asked."""
+        return any([o.should_stop(cap_sum_after) for o in self.observers])
 
     # -- the affine state ----------------------------------------------------------------------
     def _rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """phi, psi, f_z and the live mask on the rows of the inverse."""
+        self.track_slip()
         t = self.inv.tracked
         return t["phi"].x, t["psi"].x, self.b.fz[self.inv.ids], np.isfinite(self.rows.cap)
 
@@ -95,7 +151,7 @@ class TangentialState:
         return float(self.b.normal.depth)
 
     def totals(self, D: float) -> tuple[float, float]:
-        phi, psi = self.inv.tracked["phi"].x, self.inv.tracked["psi"].x
+        phi, psi, _, _ = self._rows()
         return D * float(phi.sum()) - float(psi.sum()) + self.slip_sum, self.fz_total
 
     def at(self, D: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -166,6 +222,7 @@ class TangentialState:
     def apply(self, kind: str, j: int, D: float = 0.0) -> None:
         pos = int(self.position[j])
         self._rate = None
+        self.track_slip()
         if kind == EventKind.STICK:
             self._stick_again(pos, j, D)
             return
@@ -180,15 +237,18 @@ class TangentialState:
         self.slip_sum += carried
         self.S.ravel()[j] = False
         if self.rows.fold(self.inv):
-            self._certify()
+            self.recertify()
 
     def _load(self) -> np.ndarray:
         return self.b.field(self.slip)
 
-    def _certify(self) -> None:
+    def recertify(self) -> None:
+        """Check the tracked solutions against the FFT operator (:func:`certify`)."""
         r1, n1 = certify(self.b, self.inv, "phi", None, self.opt.tol)
-        r2, n2 = certify(self.b, self.inv, "psi", self._load(), self.opt.tol,
-                         shift=self.offset)
+        r2, n2 = 0.0, 0
+        if "psi" in self.inv.tracked:
+            r2, n2 = certify(self.b, self.inv, "psi", self._load(), self.opt.tol,
+                             shift=self.offset)
         self.worst = max(self.worst, r1, r2)
         self.refinements += n1 + n2
         self.ok &= max(r1, r2) <= self.opt.tol
@@ -210,25 +270,110 @@ class TangentialState:
         track(self.inv, "psi", rhs - self.offset[stick])
         self.rows.cap = self.b.cap[stick].copy()
         self.rows.alive = stick.size
-        self._certify()
+        self.recertify()
 
     def solve(self) -> None:
         """Nothing to do: every event updates the solutions in place."""
 
 
+    def result(self, path: EventPath, t0: float) -> PullResult:
+        """The pull's result once the events have run to full sliding: ``friction_force`` is
+        :math:`\\sum_i f_{L,i}` once every bond slips (:math:`\\lambda F_n` under the Coulomb law
+        with every force in the pull's direction)."""
+        b, opt = self.b, self.opt
+        curve = Curve.of(path.events)
+        sticks = curve.kind.count(EventKind.STICK)
+        return decoupled_result(
+            b, friction_force=float(self.slip.sum()), curve=curve,
+            peak_event=curve.dx.size - 1, peak_fx=b.field(self.slip),
+            peak_stick=np.zeros(b.shape, bool), t0=t0, method=opt.method_name,
+            slip_law=opt.slip_law, converged=bool(self.ok) and not path.message,
+            residual=self.worst, solves=self.refinements,
+            message=path.message or ("exact event sequence to full sliding"
+                                     + (f", {sticks} bond(s) stuck again" if sticks else "")))
+
+
+class PullStrategy(Protocol):
+    """How a :class:`TangentialState` advances to the end of its pull: the exact event path
+    (:class:`FollowEvents`) or a break law's sequence (:class:`BreakSequence`,
+    :class:`~roughslip.friction.breaking_single.SingleSequence`)."""
+
+    def run(self, st: TangentialState, t0: float) -> PullResult:
+        """Advance ``st`` to the end of its pull; the result."""
+        ...
+
+
+class BreakObserver(Protocol):
+    """Told of each break of a break sequence (:class:`~roughslip.friction.bonds.BreakCurve`
+    records the curve and its peak, and decides the exact early stop)."""
+
+    def record(self, phi_sum: float, m: float, site_pos: int,
+               stick: Callable[[], tuple[np.ndarray, np.ndarray]]) -> None:
+        """A break at :math:`D = 1/m` with :math:`\\sum\\varphi` = ``phi_sum``, of the bond at
+        position ``site_pos``; ``stick()`` gives the stick set and its :math:`\\varphi`."""
+        ...
+
+    def should_stop(self, cap_sum_after: float) -> bool:
+        """Whether the pull may stop, :math:`\\lambda\\sum_S f_z` being ``cap_sum_after``."""
+        ...
+
+
+@dataclass(frozen=True)
+class FollowEvents:
+    """The exact event path to full sliding (:func:`~roughslip.friction.events.follow_events`;
+    its ``landings`` and ``avalanche_peaks``); the state reads its result from the path."""
+
+    landings: bool = False
+    avalanche_peaks: bool = True
+
+    def run(self, st: TangentialState, t0: float) -> PullResult:
+        st.track_slip()
+        path = follow_events(st, 20 * st.b.n + 100, False, landings=self.landings,
+                             avalanche_peaks=self.avalanche_peaks)
+        return st.result(path, t0)
+
+
+class BreakSequence:
+    r"""The break law's fast path on the state's stick solver: the bond with the largest
+    :math:`|\varphi_i|/(\lambda f_{z,i})` breaks next (``select``),
+    :math:`O(n)` per break plus the solver's blocked updates; :math:`\varphi` is certified
+    against the FFT operator after each fold and the peak state at the end. Each break is told
+    to the observers, and the sequence stops exactly once one of them says so (the curve's
+    recorder: once :math:`\lambda\sum_S f_z` falls below the best).
+
+    It breaks the bonds the event path (:class:`FollowEvents`) would break, in the same order:
+    an avalanche's next failure is the largest ratio too. Its arithmetic is the break law's
+    own, :math:`D_{x,\rm lim} = 1/\max_i |\varphi_i|/(\lambda f_{z,i})`.
+    """
+
+    def run(self, st: TangentialState, t0: float) -> PullResult:
+        b, opt, inv, rows = st.b, st.opt, st.inv, st.rows
+        curve = st.observe(BreakCurve(b, opt.early_stop))
+        cap_sum = float(b.cap.sum())
+        while rows.alive:
+            phi, cap, pos = inv.tracked["phi"].x, rows.cap, inv.ids
+            j, m = select(phi, cap)
+            live = np.isfinite(cap)
+            for o in st.observers:
+                o.record(float(phi.sum()), m, pos[j],
+                         lambda p=pos, f=phi, lv=live: (p[lv], f[lv]))
+            cap_sum -= float(cap[j])
+            if st.stops(cap_sum) or rows.alive == 1:
+                break
+            rows.remove(inv, j)
+            if rows.fold(inv):
+                st.recertify()
+        if curve.peak_state is not None:  # the state that gives the friction force, certified
+            pos, f, dx = curve.peak_state
+            _, res = stick_residual(b, pos, f / dx, 1.0)
+            st.worst, st.ok = max(st.worst, res), st.ok and res <= opt.tol
+        return curve.result(t0, opt.method_name, converged=bool(st.ok), residual=st.worst,
+                            solves=st.refinements, precision="double",
+                            message=f"{b.n} bonds, block {opt.block}, "
+                                    f"{st.refinements} refinements")
+
+
 def slide(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     r"""The decoupled pull under ``opt.slip_law`` to full sliding, by the event loop: the exact
-    piecewise-linear :math:`F_x(D_x)` (module docstring). ``friction_force`` is
-    :math:`\sum_i f_{L,i}` once every bond slips (:math:`\lambda F_n` under the Coulomb law with
-    every force in the pull's direction)."""
-    st = TangentialState(b, opt)
-    path = follow_events(st, 20 * b.n + 100, False)
-    curve = Curve.of(path.events)
-    sticks = curve.kind.count(EventKind.STICK)
-    return decoupled_result(
-        b, friction_force=float(st.slip.sum()), curve=curve, peak_event=curve.dx.size - 1,
-        peak_fx=b.field(st.slip), peak_stick=np.zeros(b.shape, bool), t0=t0,
-        method=opt.method_name, slip_law=opt.slip_law,
-        converged=bool(st.ok) and not path.message, residual=st.worst, solves=st.refinements,
-        message=path.message or ("exact event sequence to full sliding"
-                                 + (f", {sticks} bond(s) stuck again" if sticks else "")))
+    piecewise-linear :math:`F_x(D_x)` (module docstring; :meth:`TangentialState.result`)."""
+    return TangentialState(b, opt).run(FollowEvents(), t0)

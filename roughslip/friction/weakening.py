@@ -62,19 +62,18 @@ from roughslip.errors import MemoryLimitError, NumericalError
 from roughslip.friction.bonds import Bonds, PullOptions, decoupled_result
 from roughslip.friction.events import (
     RATE_TIE,
-    TANGENTIAL,
     TIE,
     Curve,
     EventKind,
-    Progress,
+    EventPath,
     Snapshot,
     X,
     argext,
     digest,
     event_table,
-    follow_events,
 )
 from roughslip.friction.result import PullResult
+from roughslip.friction.sliding import FollowEvents, TangentialState
 from roughslip.linalg.inverse import Tracked, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 
@@ -86,21 +85,21 @@ def _no_values(ids: np.ndarray) -> np.ndarray:
     return np.zeros(ids.size)
 
 
-class WeakeningState:
-    """The bonds of a squeeze under slip-weakening, affine in the pull (module docstring)."""
+class WeakeningState(TangentialState):
+    """The bonds of a squeeze under slip-weakening, affine in the pull (module docstring): the
+    tangential state with the weakening phase, on an indefinite stick solver."""
 
     def __init__(self, b: Bonds, opt: PullOptions) -> None:
-        law = self.law = opt.law
-        self.b, self.opt = b, opt
+        self._common(b, opt)
+        law = self.law
         self.lam_s, self.lam_d = float(b.lam), float(law.lam_dynamic)
         self.dc = float(law.slip_distance)
         n = b.n
         self.fz = b.fz
         self.k = (self.lam_s - self.lam_d) * self.fz / self.dc  # weakening stiffness
         self.phase = np.zeros(n, dtype=np.int8)
-        #: slip direction per bond, a unit vector of the tangential components (zero: sticks);
-        #: the slip s, the strength and the forces below are its x components
-        self.sigma = np.zeros((n, len(TANGENTIAL)))
+        # sigma (the slip directions, zero: sticks) is the tangential state's; the slip s, the
+        # strength and the forces below are its x components
         self.lam_cur = np.full(n, self.lam_s)  # strength reached, lambda(delta)
         self.delta = np.zeros(n)  # slip accumulated up to the phase's start
         self.s0 = np.zeros(n)  # slip where the phase started
@@ -110,12 +109,6 @@ class WeakeningState:
         self.neg = 0  # negative eigenvalues of M
         self.snaps = 0  # bonds that failed unstably and slipped to their residual strength
         self.discontinuous = False  # the last event was such a failure
-        self.progress = Progress()
-        self.C = b.mask(np.arange(n))
-        self.position = np.full(b.shape[0] * b.shape[1], -1, dtype=np.int64)
-        self.position[b.sites] = np.arange(n)
-        self.worst, self.refinements, self.ok = 0.0, 0, True
-        self._rate: np.ndarray | None = None
 
         def room(m: int) -> bool:
             if inverse_bytes(m) > available_bytes():
@@ -167,14 +160,14 @@ class WeakeningState:
             x = inv.apply(r)
             x[~live] = 0.0
             inv.tracked[name] = Tracked(r.copy(), x, _no_values)
-        self._certify()
+        self.recertify()
 
     def _rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """phi, psi, the bond of each row, and the live rows."""
         t = self.inv.tracked
         return t["phi"].x, t["psi"].x, self.inv.ids, self.inv.live
 
-    def _certify(self) -> None:
+    def recertify(self) -> None:
         """Check phi and psi against the FFT operator (iterative refinement, module
         :mod:`roughslip.linalg.inverse`)."""
         inv, b = self.inv, self.b
@@ -207,7 +200,7 @@ class WeakeningState:
         inv.flush()
         if inv.live.sum() < 0.75 * inv.m:
             inv.compact()
-        self._certify()
+        self.recertify()
 
     # -- the affine state (an EventState of the event loop) ---------------------------------
     @property
@@ -243,12 +236,6 @@ class WeakeningState:
 
     def snapshot(self, D: float) -> Snapshot:
         return Snapshot.of(self, D)
-
-    def dx_at(self, D: float) -> float:
-        return D
-
-    def depth_at(self, D: float) -> float:
-        return float(self.b.normal.depth)
 
     def stable(self) -> bool:
         """Whether M has one negative eigenvalue per weakening bond (module docstring)."""
@@ -345,9 +332,6 @@ class WeakeningState:
         if not top > RATE_TIE:
             return None
         return int(self.b.sites[np.flatnonzero(back >= top - TIE * max(1.0, top))[0]])
-
-    def solve(self) -> None:
-        """Nothing to do: every event updates the solutions in place."""
 
     # -- events ----------------------------------------------------------------------------
     def _set_b(self, p: int, value: float, col: np.ndarray) -> None:
@@ -455,20 +439,30 @@ class WeakeningState:
         self._retrack()
 
 
+    def result(self, path: EventPath, t0: float) -> PullResult:
+        """The pull's result: ``friction_force`` is the largest force of the stable path and
+        the landings (module docstring)."""
+        b, opt = self.b, self.opt
+        curve = Curve.of(path.events)
+        peak = path.peak
+        n_jumps = curve.kind.count(EventKind.JUMP)
+        return decoupled_result(
+            b, friction_force=max(peak.fx_total, 0.0), curve=curve, peak_event=path.peak_event,
+            peak_fx=peak.fx, peak_stick=peak.stick, t0=t0, method=opt.method_name,
+            slip_law=opt.slip_law, converged=bool(self.ok) and not path.message,
+            residual=self.worst, solves=self.refinements,
+            message=path.message or (f"exact event path to full sliding, {n_jumps} burst(s), "
+                                     f"{self.snaps} bond(s) failed unstably"))
+
+
+#: how the weakening state is followed: every burst's landing is recorded, and the states
+#: inside a burst do not count for the peak
+BURSTS = FollowEvents(landings=True, avalanche_peaks=False)
+
+
 def weaken(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     r"""The decoupled pull under slip-weakening friction to full sliding, on the event loop
     (:func:`~roughslip.friction.events.follow_events`): the exact piecewise-linear path, its
-    bursts at constant drive, and the state each lands in (module docstring).
-    ``friction_force`` is the largest force of the stable path and the landings."""
-    st = WeakeningState(b, opt)
-    path = follow_events(st, 20 * b.n + 100, False, landings=True, avalanche_peaks=False)
-    curve = Curve.of(path.events)
-    peak = path.peak
-    n_jumps = curve.kind.count(EventKind.JUMP)
-    return decoupled_result(
-        b, friction_force=max(peak.fx_total, 0.0), curve=curve, peak_event=path.peak_event,
-        peak_fx=peak.fx, peak_stick=peak.stick, t0=t0, method=opt.method_name,
-        slip_law=opt.slip_law, converged=bool(st.ok) and not path.message,
-        residual=st.worst, solves=st.refinements,
-        message=path.message or (f"exact event path to full sliding, {n_jumps} burst(s), "
-                                 f"{st.snaps} bond(s) failed unstably"))
+    bursts at constant drive, and the state each lands in (module docstring;
+    :meth:`WeakeningState.result`)."""
+    return WeakeningState(b, opt).run(BURSTS, t0)
