@@ -9,9 +9,11 @@
 * Test order is shuffled by pytest-randomly (``-p no:randomly`` turns it off; the seed is
   printed in the header, and ``--randomly-seed=N`` replays an order).
 * The test-only extensions of ``tests/examples`` (a pull method whose solver recomputes its
-  inverse at every change, a coupled block solver that solves every state afresh) are
-  registered before the tests are collected, so the suites that run over the registries run
-  them too.
+  inverse at every change, a coupled block solver that solves every state afresh, an open
+  boundary on power-of-two FFT grids) are registered before the tests are collected, so the
+  suites that run over the registries run them too. The derived output column of
+  ``tests/examples/ratio.py`` changes every run file, so it is registered only by the tests
+  that ask for it (``derived_column``).
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import pytest
 from hypothesis import settings
 
 from roughslip.linalg import memory
-from tests.examples import direct, recomputed  # noqa: F401  (register the test-only methods)
+from tests.examples import direct, pow2, ratio, recomputed  # noqa: F401  (register them)
 
 DATA = Path(__file__).parent / "data"
 
@@ -39,6 +41,13 @@ def _restore_memory_cap():
     old = memory._LIMIT
     yield
     memory._LIMIT = old
+
+
+@pytest.fixture
+def derived_column():
+    """The test-only derived output column, registered for the test."""
+    with ratio.registered() as column:
+        yield column
 
 
 @pytest.fixture

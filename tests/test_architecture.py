@@ -16,6 +16,7 @@ from click.testing import CliRunner
 import roughslip
 from roughslip.cli import cli
 from roughslip.contact.problem import Problem
+from roughslip.elastic.boundaries import BOUNDARIES
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import InputError
 from roughslip.linalg.cg import cg
@@ -227,7 +228,7 @@ def test_problem_builds_only_the_kernels_a_solver_asks_for_and_shares_them():
         p.restricted("zx", np.ones((6, 7), bool))
 
 
-@pytest.mark.parametrize("boundary", ["open", "periodic"])
+@pytest.mark.parametrize("boundary", BOUNDARIES.names())
 def test_restricted_operators_pass_the_dot_test_and_match_the_dense_block(boundary):
     rng = np.random.default_rng(7)
     shape = (9, 8)
@@ -281,7 +282,8 @@ def test_one_cg_solves_scalar_and_block_restrictions_to_the_dense_solution():
 
 
 # -- the output schema ----------------------------------------------------------------------------
-def test_run_file_axes_are_dimension_scales_and_uncomputed_values_are_nan(tmp_path):
+def test_run_file_axes_are_dimension_scales_and_uncomputed_values_are_nan(tmp_path,
+                                                                          derived_column):
     out = tmp_path / "r.h5"
     res = CliRunner().invoke(cli, ["run", "configs/demo.toml", "-o", str(out), "--quiet",
                                    "--set", "grid.n=16", "--set", "ensemble.samples=2",
@@ -291,7 +293,7 @@ def test_run_file_axes_are_dimension_scales_and_uncomputed_values_are_nan(tmp_pa
 
     with h5py.File(out, "r") as f:
         assert f.attrs["format_version"] == schema.FORMAT_VERSION
-        for c in schema.COLUMNS:
+        for c in schema.all_columns():
             if c.stage == "coupled":
                 assert c.name not in f
                 continue
@@ -303,6 +305,15 @@ def test_run_file_axes_are_dimension_scales_and_uncomputed_values_are_nan(tmp_pa
         # pull.error_estimate is off and the methods are exact: not estimated, NaN
         assert np.all(np.isnan(f["pull_error_estimate"][()]))
         assert np.all(f["converged"][()] == 1.0)
+        # every derived column (here the test-only one) is its function of the others
+        base = {c.name: f[c.name][()] for c in schema.COLUMNS if c.name in f}
+        assert derived_column.name in schema.DERIVED
+        for name in schema.DERIVED:
+            c = schema.DERIVED.get(name)
+            rows, cols = f[name].shape
+            want = np.array([[c.derive({k: v[i, j] for k, v in base.items()})
+                              for j in range(cols)] for i in range(rows)])
+            assert f[name][()].tobytes() == want.tobytes()
 
 
 @pytest.mark.parametrize("name", ["run_v1_demo.h5", "run_v1_coupled.h5", "run_v1_load.h5"])

@@ -348,3 +348,17 @@ def test_nesting_of_a_set_value_and_of_a_given_mapping(tmp_path):
         node = node["a"]
     with pytest.raises(ConfigError, match=r"^<config>: x\.a\.a.*nested more than 32 levels"):
         load_config(data={**BASE, "x": deep})
+
+
+def test_a_registered_boundary_is_a_configuration_choice(tmp_path):
+    """A boundary registered after the configuration module was imported (the test-only one of
+    tests/examples) is a valid ``grid.boundary`` at once, and a name not registered is refused
+    in one line that names the key and the choices."""
+    from roughslip.elastic.boundaries import BOUNDARIES
+
+    extra = [n for n in BOUNDARIES.names() if n not in ("open", "periodic")]
+    assert extra, "tests/examples registers a boundary"
+    cfg = load_config(write(tmp_path, BASE), [f'grid.boundary="{extra[0]}"'])
+    assert cfg.grid.boundary == extra[0]
+    with pytest.raises(ConfigError, match=r"grid\.boundary.*must be one of.*" + extra[0]):
+        load_config(write(tmp_path, BASE), ['grid.boundary="closed"'])

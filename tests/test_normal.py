@@ -10,6 +10,7 @@ import pytest
 from roughslip.contact.analytic import flat_punch_force, hertz, westergaard
 from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import NormalSolver, squeeze
+from roughslip.elastic.boundaries import BOUNDARIES
 from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import ConvergenceError, InputError
 from roughslip.surfaces.synthetic import punch, sample_rng, self_affine, sinusoid, sphere
@@ -119,10 +120,11 @@ def rough():
     return self_affine((48, 40), hurst=0.8, rms_height=1.0, rng=sample_rng(3, 0))
 
 
-@pytest.mark.parametrize("boundary", ["open", "periodic"])
+@pytest.mark.parametrize("boundary", BOUNDARIES.names())
 def test_pk_and_active_set_agree_on_rough_surfaces(rough, boundary):
     h = rough
-    depth = 1.0 if boundary == "open" else 0.6
+    # a periodic grid's force diverges as the mean gap closes: less deep there
+    depth = 1.0 if math.isinf(BOUNDARIES.get(boundary).depth_limit(h.max(), h.mean())) else 0.6
     pk = squeeze(h, depth=depth, boundary=boundary, method="pk", tol=1e-11)
     ac = squeeze(h, depth=depth, boundary=boundary, method="active-set", tol=1e-11)
     assert pk.converged and ac.converged, (pk.message, ac.message)

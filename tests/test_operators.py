@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from roughslip.elastic.boundaries import BOUNDARIES
 from roughslip.elastic.operators import ElasticOperator, Grid, Material
 from roughslip.errors import InputError
 
@@ -137,7 +138,7 @@ def test_auto_falls_back_to_scipy_with_one_warning(monkeypatch):
 
 
 @pytest.mark.parametrize("backend", ["pyfftw", "scipy"])
-@pytest.mark.parametrize("boundary", ["open", "periodic"])
+@pytest.mark.parametrize("boundary", BOUNDARIES.names())
 def test_thread_view_gives_the_same_field_and_leaves_the_operator_alone(backend, boundary):
     op = ElasticOperator((20, 24), material=Material(1.0, 0.3), boundary=boundary,
                          components=("xx",), fft=backend, threads=2)
@@ -283,3 +284,31 @@ def test_plans_are_found_again_for_the_same_arrays_and_for_fresh_views():
         fft.forward(s, t)
         assert np.allclose(dst, want, atol=1e-12)
     assert len(fft._plans) == plans and len(fft._memo) <= MEMO_LIMIT
+
+
+@pytest.mark.parametrize("boundary", BOUNDARIES.names())
+@pytest.mark.parametrize("shape", [(7, 6), (1, 5), (12, 9)])
+def test_every_boundary_applies_its_dense_matrix(boundary, shape):
+    """The shared suite of a boundary: for every component, the FFT operator on its FFT grid
+    (a registered boundary, test-only ones included) applies the boundary's dense matrix, and
+    the window and pair tables reproduce its entries; a symmetric component stays
+    symmetric."""
+    b = BOUNDARIES.get(boundary)
+    op = ElasticOperator(shape, material=Material(1.3, 0.27), a=0.7, boundary=b,
+                         components=("zz", "xx", "yy", "xy", "zx", "zy"))
+    my, mx = op.padded_shape
+    assert my >= shape[0] and mx >= shape[1]
+    f = np.random.default_rng(5).standard_normal(shape)
+    for c in ("zz", "xx", "yy", "xy", "yx", "zx", "xz", "zy", "yz"):
+        D = op.tables.dense(c)
+        want = (D @ f.ravel()).reshape(shape)
+        np.testing.assert_allclose(op.apply(c, f), want, rtol=1e-11,
+                                   atol=1e-12 * np.abs(want).max())
+        if c in ("zz", "xx", "yy", "xy"):
+            np.testing.assert_allclose(D, D.T, rtol=0, atol=1e-14 * np.abs(D).max())
+        T, w, off = op.tables.pair(c)
+        iy, ix = np.divmod(np.arange(f.size), shape[1])
+        dy, dx = iy[:, None] - iy[None, :], ix[:, None] - ix[None, :]
+        np.testing.assert_allclose(T[dy * w + dx + off], D, rtol=1e-11,
+                                   atol=1e-12 * np.abs(D).max())
+

@@ -503,3 +503,22 @@ def test_keys_the_coupled_model_does_not_use_are_stated_not_ignored(tmp_path):
     half = {**data, "material": {"nu": 0.5}}
     assert not [n for n in Scene.from_config(load_config(write_cfg(tmp_path, half))).notes
                 if n.startswith("coupling:")]
+
+
+def test_a_derived_column_is_written_and_read(tmp_path, derived_column):
+    """A registered derived column (the test-only one) is stored by the process that writes,
+    so a run on two worker processes, which never import it, stores the same numbers as a
+    run in this process; the reader and the table give it like any other."""
+    from roughslip.analysis import tables
+
+    cfg = load_config(write_cfg(tmp_path), ["ensemble.samples=2"])
+    one, two = tmp_path / "one.h5", tmp_path / "two.h5"
+    run(cfg, one, workers=1)
+    run(cfg, two, workers=2)
+    assert_same_numbers(one, two)
+    r = read_run(one)
+    ratio = r.scalars[derived_column.name]
+    assert ratio.shape == r.scalars["friction_force"].shape
+    assert np.array_equal(ratio, r.scalars["friction_force"] / r.scalars["friction_normal_force"])
+    df = tables.to_dataframe(one)
+    assert np.array_equal(df[derived_column.name].to_numpy(), ratio.ravel())

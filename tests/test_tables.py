@@ -14,7 +14,7 @@ import roughslip
 from roughslip.analysis import tables
 from roughslip.errors import InputError
 from roughslip.run.executor import run
-from roughslip.run.schema import COLUMNS
+from roughslip.run.schema import all_columns
 
 pytest.importorskip("pandas", reason="the tables extra is not installed")
 xr = pytest.importorskip("xarray", reason="the tables extra is not installed")
@@ -50,7 +50,7 @@ def test_dataframe_is_the_file_bit_for_bit(sweep):
     df = tables.to_dataframe(sweep)
     with h5py.File(sweep, "r") as f:
         depth = f["depth"][()]
-        names = [c.name for c in COLUMNS if c.name in f]
+        names = [c.name for c in all_columns() if c.name in f]
         stored = {name: f[name][()] for name in names}
         samples = f["sample_index"][()]
     assert list(df.columns) == ["sample", "depth_index", "depth", *names]

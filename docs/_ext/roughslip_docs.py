@@ -120,7 +120,7 @@ def _names() -> tuple[str, ...]:
     from roughslip.run import schema as S
 
     keys = {f.name for cls in C.SECTIONS.values() for f in dataclasses.fields(cls)}
-    return tuple(sorted({c.name for c in S.COLUMNS} | keys | {"pull_curve"}
+    return tuple(sorted({c.name for c in S.all_columns()} | keys | {"pull_curve"}
                         - {"E"}, key=len, reverse=True))
 
 
@@ -187,7 +187,7 @@ def schema_reference() -> list[str]:
     for name, text in {**S.AXES, **S.ROOT}.items():
         lines += [f"   * - ``/{name}``", "     - ", "     - axis",
                   f"     - {typeset(text, names)}"]
-    for c in S.COLUMNS:
+    for c in S.all_columns():
         lines += [f"   * - ``/{c.name}``", f"     - {c.stage}", f"     - {c.kind}",
                   f"     - {typeset(_links(c.description), names)}"]
     lines += ["", ".. list-table::", "   :header-rows: 1", "   :widths: 24 22 54", "",

@@ -17,7 +17,7 @@ module asks the boundary object and never compares names.
     displacement (docs/theory/boundaries.rst#periodic-boundary).
 
 A third treatment (e.g. periodic along one axis and open along the other) is a subclass that
-implements the methods below and an entry of :data:`BOUNDARIES`.
+implements the methods below, registered in :data:`BOUNDARIES` (:func:`register`).
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ import numpy as np
 from roughslip.elastic import green
 from roughslip.elastic.fft import fast_len
 from roughslip.errors import InputError
+from roughslip.registry import Registry
 
 #: periodic symbols (``grid.periodic_kernel``)
 PERIODIC_KERNELS = ("pixel", "continuous")
@@ -40,7 +41,7 @@ class Boundary:
 
     #: the name used in configurations and ``Grid(boundary=...)``
     name: str = ""
-    #: one line for help texts
+    #: one line for help texts (after its name)
     description: str = ""
 
     def __str__(self) -> str:
@@ -109,7 +110,7 @@ class Open(Boundary):
     """A finite patch on an infinite half-space (zero-padded linear convolution)."""
 
     name = "open"
-    description = "open: finite patch on a half-space"
+    description = "finite patch on a half-space"
 
     def padded_shape(self, shape: tuple[int, int]) -> tuple[int, int]:
         ny, nx = shape
@@ -162,7 +163,7 @@ class Periodic(Boundary):
     """The grid repeats (circular convolution with the periodic symbol)."""
 
     name = "periodic"
-    description = "periodic: repeating grid"
+    description = "repeating grid"
 
     def padded_shape(self, shape: tuple[int, int]) -> tuple[int, int]:
         return int(shape[0]), int(shape[1])
@@ -217,19 +218,29 @@ def _offsets(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     return ix[:, None] - ix[None, :], iy[:, None] - iy[None, :]
 
 
-#: every boundary treatment, by name
-BOUNDARIES: dict[str, Boundary] = {b.name: b for b in (Open(), Periodic())}
+#: every boundary treatment, by name (the configuration's ``grid.boundary``); an entry is
+#: registered under its :attr:`Boundary.name` with its :attr:`Boundary.description`
+BOUNDARIES: Registry[Boundary] = Registry("boundary")
+
+
+def register(b: Boundary) -> Boundary:
+    """Register the boundary ``b`` under its name, with its description as the summary."""
+    return BOUNDARIES.register(b.name, b.description)(b)
+
+
+#: the default boundary
+OPEN = register(Open())
+register(Periodic())
 
 
 def boundary(value: str | Boundary) -> Boundary:
     """The boundary named ``value`` (or ``value`` itself); the one place names are checked."""
     if isinstance(value, Boundary):
         return value
-    try:
-        return BOUNDARIES[value]
-    except (KeyError, TypeError):
-        raise InputError(f"boundary = {value!r}: must be one of "
-                         f"{', '.join(map(repr, BOUNDARIES))}") from None
+    if isinstance(value, str) and value in BOUNDARIES:
+        return BOUNDARIES.get(value)
+    raise InputError(f"boundary = {value!r}: must be one of "
+                     f"{', '.join(map(repr, BOUNDARIES))}")
 
 
 def check_periodic_kernel(kind: str) -> str:

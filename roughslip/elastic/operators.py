@@ -22,6 +22,7 @@ from scipy.sparse.linalg import LinearOperator
 from roughslip.elastic import green
 from roughslip.elastic.boundaries import (
     BOUNDARIES,
+    OPEN,
     PERIODIC_KERNELS,
     Boundary,
     check_periodic_kernel,
@@ -76,7 +77,7 @@ class Grid:
 
     shape: tuple[int, int]
     a: float = 1.0
-    boundary: Boundary = BOUNDARIES["open"]  # or its name
+    boundary: Boundary = OPEN  # or its name
     periodic_kernel: str = "pixel"
 
     def __post_init__(self) -> None:

@@ -109,7 +109,7 @@ def read_run(path: str | Path) -> RunData:
         try:
             attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
             axis_name = "depth" if "depth" in f else "force_target"
-            scalars = {c.name: f[c.name][()] for c in schema.COLUMNS if c.name in f}
+            scalars = {c.name: f[c.name][()] for c in schema.all_columns() if c.name in f}
             unit = f[axis_name].attrs.get("unit", "")
             return RunData(
                 path=p, attrs=attrs, config_toml=str(attrs.get("config", "")),

@@ -15,10 +15,12 @@ Format versions
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
+
+from roughslip.registry import Registry
 
 FORMAT = "roughslip-run"
 FORMAT_VERSION = 2
@@ -42,6 +44,9 @@ class Column:
     description: str
     kind: str = "value"
     dimension: str = ""
+    #: a derived column (:data:`DERIVED`): its value from the other scalars of the same
+    #: sample and target, ``derive(scalars) -> float``; None for a column a stage fills
+    derive: Callable[[Mapping[str, float]], float] | None = None
 
 
 COLUMNS: tuple[Column, ...] = (
@@ -79,6 +84,26 @@ COLUMNS: tuple[Column, ...] = (
            "history, coupling.history)", "count"),
 )
 BY_NAME = {c.name: c for c in COLUMNS}
+
+#: columns computed from the others of the same sample and target (:attr:`Column.derive`),
+#: registered by name: the writer stores them beside the stage's own, and the readers,
+#: ``roughslip inspect`` and the tables read them like any other. A derived column of a stage
+#: a run does not have is not stored.
+DERIVED: Registry[Column] = Registry("output column")
+
+
+def register(column: Column) -> Column:
+    """Register the derived ``column`` (one with :attr:`Column.derive`) under its name."""
+    if column.derive is None:
+        raise ValueError(f"output column {column.name!r}: a registered column is derived")
+    if column.name in BY_NAME:
+        raise ValueError(f"output column {column.name!r} is a column of the schema already")
+    return DERIVED.register(column.name, column.description)(column)
+
+
+def all_columns() -> tuple[Column, ...]:
+    """Every column: the stages' own (``COLUMNS``), then the derived ones."""
+    return COLUMNS + tuple(DERIVED.get(n) for n in DERIVED)
 
 #: the axes: the configured targets of displacement or load control
 AXES = {
@@ -141,7 +166,23 @@ def stages(pull: bool, coupled: bool) -> tuple[str, ...]:
 def columns(have: Iterable[str]) -> tuple[Column, ...]:
     """The scalar columns of a run with the stages ``have``."""
     have = tuple(have)
-    return tuple(c for c in COLUMNS if c.stage in have)
+    return tuple(c for c in all_columns() if c.stage in have)
+
+
+def derived(cols: Iterable[Column], rows: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The rows of one sample (one array per column, an entry per target) with the derived
+    columns among ``cols`` computed from the others, target by target. The writer calls it,
+    so a column registered in the process that writes is stored whatever computed the
+    sample (a worker process that never imported it included)."""
+    cols = tuple(cols)
+    base = {c.name: rows[c.name] for c in cols if c.derive is None and c.name in rows}
+    out = dict(rows)
+    n = len(next(iter(rows.values()))) if rows else 0
+    for c in cols:
+        if c.derive is not None:
+            out[c.name] = np.array([float(c.derive({k: float(v[t]) for k, v in base.items()}))
+                                    for t in range(n)])
+    return out
 
 
 def empty(cols: Iterable[Column], n_targets: int) -> dict[str, np.ndarray]:

@@ -71,7 +71,7 @@ class GridConfig:
         ruled("two integers >= 1", lambda v: pair(v) or
                (None if min(v) >= 1 else "both lengths must be >= 1")))
     pixel_size: float = option(1.0, "pixel side a (length)", positive, dimension="length")
-    boundary: str = option("open", "; ".join(b.description for b in BOUNDARIES.values()),
+    boundary: str = option("open", BOUNDARIES.describe(),
                        choices=BOUNDARIES)
     periodic_kernel: str = option("pixel", "periodic symbol: exact pixel images or continuous",
                               choices=("pixel", "continuous"))

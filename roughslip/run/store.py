@@ -55,7 +55,7 @@ import json
 import os
 import shutil
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -298,6 +298,7 @@ class RunWriter:
                 f"{res.digest[:12] or '(none)'}..., not for this run's {self.layout.digest[:12]}"
                 "...; it is not written (a result of another run?); the samples completed "
                 "before are kept: run again with --resume")
+        res = replace(res, scalars=schema.derived(self.layout.columns, res.scalars))
         try:
             check_space(self.path, [*res.scalars.values(), *res.surfaces.values(),
                                     *(a for f in res.fields for a in f.values())])
