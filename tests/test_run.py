@@ -84,7 +84,8 @@ def test_layout_and_contents(serial_run):
 def test_the_blas_and_its_kernel_are_recorded_and_shown_by_inspect(serial_run):
     """The run file records each BLAS library of the process that wrote it (library, version,
     the kernel OpenBLAS chose for the CPU), as threadpoolctl finds them once numpy and
-    scipy.linalg are loaded; `roughslip inspect` shows them in one line."""
+    scipy.linalg are loaded, sorted by package and file; `roughslip inspect` shows them in one
+    line."""
     import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_info
 
@@ -92,9 +93,13 @@ def test_the_blas_and_its_kernel_are_recorded_and_shown_by_inspect(serial_run):
     with h5py.File(out, "r") as f:
         blas = json.loads(f.attrs["blas"])
     found = [i for i in threadpool_info() if i["user_api"] == "blas"]
-    assert found and [(b["library"], b["version"], b["architecture"]) for b in blas] == \
-        [(i["internal_api"], i["version"], i.get("architecture") or "") for i in found]
-    assert all(b["file"] for b in blas)
+    assert found and {(b["library"], b["version"], b["architecture"], b["file"])
+                      for b in blas} == \
+        {(i["internal_api"], i["version"], i.get("architecture") or "", i["filepath"])
+         for i in found}
+    assert all(b["file"] for b in blas) and len(blas) == len(found)
+    # in a fixed order, whatever order the writing process loaded the libraries in
+    assert blas == sorted(blas, key=lambda b: (b["package"], b["file"]))
     r = CliRunner().invoke(cli, ["inspect", str(out)])
     assert r.exit_code == 0, r.output
     lines = [line for line in r.output.splitlines() if line.lstrip().startswith("BLAS: ")]

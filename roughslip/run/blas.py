@@ -24,19 +24,21 @@ def blas_libraries() -> list[dict[str, str]]:
         One per library, as threadpoolctl finds it: ``library`` (``openblas``, ``mkl``,
         ``blis``, ...), ``version``, ``architecture`` (the kernel OpenBLAS chose; empty for
         the others), ``threading`` (its threading layer), ``package`` (the Python package that
-        ships it, empty for a system library) and ``file``.
+        ships it, empty for a system library) and ``file``; sorted by package and file, so
+        that the list does not depend on the order the process loaded them in.
     """
     import numpy  # noqa: F401  (each loads its own BLAS)
     import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_info
 
-    return [{"library": str(info.get("internal_api") or "?"),
+    libs = [{"library": str(info.get("internal_api") or "?"),
              "version": str(info.get("version") or "?"),
              "architecture": str(info.get("architecture") or ""),
              "threading": str(info.get("threading_layer") or ""),
              "package": _package(str(info.get("filepath") or "")),
              "file": str(info.get("filepath") or "")}
             for info in threadpool_info() if info.get("user_api") == "blas"]
+    return sorted(libs, key=lambda lib: (lib["package"], lib["file"]))
 
 
 def _package(file: str) -> str:
