@@ -527,3 +527,23 @@ def test_a_derived_column_is_written_and_read(tmp_path, derived_column):
     assert np.array_equal(ratio, r.scalars["friction_force"] / r.scalars["friction_normal_force"])
     df = tables.to_dataframe(one)
     assert np.array_equal(df[derived_column.name].to_numpy(), ratio.ravel())
+
+
+def test_a_run_resumes_only_with_the_derived_columns_it_started_with(tmp_path):
+    """Resuming with a derived column registered that the run did not have, or without one it
+    had, is refused in one line naming the column, and the file is untouched."""
+    from roughslip.errors import InputError
+    from tests.examples import ratio
+
+    cfg = load_config(write_cfg(tmp_path), ["ensemble.samples=1"])
+    plain, with_ratio = tmp_path / "plain.h5", tmp_path / "ratio.h5"
+    run(cfg, plain)
+    with ratio.registered():
+        run(cfg, with_ratio)
+        before = plain.read_bytes()
+        with pytest.raises(InputError, match="registered now only: friction_ratio;"):
+            run(cfg, plain, resume=True)
+        assert plain.read_bytes() == before
+        assert run(cfg, with_ratio, resume=True).skipped == 1
+    with pytest.raises(InputError, match="in the file only: friction_ratio\\)"):
+        run(cfg, with_ratio, resume=True)

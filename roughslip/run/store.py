@@ -203,7 +203,8 @@ class RunWriter:
                 res = _read_journal_entry(p, layout)
                 reached("rebuild")
                 if res is not None and res.sample in writer.row:
-                    writer._write_main(res)
+                    writer._write_main(replace(res, scalars=schema.derived(layout.columns,
+                                                                           res.scalars)))
         _fsync(tmp)
         if suffix == ".creating":
             reached("creating")
@@ -241,6 +242,7 @@ class RunWriter:
         try:
             check_format(f, path)
             _check_stamp(path, _stored_stamp(f.attrs), layout, f.attrs.get("config"))
+            _check_derived(path, f, layout)
         except InputError:
             f.close()
             raise
@@ -366,6 +368,23 @@ class RunWriter:
                 self.f.close()
             except (OSError, RuntimeError):
                 pass
+
+
+def _check_derived(path: Path, f: h5py.File, layout: Layout) -> None:
+    """A resumed run has the derived columns of the run that started it
+    (:data:`~roughslip.run.schema.DERIVED`): else :class:`InputError`, before anything is
+    written."""
+    want = {c.name for c in layout.columns if c.derive is not None}
+    stage = {c.name for c in schema.COLUMNS}
+    shape = (*f["complete"].shape, len(layout.axis))
+    have = {n for n, d in f.items() if isinstance(d, h5py.Dataset) and d.shape == shape
+            and "description" in d.attrs and n not in stage}
+    if want != have:
+        now, then = sorted(want - have), sorted(have - want)
+        raise InputError(
+            f"{path}: cannot be resumed with other derived output columns than the run that "
+            f"started it (registered now only: {', '.join(now) or 'none'}; in the file "
+            f"only: {', '.join(then) or 'none'}); register the same ones, or use --overwrite")
 
 
 def _journal_digest(jdir: Path, path: Path) -> tuple[str, int | None] | None:
