@@ -72,6 +72,9 @@ class Registry(Generic[T]):
             raise InputError(f"{key} = {name!r}: unknown {self.family}; choose one of "
                              f"{', '.join(self._items)}") from None
 
+    def __repr__(self) -> str:
+        return f"Registry({self.family!r}: {', '.join(self._items) or 'empty'})"
+
     def __contains__(self, name: object) -> bool:
         return name in self._items
 

@@ -518,12 +518,20 @@ def cli_maths(app, ctx, lines: list[str]) -> None:
         lines[i] = line
 
 
+def no_protocol_signature(app, what, name, obj, options, signature, return_annotation):
+    """A protocol class has no constructor of its own: show no ``(*args, **kwargs)``."""
+    if what == "class" and getattr(obj, "_is_protocol", False):
+        return "", return_annotation
+    return None
+
+
 def setup(app):
     app.add_css_file("roughslip.css")
     app.connect("doctree-read", fit_wide_blocks)
     app.add_directive("roughslip-config", ConfigReference)
     app.add_directive("roughslip-schema", SchemaReference)
     app.connect("autodoc-process-docstring", link_references)
+    app.connect("autodoc-process-signature", no_protocol_signature)
     app.connect("missing-reference", resolve_imported)
     app.connect("sphinx-click-process-options", literal_placeholders)
     app.connect("sphinx-click-process-description", cli_maths)

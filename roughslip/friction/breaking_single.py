@@ -443,13 +443,14 @@ class SingleSequence:
     r"""The break law on a float32 inverse with certified decisions (module docstring), a
     strategy of :class:`~roughslip.friction.sliding.TangentialState` (whose stick solver holds
     the inverse in float32 under ``precision = "single"``): the same break sequence as the
-    double-precision method, and the friction force to its accuracy. The curve's recorder is
-    the state's observer; its peak is settled by the kept candidates (:class:`_Peaks`)."""
+    double-precision method, and the friction force to its accuracy. It records its curve
+    itself (each point with its bound) and settles the peak by the kept candidates
+    (:class:`_Peaks`); it tells the state's observers nothing."""
 
     def run(self, st: TangentialState, t0: float) -> PullResult:
         b, opt, inv, rows = st.b, st.opt, st.inv, st.rows
         tol, block = opt.tol, opt.block
-        curve = st.observe(BreakCurve(b, opt.early_stop))
+        curve = BreakCurve(b, opt.early_stop)
         bound = _Bound(b, inv, tol)
         bound.certify(rows.cap)
         peaks = _Peaks(b, curve, tol, opt.max_iter)

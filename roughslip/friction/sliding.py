@@ -27,8 +27,8 @@ alone (:class:`BreakSequence`, and
 :class:`~roughslip.friction.breaking_single.SingleSequence` on a float32 inverse). Both give
 the same bonds in the same order; the sequence uses the break law's own arithmetic and stops
 exactly once no later state can beat the peak. Its recorder is an observer of the state
-(:class:`BreakObserver`). Slip-weakening extends the state with a weakening phase
-(:class:`~roughslip.friction.weakening.WeakeningState`).
+(:class:`BreakObserver`), told of each break. Slip-weakening extends the state with a
+weakening phase (:class:`~roughslip.friction.weakening.WeakeningState`).
 """
 
 from __future__ import annotations
@@ -83,8 +83,8 @@ class TangentialState:
     The inverse of :math:`G_{xx}` on the bonds is held by the stick solver of ``opt.method``
     (:class:`~roughslip.linalg.stick.StickSolver`), in the precision ``opt.precision``.
     :math:`\varphi` is tracked always, :math:`\psi` once a strategy needs it
-    (:meth:`track_slip`). Observers (:meth:`observe`) are told of each step a strategy
-    takes.
+    (:meth:`track_slip`). Observers (:meth:`observe`) are told of each break of a break
+    sequence (:class:`BreakSequence`).
     """
 
     def __init__(self, b: Bonds, opt: PullOptions) -> None:
@@ -128,7 +128,8 @@ class TangentialState:
         return strategy.run(self, t0)
 
     def observe(self, observer: BreakObserver) -> BreakObserver:
-        """Tell ``observer`` of every step from here; it is returned."""
+        """Tell ``observer`` of every break from here (:class:`BreakSequence`); it is
+        returned."""
         self.observers.append(observer)
         return observer
 

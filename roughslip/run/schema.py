@@ -172,8 +172,8 @@ def columns(have: Iterable[str]) -> tuple[Column, ...]:
 def derived(cols: Iterable[Column], rows: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The rows of one sample (one array per column, an entry per target) with the derived
     columns among ``cols`` computed from the others, target by target. The writer calls it,
-    so a column registered in the process that writes is stored whatever computed the
-    sample (a worker process that never imported it included)."""
+    so a column registered in the process that writes is stored whichever process computed
+    the sample (a worker process that never imported it included)."""
     cols = tuple(cols)
     base = {c.name: rows[c.name] for c in cols if c.derive is None and c.name in rows}
     out = dict(rows)

@@ -2,9 +2,10 @@
 docs/extending.md): one :class:`~roughslip.run.schema.Column` with a ``derive`` function and
 one entry of :data:`~roughslip.run.schema.DERIVED`. It is the ratio of the friction force to
 the normal force of the pulled state, per sample and target, a pure number. The writer stores
-it in every run with a pull, and the readers and the tables give it like any other column. A column changes every run file written while it is registered, so the
-tests register it only where they check it (the ``derived_column`` fixture of
-``tests/conftest.py``), against the two columns it comes from."""
+it in every run with a pull, and the reader and the tables give it like any other column. A
+column changes every run file written while it is registered, so the tests register it only
+where they check it (the ``derived_column`` fixture of ``tests/conftest.py``), against the two
+columns it comes from."""
 
 from __future__ import annotations
 
