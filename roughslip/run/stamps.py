@@ -17,6 +17,7 @@ from typing import Any
 import h5py
 
 from roughslip.errors import ConfigError, InputError
+from roughslip.run import schema
 from roughslip.run.sections import defaults
 from roughslip.run.tomlio import loads_toml, show
 
@@ -112,3 +113,21 @@ def check_stamp(path: Path, stamp: tuple[str, int | None], layout: Any,
     raise InputError(f"{path}: was made with a different configuration (stored digest "
                      f"{str(digest)[:12]}..., now {layout.digest[:12]}...); run "
                      "`roughslip inspect` to see the stored one, or use --overwrite")
+
+
+def check_derived(path: Path, f: h5py.File, layout: Any) -> None:
+    """A resumed run has the derived columns of the run that started it
+    (:data:`~roughslip.run.schema.DERIVED`; ``layout``: the run's
+    :class:`~roughslip.run.store.Layout`): else :class:`InputError`, before anything is
+    written."""
+    want = {c.name for c in layout.columns if c.derive is not None}
+    stage = {c.name for c in schema.COLUMNS}
+    shape = (*f["complete"].shape, len(layout.axis))
+    have = {n for n, d in f.items() if isinstance(d, h5py.Dataset) and d.shape == shape
+            and "description" in d.attrs and n not in stage}
+    if want != have:
+        now, then = sorted(want - have), sorted(have - want)
+        raise InputError(
+            f"{path}: cannot be resumed with other derived output columns than the run that "
+            f"started it (registered now only: {', '.join(now) or 'none'}; in the file "
+            f"only: {', '.join(then) or 'none'}); register the same ones, or use --overwrite")

@@ -76,6 +76,7 @@ from roughslip.run.reading import (
     read_run,
 )
 from roughslip.run.space import check_space
+from roughslip.run.stamps import check_derived as _check_derived
 from roughslip.run.stamps import check_stamp as _check_stamp
 from roughslip.run.stamps import stored_config
 from roughslip.run.stamps import stored_stamp as _stored_stamp
@@ -368,23 +369,6 @@ class RunWriter:
                 self.f.close()
             except (OSError, RuntimeError):
                 pass
-
-
-def _check_derived(path: Path, f: h5py.File, layout: Layout) -> None:
-    """A resumed run has the derived columns of the run that started it
-    (:data:`~roughslip.run.schema.DERIVED`): else :class:`InputError`, before anything is
-    written."""
-    want = {c.name for c in layout.columns if c.derive is not None}
-    stage = {c.name for c in schema.COLUMNS}
-    shape = (*f["complete"].shape, len(layout.axis))
-    have = {n for n, d in f.items() if isinstance(d, h5py.Dataset) and d.shape == shape
-            and "description" in d.attrs and n not in stage}
-    if want != have:
-        now, then = sorted(want - have), sorted(have - want)
-        raise InputError(
-            f"{path}: cannot be resumed with other derived output columns than the run that "
-            f"started it (registered now only: {', '.join(now) or 'none'}; in the file "
-            f"only: {', '.join(then) or 'none'}); register the same ones, or use --overwrite")
 
 
 def _journal_digest(jdir: Path, path: Path) -> tuple[str, int | None] | None:
