@@ -328,7 +328,6 @@ class FollowEvents:
     avalanche_peaks: bool = True
 
     def run(self, st: TangentialState, t0: float) -> PullResult:
-        st.track_slip()
         path = follow_events(st, 20 * st.b.n + 100, False, landings=self.landings,
                              avalanche_peaks=self.avalanche_peaks)
         return st.result(path, t0)
@@ -354,10 +353,9 @@ class BreakSequence:
         while rows.alive:
             phi, cap, pos = inv.tracked["phi"].x, rows.cap, inv.ids
             j, m = select(phi, cap)
-            live = np.isfinite(cap)
+            live, phi_sum = np.isfinite(cap), float(phi.sum())
             for o in st.observers:
-                o.record(float(phi.sum()), m, pos[j],
-                         lambda p=pos, f=phi, lv=live: (p[lv], f[lv]))
+                o.record(phi_sum, m, pos[j], lambda p=pos, f=phi, lv=live: (p[lv], f[lv]))
             cap_sum -= float(cap[j])
             if st.stops(cap_sum) or rows.alive == 1:
                 break

@@ -438,7 +438,6 @@ class WeakeningState(TangentialState):
             self.neg += 1
         self._retrack()
 
-
     def result(self, path: EventPath, t0: float) -> PullResult:
         """The pull's result: ``friction_force`` is the largest force of the stable path and
         the landings (module docstring)."""
