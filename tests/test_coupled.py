@@ -800,6 +800,7 @@ class _Flipper:
         self.C = np.ones((2, 2), bool)
         self.S = self.C.copy()
         self.progress, self.discontinuous = Progress(), False
+        self.failed_inside = ()
 
     def interval(self, D):
         kind = "lost" if self.C[0, 0] else "gained"

@@ -140,12 +140,13 @@ def landing_curve(dx_lim: np.ndarray, fx_lim: np.ndarray, site: np.ndarray) -> P
     r"""The curve under monotone :math:`D_x` of a pull that records where its bursts land
     (slip-weakening, docs/theory/pull.rst#slip-weakening).
 
-    Its events are the stable path's, the states inside each burst (recorded at their own
-    limits, below the drive) and the state each burst lands in (site ``-1``, at the drive).
-    The curve joins the events not below the drive: between them every force is affine in
-    :math:`D_x`, and a burst is a drop at constant :math:`D_x`. A burst runs from the event on
-    the stable path that set it off to its landing; its size is the number of events in
-    between, that one included, and its drop the force it releases.
+    Its events are the stable path's, the failures inside each burst and the state each burst
+    lands in (site ``-1``), both at the drive that set the burst off (states recorded below
+    the drive, at their own limits, are passed over). The curve joins the events not below the
+    drive: between them every force is affine in :math:`D_x`, and a burst is a drop at
+    constant :math:`D_x`. A burst runs from the first event at its drive to its landing; its
+    size is the number of events in between, that one included (a failure of the stable path
+    at exactly that drive counts in it), and its drop the force it releases.
     """
     d = np.asarray(dx_lim, dtype=float)
     f = np.asarray(fx_lim, dtype=float)
@@ -156,11 +157,15 @@ def landing_curve(dx_lim: np.ndarray, fx_lim: np.ndarray, site: np.ndarray) -> P
     top = np.maximum.accumulate(np.r_[0.0, d])[:-1]  # the drive before each event
     on = d >= top  # the stable path and the landings
     starts, sizes, drops, where = [], [], [], []
+    last = -1  # the previous landing
     for j in np.flatnonzero(site < 0):
-        before = np.flatnonzero(on[:j] & (d[:j] == d[j]) & (site[:j] >= 0))
+        prev, last = last, int(j)
+        here = np.arange(prev + 1, j)
+        here = here[on[here] & (site[here] >= 0)]
+        before = here[d[here] == d[j]]
         if before.size == 0:
             continue
-        r = int(before[-1])
+        r = int(before[0])  # the first event at the landing's drive since the last landing
         starts.append(r)
         sizes.append(j - r)
         drops.append(f[r] - f[j])

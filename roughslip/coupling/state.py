@@ -275,8 +275,9 @@ class ContactState:
         self.offset.ravel()[j] = ux.ravel()[j] - self.dx_at(D)
         self.S.ravel()[j] = True
 
-    #: no event changes the forces at constant drive
+    #: no event changes the forces at constant drive, and no burst hides failures
     discontinuous = False
+    failed_inside: tuple[tuple[str, int, float], ...] = ()
 
     def holds(self) -> bool:
         """Whether any bond still sticks (the pull goes on while one does)."""

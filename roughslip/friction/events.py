@@ -14,7 +14,7 @@ import enum
 import functools
 import hashlib
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -383,6 +383,9 @@ class EventState(Protocol):
     progress: Progress  # the loop's progress (:class:`Progress`), written by the loop only
     #: the last event changed the forces at constant drive (a bond that failed unstably)
     discontinuous: bool
+    #: the bonds that failed inside the burst the last event set off, in order: (kind, site,
+    #: F_x when it failed); the loop records them at the drive
+    failed_inside: Sequence[tuple[str, int, float]]
 
     def interval(self, D: float) -> tuple[float, float, str, int]: ...
 
@@ -435,15 +438,19 @@ def follow_events(st: EventState, limit: int, record_states: bool,
 
     ``landings``: record the state an avalanche ends in, at the drive that set it off (event
     ``"jump"``), and the state after an event that changed the forces at constant drive
-    (:attr:`EventState.discontinuous`). ``avalanche_peaks``: whether the states of an
-    avalanche, recorded at their own limits below the drive, count for the peak (they cannot
-    exceed it under the break law, docs/theory/pull.rst; a law without that bound takes the
-    peak over the stable path and the landings only).
+    (:attr:`EventState.discontinuous`). A state that resolves a burst itself reports the
+    failures inside it (:attr:`EventState.failed_inside`): they are recorded at the drive,
+    each with the force the state gives for it, and never count for the peak.
+    ``avalanche_peaks``: whether the states of an avalanche, recorded at their own limits
+    below the drive, count for the peak (they cannot exceed it under the break law,
+    docs/theory/pull.rst; a law without that bound takes the peak over the stable path and
+    the landings only).
     """
     path = EventPath([], [] if record_states else None, st.snapshot(0.0))
 
-    def record(D: float, kind: str, site: int) -> None:
+    def record(D: float, kind: str, site: int, F: float | None = None) -> None:
         F_x, F_z = st.totals(D)
+        F_x = F_x if F is None else F
         path.events.append(Event(st.dx_at(D), F_x, F_z, kind, site, st.depth_at(D)))
         path.counts.append((int(st.C.sum()), int(st.S.sum())))
         if path.states is not None:
@@ -531,6 +538,8 @@ def follow_events(st: EventState, limit: int, record_states: bool,
                 raise NumericalError("inconsistent state (no violation but no admissible "
                                      "displacement)")
             st.apply(*v, D)
+            for k_in, j_in, F_in in st.failed_inside:
+                record(D, k_in, j_in, F_in)
             st.solve()
             path.transient += 1
             falling = True
@@ -539,6 +548,8 @@ def follow_events(st: EventState, limit: int, record_states: bool,
         if avalanche_peaks or not falling:
             peak(at)
         st.apply(kind, j, at)
+        for k_in, j_in, F_in in st.failed_inside:
+            record(at, k_in, j_in, F_in)
         falling = falling or st.discontinuous
         st.solve()
     if falling and landings and not path.message:  # the last avalanche ends in full sliding

@@ -340,8 +340,10 @@ def pull(
     tol : float
         Relative residual of the tangential solves (and of the certification of ``inverse``).
     early_stop : bool
-        Stop once :math:`\lambda\sum_S f_z` falls below the best :math:`F_{x,\rm lim}`
-        (exact). ``method="literal"`` always runs to the last bond, as the report does.
+        Stop once no later state can exceed the best force (exact): under the break law
+        once :math:`\lambda\sum_S f_z` falls below the best :math:`F_{x,\rm lim}`, under
+        slip-weakening once the bonds' strengths sum to no more than it.
+        ``method="literal"`` always runs to the last bond, as the report does.
     batch_size : int
         Bonds broken per solve by ``method="batch"``.
     block : int

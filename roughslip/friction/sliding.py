@@ -196,8 +196,9 @@ class TangentialState:
         j = argext(over, bad, "max")
         return EventKind.slip(fx[j]), self._site(j)
 
-    #: no event changes the forces at constant drive
+    #: no event changes the forces at constant drive, and no burst hides failures
     discontinuous = False
+    failed_inside: tuple[tuple[str, int, float], ...] = ()
 
     def holds(self) -> bool:
         """Whether any bond still sticks (the pull goes on while one does)."""

@@ -31,25 +31,24 @@ theorem that is when :math:`M` has exactly :math:`|W|` negative eigenvalues. Eve
 changes that count by the sign of its pivot, so it is tracked exactly. A stick bond can start
 weakening without losing stability only while :math:`(M^{-1})_{ii} > k_i`.
 
-Bursts (the rule). A stick bond whose weakening would make the state unstable slips through
-its weakening at constant drive and lands at its residual strength (its strength falls faster
-than the elastic force it carries, down to :math:`\lambda_d f_z`). A weakening bond that loses
-stability when a neighbour is released does the same: the one nearest its residual strength
-among those whose release restores stability (:math:`(M^{-1})_{jj} > 0`). The drive is held
-while the new state violates a bound, and each further failure happens there; the event loop
-(:func:`~roughslip.friction.events.follow_events`) records each intermediate state at its own
-limit below the drive, and the state the burst lands in at the drive (event ``"jump"``). The
-friction force is the largest force of the stable path and the landings, never of a state
-inside a burst. Every state the loop accepts is stable.
+Bursts. A failure that would leave the state unstable (a stick bond whose weakening would,
+or one at its residual strength whose release softens the weakening bonds,
+:math:`(M^{-1})_{ii} \le 0`) sets off a burst at the held drive. It relaxes as the limit of an
+overdamped slip rate (:class:`~roughslip.friction.relax.Relaxation`): bonds slip, weaken, reach
+their residual strength, arrest or join, in closed form between events, until the moving bonds
+settle in a stable state, which replaces this one. The event loop
+(:func:`~roughslip.friction.events.follow_events`) records the failures inside the burst and
+the state it lands in (event ``"jump"``) at the drive. The friction force is the largest force
+of the stable path, the landings and the bursts' relaxations. Every state the loop accepts is
+stable.
 
 Reversal: a slipping bond (weakening, or residual with a residual strength above 0) whose slip
 the pull would turn back sticks again where it is, keeping the strength it has reached.
 
 Limits. :math:`\lambda_d = \lambda_s` is the Coulomb law (a failed bond goes straight to its
 residual strength). :math:`\lambda_d = 0` with :math:`d_c` below the pixel's weakening scale
-is the break law: every failure is unstable and drops the bond's force to zero at once, so the
-failures are the break law's sequence (:math:`D_{x,\rm lim}, F_{x,\rm lim}`), avalanches
-included.
+is the break law: every failure is unstable and the failed bond relaxes to zero force, so each
+burst breaks the bonds of the break law's avalanche at its drive.
 """
 
 from __future__ import annotations
@@ -72,6 +71,7 @@ from roughslip.friction.events import (
     digest,
     event_table,
 )
+from roughslip.friction.relax import Landing, Relaxation
 from roughslip.friction.result import PullResult
 from roughslip.friction.sliding import FollowEvents, TangentialState
 from roughslip.linalg.inverse import Tracked, inverse_bytes
@@ -107,8 +107,15 @@ class WeakeningState(TangentialState):
         self.dshift = np.zeros(n)  # diagonal of M minus that of G (-1/k on weakening bonds)
         self.fR = np.zeros(n)  # forces of residual bonds
         self.neg = 0  # negative eigenvalues of M
-        self.snaps = 0  # bonds that failed unstably and slipped to their residual strength
-        self.discontinuous = False  # the last event was such a failure
+        self.snaps = 0  # bonds that reached their residual strength inside bursts
+        self.bursts = 0
+        self.discontinuous = False  # the last event was a burst
+        self._relax: Relaxation | None = None
+        self.failed_inside: list[tuple[str, int, float]] = []
+        #: the largest force of the stable path so far, and whether the pull stopped early
+        self.best, self.stopped, self._transient = -math.inf, False, False
+        #: the largest sum of the forces inside a burst's relaxation, and its drive
+        self.inside: tuple[float, float] = (-math.inf, 0.0)
 
         def room(m: int) -> bool:
             if inverse_bytes(m) > available_bytes():
@@ -209,8 +216,24 @@ class WeakeningState(TangentialState):
         return self.b.mask(np.flatnonzero(self.phase == STICK))
 
     def holds(self) -> bool:
-        """Whether any bond sticks or weakens (the pull goes on while one does)."""
-        return bool(np.any(self.phase != RESIDUAL))
+        """Whether any bond sticks or weakens (the pull goes on while one does), and the
+        pull has not stopped early (:meth:`_stop_early`)."""
+        return not self.stopped and bool(np.any(self.phase != RESIDUAL))
+
+    def _stop_early(self, D: float) -> None:
+        r"""Stop the pull (``opt.early_stop``) once the sum of the bonds' strengths at ``D``
+        is at most the largest force of the stable path so far, :attr:`best`: strengths only
+        fall, and in an equilibrium no bond carries more than its strength, so no later state
+        of the path or landing can exceed it (a weakening bond's strength is the force it
+        carries, :math:`\sigma f`)."""
+        if not self.opt.early_stop or self.stopped or np.all(self.phase == RESIDUAL):
+            return
+        cap = self.lam_cur * self.fz
+        W = self.phase == WEAK
+        if W.any():
+            cap[W] = self.sigma[W, X] * self.forces(D)[W]
+        if float(cap.sum()) <= self.best:
+            self.stopped = True
 
     def forces(self, D: float) -> np.ndarray:
         """:math:`f_x` per bond at ``D``."""
@@ -241,6 +264,13 @@ class WeakeningState(TangentialState):
         """Whether M has one negative eigenvalue per weakening bond (module docstring)."""
         return self.neg == int(np.count_nonzero(self.phase == WEAK))
 
+    def _check_stable(self) -> None:
+        """Every event keeps the state stable: a failure that would not is a burst, which
+        lands on a stable state (:meth:`_burst`)."""
+        if not self.stable():
+            raise NumericalError("slip-weakening: an unstable state outside a burst "
+                                 "(internal error)")
+
     def _cons(self, D: float) -> tuple[list, np.ndarray, float]:
         """The constraint rows ``a + b D >= 0`` on the rows of the inverse."""
         phi, psi, ids, live = self._rows()
@@ -258,8 +288,7 @@ class WeakeningState(TangentialState):
     def interval(self, D: float) -> tuple[float, float, str, int]:
         """The admissible interval of the drive and the event ending it
         (:func:`~roughslip.friction.events.event_table`)."""
-        if not self.stable():  # a weakening bond runs away: admissible nowhere
-            return math.inf, -math.inf, EventKind.SNAP, -1
+        self._check_stable()
         cons, ids, _ = self._cons(D)
         scale = self.progress.scale
         lo, hi, kind, row = event_table(cons, D, max(scale, abs(D)), scale)
@@ -267,10 +296,9 @@ class WeakeningState(TangentialState):
 
     def violation(self, D: float) -> tuple[str, int] | None:
         """The most violated constraint at ``D`` (in units of the bond's f_z; ties to the
-        lowest row), or None. In an unstable state: the weakening bond that slips to its
-        residual strength (:meth:`_runaway`)."""
-        if not self.stable():
-            return EventKind.SNAP, int(self.b.sites[self._runaway(D)])
+        lowest row), or None. The event it names is a transient one (not on the stable
+        path)."""
+        self._check_stable()
         cons, ids, _ = self._cons(D)
         best, which = TIE, None
         for name, m, a, b, _ in cons:
@@ -280,27 +308,8 @@ class WeakeningState(TangentialState):
             j = argext(excess, m, "max")
             if excess[j] > best * (1 + TIE):
                 best, which = float(excess[j]), (name, int(self.b.sites[ids[j]]))
+        self._transient = which is not None
         return which
-
-    def _runaway(self, D: float) -> int:
-        r"""The weakening bond that slips to its residual strength when the state has lost its
-        stability (a stick bond released beside weakening ones softens them): among those
-        whose removal restores one lost positive direction (:math:`(M^{-1})_{jj} > 0`), else
-        among all, the one nearest its residual strength, :math:`(\sigma f_j - \lambda_d
-        f_{z,j})/f_{z,j}` smallest (ties to the lowest bond)."""
-        phi, psi, ids, live = self._rows()
-        W = live & (self.phase[ids] == WEAK)
-        if not W.any():
-            raise NumericalError("slip-weakening: an unstable state without weakening bonds "
-                                 "(internal error)")
-        rows = np.flatnonzero(W)
-        diag = self.inv.diagonal()[rows]
-        pick = rows[diag > 0] if np.any(diag > 0) else rows
-        margin = np.full(phi.shape, np.inf)
-        q = ids[pick]
-        margin[pick] = (self.sigma[q, X] * (D * phi[pick] - psi[pick]) - self.lam_d * self.fz[q]
-                        ) / self.fz[q]
-        return int(ids[argext(margin, None, "min")])
 
     def _slip_rates(self) -> np.ndarray:
         r""":math:`\partial s/\partial D` of every bond on the current piece (0 on stick
@@ -325,7 +334,7 @@ class WeakeningState(TangentialState):
         strength it has reached. Residual bonds of zero strength carry nothing and never
         stick again. Returns its site."""
         can = (self.phase == WEAK) | ((self.phase == RESIDUAL) & (self.lam_d > 0))
-        if not can.any():
+        if self.stopped or not can.any():
             return None
         back = np.where(can, -self.sigma[:, X] * self._slip_rates(), -np.inf)
         top = float(back.max())
@@ -364,36 +373,43 @@ class WeakeningState(TangentialState):
 
     def apply(self, kind: str, j: int, D: float = 0.0) -> None:
         """Apply the event ``kind`` of the bond at site ``j`` at ``D``: a stick bond that
-        fails starts to weaken if the state stays stable, else it slips to its residual
-        strength at once (module docstring); a weakening bond reaches its residual
-        strength; a slipping bond sticks again."""
+        fails starts to weaken (or, at its residual strength, to slip) if the state stays
+        stable, else it sets off a burst (:meth:`_burst`); a weakening bond reaches its
+        residual strength; a slipping bond sticks again."""
         self._rate = None
+        if not self._transient:  # a state of the stable path: it counts for the peak
+            self.best = max(self.best, self.totals(D)[0])
+        self._transient = False
         p = int(self.position[j])
         inv = self.inv
-        snaps = self.snaps
+        self.discontinuous = False
+        self.failed_inside = []
         if kind in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
-            self.sigma[p] = self.law.failed_direction(kind)
-            s = self.sigma[p, X]
-            col = inv.column(int(inv.row[p])) if self.k[p] > 0 else None
-            if col is not None and self.lam_cur[p] > self.lam_d and \
-                    col[inv.row[p]] > self.k[p] * (1 + TIE):
-                # stable: stick -> weakening from the slip and strength it has, on the line
-                # f + k s = c with c = s lam f_z + k s0 (b = c / k)
-                col = self._shift(p, -1.0 / self.k[p], col)
-                self.phase[p] = WEAK
-                self._set_b(p, s * self.fz[p] * self.lam_cur[p] / self.k[p] + self.s0[p], col)
-            else:  # unstable (or at its residual strength already): it slips to residual
-                self.snaps += self.lam_cur[p] > self.lam_d
+            s = float(self.law.failed_direction(kind)[X])
+            weakening = bool(np.any(self.phase == WEAK))
+            col = inv.column(int(inv.row[p])) if self.k[p] > 0 or weakening else None
+            d = float(col[inv.row[p]]) if col is not None else math.inf
+            if self.lam_cur[p] > self.lam_d:
+                # stable iff (M^-1)_pp > k_p: stick -> weakening from the slip and strength
+                # it has, on the line f + k s = c with c = s lam f_z + k s0 (b = c / k)
+                if d > self.k[p] * (1 + TIE):
+                    self.sigma[p] = self.law.failed_direction(kind)
+                    col = self._shift(p, -1.0 / self.k[p], col)
+                    self.phase[p] = WEAK
+                    self._set_b(p, s * self.fz[p] * self.lam_cur[p] / self.k[p] + self.s0[p],
+                                col)
+                else:
+                    self._burst(D, p, s)
+            elif not weakening or d > 0:  # at its residual strength, and the rest stays stable
+                self.sigma[p] = self.law.failed_direction(kind)
                 self.delta[p] = max(self.delta[p], self.dc)
                 self._leave(p, s * self.lam_d * self.fz[p], col)
+            else:
+                self._burst(D, p, s)
         elif kind == EventKind.RESIDUAL:
             s = self.sigma[p, X]
             self.delta[p] += s * (self._slip(p, D) - self.s0[p])
             self._leave(p, s * self.lam_d * self.fz[p])
-        elif kind == EventKind.SNAP:  # a weakening bond runs away to its residual strength
-            self.snaps += 1
-            self.delta[p] = max(self.delta[p], self.dc)
-            self._leave(p, self.sigma[p, X] * self.lam_d * self.fz[p])
         elif kind == EventKind.STICK:
             s = self.sigma[p, X]
             slip = self._slip(p, D)
@@ -410,8 +426,85 @@ class WeakeningState(TangentialState):
             self.sigma[p] = 0.0
         else:
             raise NumericalError(f"slip-weakening: no event {kind!r} (internal error)")
-        self.discontinuous = self.snaps > snaps
         self._fold()
+        self._stop_early(D)
+
+    # -- bursts ----------------------------------------------------------------------------
+    def _relaxation(self) -> Relaxation:
+        """The fast-time flow of a burst, on :math:`K = G_{xx}^{-1}` over all bonds (made at
+        the first burst; the memory guard counts it)."""
+        if self._relax is None:
+            n = self.b.n
+            if inverse_bytes(n) > available_bytes():
+                raise MemoryLimitError(
+                    f"slip-weakening: a burst needs G_xx^-1 on all {n} bonds, "
+                    f"~{inverse_bytes(n) / 2**30:.2f} GiB, but "
+                    f"{available_bytes() / 2**30:.2f} GiB are available")
+            K = np.linalg.inv(self.b.dense())
+            self._relax = Relaxation(0.5 * (K + K.T), self.fz, self.lam_s, self.lam_d, self.dc)
+        return self._relax
+
+    def _burst(self, D: float, p: int, s: float) -> None:
+        r"""Bond ``p`` fails in the direction ``s`` at ``D`` and the state cannot stay stable:
+        the burst relaxes at the held drive as the limit of an overdamped slip rate
+        (:class:`~roughslip.friction.relax.Relaxation`) and the state it lands in replaces
+        this one (the inverse is factorised afresh on its stick and weakening bonds)."""
+        relax = self._relaxation()
+        b = self.b
+        f = self.forces(D)
+        phi, _, ids, live = self._rows()
+        dfdD = np.zeros(b.n)
+        dfdD[ids[live]] = phi[live]
+        # slips and their rates, w = D - u and dw/dD = 1 - G df/dD (stick bonds: as they are)
+        u, du = (b.apply(b.field(v), np.empty(b.shape)).ravel()[b.sites] for v in (f, dfdD))
+        stick = self.phase == STICK
+        w = np.where(stick, self.s0, D - u)
+        rate = np.where(stick, 0.0, 1.0 - du)
+        delta = self.delta.copy()
+        W = self.phase == WEAK
+        delta[W] += self.sigma[W, X] * (w[W] - self.s0[W])
+        moving = ~stick
+        sigma = self.sigma[:, X].copy()
+        moving[p], sigma[p], rate[p] = True, s, 0.0
+        land = relax.run(f, w, delta, sigma, moving, rate, limit=20 * b.n + 100,
+                         best=self.best if self.opt.early_stop else None)
+        if land.stopped:  # no state after this point can exceed the best: stop here
+            self.stopped = True
+            return
+        if land.peak > self.inside[0]:
+            self.inside = (land.peak, D)
+        self._land(land)
+
+    def _land(self, land: Landing) -> None:
+        """Take the state a burst lands in: moving bonds weaken (below d_c) or are residual,
+        the others stick where they are, with the strength they reached."""
+        mv = land.moving
+        weak = mv & (land.delta < self.dc)
+        res = mv & ~weak
+        stick = ~mv
+        self.snaps += int(np.count_nonzero(res & (self.phase != RESIDUAL)))
+        self.phase[:] = STICK
+        self.phase[weak], self.phase[res] = WEAK, RESIDUAL
+        self.sigma[:] = 0.0
+        self.sigma[mv, X] = land.sigma[mv]
+        self.delta[:] = np.where(res, np.maximum(land.delta, self.dc), land.delta)
+        self.lam_cur[:] = self._relax.strength(self.delta)
+        self.s0[:] = land.w
+        k = np.where(weak, self.k, 1.0)
+        self.dshift[:] = np.where(weak, -1.0 / k, 0.0)
+        self.bvec[:] = np.where(stick, land.w, 0.0)
+        self.bvec[weak] = (land.sigma * self.fz * self.lam_cur / k + land.w)[weak]
+        self.fR[:] = np.where(res, land.sigma * self.lam_d * self.fz, 0.0)
+        done = self.inv.factor(np.flatnonzero(~res), positive=False)
+        if not done:
+            raise MemoryLimitError("slip-weakening: out of memory for the inverse after a "
+                                   "burst")
+        self.neg = int(np.count_nonzero(weak))  # the landing's B is positive definite
+        self.bursts += 1
+        self.discontinuous = True
+        self.failed_inside = [(EventKind.slip(s), int(self.b.sites[i]), F)
+                              for i, s, F in land.failures]
+        self._retrack()
 
     def _slip(self, p: int, D: float) -> float:
         """The slip :math:`s = D - u` of bond ``p`` at ``D``."""
@@ -440,18 +533,24 @@ class WeakeningState(TangentialState):
 
     def result(self, path: EventPath, t0: float) -> PullResult:
         """The pull's result: ``friction_force`` is the largest force of the stable path and
-        the landings (module docstring)."""
+        the landings (module docstring). The message says when the force inside a burst's
+        relaxation rose above it (a transient at the held drive, not an equilibrium)."""
         b, opt = self.b, self.opt
         curve = Curve.of(path.events)
         peak = path.peak
         n_jumps = curve.kind.count(EventKind.JUMP)
+        end = "stopped once no later state could exceed the peak" if self.stopped else \
+            "exact event path to full sliding"
+        note = (f"; inside a burst at D_x = {self.inside[1]:.6g} the force rose to "
+                f"{self.inside[0]:.6g}, above the friction force (a relaxation, not an "
+                "equilibrium)") if self.inside[0] > peak.fx_total else ""
         return decoupled_result(
             b, friction_force=max(peak.fx_total, 0.0), curve=curve, peak_event=path.peak_event,
             peak_fx=peak.fx, peak_stick=peak.stick, t0=t0, method=opt.method_name,
             slip_law=opt.slip_law, converged=bool(self.ok) and not path.message,
-            residual=self.worst, solves=self.refinements,
-            message=path.message or (f"exact event path to full sliding, {n_jumps} burst(s), "
-                                     f"{self.snaps} bond(s) failed unstably"))
+            residual=self.worst, solves=self.refinements, early_stopped=self.stopped,
+            message=path.message or (f"{end}, {n_jumps} burst(s), {self.snaps} bond(s) "
+                                     f"reached their residual strength inside one{note}"))
 
 
 #: how the weakening state is followed: every burst's landing is recorded, and the states

@@ -210,9 +210,10 @@ class PullConfig:
                               "friction force: the pull's solves and the squeeze's normal "
                               "forces, each by one refinement step ('batch' has none); also "
                               "runs the Lanczos condition estimate of G_xx on the bonds")
-    early_stop: bool = option(True, "stop the break sequence once no later break can exceed the "
-                          "peak (exact for the friction force); false records every break, "
-                          "for the bursts after the peak")
+    early_stop: bool = option(True, "stop the pull once no later state can exceed the peak "
+                          "(the break law and slip-weakening; exact for the friction "
+                          "force); false records every event, for the bursts after the "
+                          "peak")
     precision: str = option("auto", "the precision of the inverse method's stored matrix: "
                             "double, single (the break law: half the memory, the same break "
                             "sequence and friction force by certified decisions, the other "
