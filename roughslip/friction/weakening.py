@@ -543,7 +543,8 @@ class WeakeningState(TangentialState):
             "exact event path to full sliding"
         note = (f"; inside a burst at D_x = {self.inside[1]:.6g} the force rose to "
                 f"{self.inside[0]:.6g}, above the friction force (a relaxation, not an "
-                "equilibrium)") if self.inside[0] > peak.fx_total else ""
+                "equilibrium)") if self.inside[0] > peak.fx_total + TIE * abs(peak.fx_total) \
+            else ""
         return decoupled_result(
             b, friction_force=max(peak.fx_total, 0.0), curve=curve, peak_event=path.peak_event,
             peak_fx=peak.fx, peak_stick=peak.stick, t0=t0, method=opt.method_name,
