@@ -8,15 +8,15 @@ quasi-static path. A burst starts where that path folds: a failure the held driv
 stable. In the fast time :math:`\tau = (t - t^*)/\eta` the drive is held, and the bonds with a
 positive excess, the moving set :math:`P`, follow a linear system on each piece,
 
-.. math:: \frac{de_P}{d\tau} = -B\,e_P, \qquad
+.. math:: \frac{de_P}{d\tau} = -B\,e_P + \eta\,\Sigma (K1)_P, \qquad
           B = \Sigma K_{PP} \Sigma - \mathrm{diag}(\kappa_P f_{z,P}),
 
 with :math:`K = G_{xx}^{-1}` over all bonds (every bond holds its displacement, so this is the
 stiffness between moving bonds), :math:`\Sigma = \mathrm{diag}(\sigma_P)` and the softening
 rate :math:`\kappa_i = (\lambda_s - \lambda_d)/d_c` while :math:`\delta_i < d_c`, else 0.
-:math:`B` is symmetric, so :math:`e_P(\tau) = V e^{-\Lambda\tau} V^T e_P(0)` from its
-eigenpairs, and the slip :math:`\int e_P` and the forces of the other bonds follow in closed
-form. A piece ends at the first event:
+:math:`B` is symmetric, so :math:`e_P(\tau) = V e^{-\Lambda\tau} V^T e_P(0)` plus the
+drive's term from its eigenpairs, and the slip :math:`\int e_P` and the forces of the other
+bonds follow in closed form. A piece ends at the first event:
 
 * *arrest*: a moving bond's excess falls to 0 (it sticks, keeping the strength it reached; a
   bond of zero residual strength carries nothing and never arrests);
@@ -35,7 +35,8 @@ at :math:`\eta = \epsilon \max f_z` with :data:`EPS`: the landing depends on :ma
 through terms of order :math:`\eta\log\eta`, far below the tolerance of every event.
 
 Events are roots of sums of exponentials. Each is bracketed on a grid of the fast time whose
-steps grow by :data:`GROWTH` from :math:`10^{-3}/\max|\mu|` and refined by Brent's method to
+steps grow by :data:`GROWTH` from :math:`10^{-3}/\max|\mu|` (:math:`\mu` the eigenvalues of
+:math:`B`) and refined by Brent's method to
 :data:`XTOL` relative; two roots of one function closer than a step are not resolved (a
 near-tangency of an excess, where the two landings differ by the excess at the tangency).
 """

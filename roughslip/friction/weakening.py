@@ -39,8 +39,7 @@ their residual strength, arrest or join, in closed form between events, until th
 settle in a stable state, which replaces this one. The event loop
 (:func:`~roughslip.friction.events.follow_events`) records the failures inside the burst and
 the state it lands in (event ``"jump"``) at the drive. The friction force is the largest force
-of the stable path, the landings and the bursts' relaxations. Every state the loop accepts is
-stable.
+of the stable path and the landings. Every state the loop accepts is stable.
 
 Reversal: a slipping bond (weakening, or residual with a residual strength above 0) whose slip
 the pull would turn back sticks again where it is, keeping the strength it has reached.
