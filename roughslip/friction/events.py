@@ -47,9 +47,8 @@ class EventKind(enum.StrEnum):
     #: a contact's normal force reaches zero, a gap closes (coupled model)
     LOST = "lost"
     GAINED = "gained"
-    #: a weakening bond reaches its residual strength, or runs away to it (slip-weakening)
+    #: a weakening bond reaches its residual strength (slip-weakening)
     RESIDUAL = "residual"
-    SNAP = "snap"
     #: the state a burst lands in, at the drive that set it off (site -1)
     JUMP = "jump"
     #: a driven depth reaches its end (site -1)

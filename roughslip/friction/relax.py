@@ -64,7 +64,8 @@ SETTLED = 40.0
 @dataclass
 class Landing:
     """Where a burst ends: per bond, its force (stuck bonds), slip, accumulated slip, direction
-    and whether it moves (relaxes to the quasi-static state at the drive), with counts."""
+    and whether it moves (relaxes to the quasi-static state at the drive); the pieces it
+    took."""
 
     f: np.ndarray
     w: np.ndarray
@@ -72,8 +73,6 @@ class Landing:
     sigma: np.ndarray
     moving: np.ndarray
     pieces: int = 0
-    arrests: int = 0
-    joins: int = 0
     #: the largest sum of the forces inside the burst
     peak: float = -math.inf
     #: it stopped before landing: no state after it can exceed ``best`` (:meth:`Relaxation.run`)
@@ -286,13 +285,11 @@ class Relaxation:
     def _arrest(self, i: int, st: Landing, e: np.ndarray) -> None:
         st.f[i] = st.sigma[i] * self.strength(st.delta[i:i + 1])[0] * self.fz[i]
         st.moving[i], st.sigma[i], e[i] = False, 0.0, 0.0
-        st.arrests += 1
 
     def _join(self, i: int, st: Landing, e: np.ndarray) -> None:
         st.moving[i], e[i] = True, 0.0
         st.sigma[i] = math.copysign(1.0, st.f[i])
         st.f[i] = st.sigma[i] * self.strength(st.delta[i:i + 1])[0] * self.fz[i]
-        st.joins += 1
         st.failures.append((i, float(st.sigma[i]), float(st.f.sum())))
 
     def _at_start(self, pc: _Piece, st: Landing, e: np.ndarray) -> bool:

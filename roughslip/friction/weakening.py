@@ -107,7 +107,6 @@ class WeakeningState(TangentialState):
         self.fR = np.zeros(n)  # forces of residual bonds
         self.neg = 0  # negative eigenvalues of M
         self.snaps = 0  # bonds that reached their residual strength inside bursts
-        self.bursts = 0
         self.discontinuous = False  # the last event was a burst
         self._relax: Relaxation | None = None
         self.failed_inside: list[tuple[str, int, float]] = []
@@ -499,7 +498,6 @@ class WeakeningState(TangentialState):
             raise MemoryLimitError("slip-weakening: out of memory for the inverse after a "
                                    "burst")
         self.neg = int(np.count_nonzero(weak))  # the landing's B is positive definite
-        self.bursts += 1
         self.discontinuous = True
         self.failed_inside = [(EventKind.slip(s), int(self.b.sites[i]), F)
                               for i, s, F in land.failures]
