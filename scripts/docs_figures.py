@@ -308,12 +308,9 @@ def hertz_resolution(out: Path, ratios=(4, 8, 16, 32), coupled_max: int = 16,
 
 
 def weakening_resolution(out: Path, ratios=(4, 8, 16, 32), nu: float = 0.3,
-                         lam: float = 0.2, slip_distance: float = 5e-4,
-                         zero_max: int = 16) -> None:
+                         lam: float = 0.2, slip_distance: float = 5e-4) -> None:
     """The Hertz problem of :func:`hertz_resolution` under slip-weakening: the friction
-    coefficient converges once d_c is resolved, where the break law's falls. lambda_d = 0
-    only up to a/h = ``zero_max``: its last burst, before the early stop, runs over most of
-    the contact and costs hours at 3252 bonds (docs/theory/pull.rst#slip-weakening)."""
+    coefficient converges once d_c is resolved, where the break law's falls."""
     from roughslip import pull
     from roughslip.analysis.bursts import landing_curve, pull_curve
     from roughslip.analysis.plotting import pyplot, save
@@ -337,9 +334,6 @@ def weakening_resolution(out: Path, ratios=(4, 8, 16, 32), nu: float = 0.3,
         problem = Problem(sphere((n, n), radius=R, a=h), Grid((n, n), h), Material(1.0, nu))
         normal = NormalSolver(problem, tol=1e-12).solve(depth=d)
         for j, (_, ld) in enumerate(laws):
-            if ld == 0.0 and ratio > zero_max:
-                mu[i, j] = np.nan
-                continue
             r = (pull(normal, lam=lam, early_stop=False) if ld is None else
                  pull(normal, lam=lam, slip_law="slip-weakening", lam_dynamic=ld,
                       slip_distance=slip_distance))

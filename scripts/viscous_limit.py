@@ -5,8 +5,9 @@
                                     [--etas 1e-6 1e-7 1e-8] [--bursts-only] [--json FILE]
 
 ``pull()`` resolves a burst (a failure that the held drive cannot keep stable) as the limit of
-a dynamics, without integrating the dynamics over the pull: the relaxation at the held drive
-in closed form, piece by piece (roughslip.friction.relax). This script checks that against
+a dynamics, without integrating the dynamics over the pull: the least equilibrium above the
+fold (roughslip.friction.least), or the relaxation at the held drive in closed form, piece by
+piece (roughslip.friction.relax). This script checks that against
 the dynamics itself, an overdamped slip rate, integrated over the whole pull. With the drive
 :math:`D = t` and :math:`f = G_{xx}^{-1}(D - w)` on the bonds (:math:`w` their slips),
 

@@ -1,5 +1,6 @@
 r"""A burst of slip-weakening at a held drive, as the limit of an overdamped slip rate
-(docs/theory/pull.rst#slip-weakening).
+(docs/theory/pull.rst#slip-weakening), integrated piece by piece: where the straight steps
+of :mod:`~roughslip.friction.least` would take a slip back, and as their reference.
 
 Give each bond the slip rate :math:`\dot w_i = \sigma_i \max(e_i, 0)/\eta` with the excess
 :math:`e_i = \sigma_i f_i - \lambda(\delta_i) f_{z,i}` over its strength, :math:`\dot\delta_i =

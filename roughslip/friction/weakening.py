@@ -33,10 +33,13 @@ weakening without losing stability only while :math:`(M^{-1})_{ii} > k_i`.
 
 Bursts. A failure that would leave the state unstable (a stick bond whose weakening would,
 or one at its residual strength whose release softens the weakening bonds,
-:math:`(M^{-1})_{ii} \le 0`) sets off a burst at the held drive. It relaxes as the limit of an
-overdamped slip rate (:class:`~roughslip.friction.relax.Relaxation`): bonds slip, weaken, reach
-their residual strength, arrest or join, in closed form between events, until the moving bonds
-settle in a stable state, which replaces this one. The event loop
+:math:`(M^{-1})_{ii} \le 0`) sets off a burst at the held drive. It lands where an overdamped
+slip rate takes it as its viscosity vanishes: the least equilibrium above the fold, followed
+on straight steps (:func:`~roughslip.friction.least.land`), or, where the kernel's few
+non-cooperative couplings would take a slip back, that flow itself in closed form between
+its events (:class:`~roughslip.friction.relax.Relaxation`). Bonds slip, weaken, reach their
+residual strength or join until the moving bonds settle in a stable state, which replaces
+this one. The event loop
 (:func:`~roughslip.friction.events.follow_events`) records the failures inside the burst and
 the state it lands in (event ``"jump"``) at the drive. The friction force is the largest force
 of the stable path and the landings. Every state the loop accepts is stable.
@@ -57,6 +60,7 @@ import math
 import numpy as np
 
 from roughslip.errors import MemoryLimitError, NumericalError
+from roughslip.friction import least
 from roughslip.friction.bonds import Bonds, PullOptions, decoupled_result
 from roughslip.friction.events import (
     RATE_TIE,
@@ -107,6 +111,7 @@ class WeakeningState(TangentialState):
         self.fR = np.zeros(n)  # forces of residual bonds
         self.neg = 0  # negative eigenvalues of M
         self.snaps = 0  # bonds that reached their residual strength inside bursts
+        self.flows = 0  # bursts followed on the flow (module roughslip.friction.least)
         self.discontinuous = False  # the last event was a burst
         self._relax: Relaxation | None = None
         self.failed_inside: list[tuple[str, int, float]] = []
@@ -444,9 +449,8 @@ class WeakeningState(TangentialState):
 
     def _burst(self, D: float, p: int, s: float) -> None:
         r"""Bond ``p`` fails in the direction ``s`` at ``D`` and the state cannot stay stable:
-        the burst relaxes at the held drive as the limit of an overdamped slip rate
-        (:class:`~roughslip.friction.relax.Relaxation`) and the state it lands in replaces
-        this one (the inverse is factorised afresh on its stick and weakening bonds)."""
+        the burst relaxes at the held drive as the limit of an overdamped slip rate (module
+        docstring) and the state it lands in replaces this one (:meth:`_land`)."""
         relax = self._relaxation()
         b = self.b
         f = self.forces(D)
@@ -461,11 +465,16 @@ class WeakeningState(TangentialState):
         delta = self.delta.copy()
         W = self.phase == WEAK
         delta[W] += self.sigma[W, X] * (w[W] - self.s0[W])
+        R = self.phase == RESIDUAL  # at d_c, not a rounding below it
+        delta[R] = np.maximum(delta[R], self.dc)
         moving = ~stick
         sigma = self.sigma[:, X].copy()
         moving[p], sigma[p], rate[p] = True, s, 0.0
-        land = relax.run(f, w, delta, sigma, moving, rate, limit=20 * b.n + 100,
-                         best=self.best if self.opt.early_stop else None)
+        best = self.best if self.opt.early_stop else None
+        land = least.land(relax, f, w, delta, sigma, moving, p, best=best)
+        if land is None:  # not on monotone steps: the flow itself
+            self.flows += 1
+            land = relax.run(f, w, delta, sigma, moving, rate, limit=20 * b.n + 100, best=best)
         if land.stopped:  # no state after this point can exceed the best: stop here
             self.stopped = True
             return
@@ -475,12 +484,14 @@ class WeakeningState(TangentialState):
 
     def _land(self, land: Landing) -> None:
         """Take the state a burst lands in: moving bonds weaken (below d_c) or are residual,
-        the others stick where they are, with the strength they reached."""
+        the others stick where they are, with the strength they reached. The inverse follows
+        the bonds whose phase changed (:meth:`_rephase`)."""
         mv = land.moving
         weak = mv & (land.delta < self.dc)
         res = mv & ~weak
         stick = ~mv
-        self.snaps += int(np.count_nonzero(res & (self.phase != RESIDUAL)))
+        old = self.phase.copy()
+        self.snaps += int(np.count_nonzero(res & (old != RESIDUAL)))
         self.phase[:] = STICK
         self.phase[weak], self.phase[res] = WEAK, RESIDUAL
         self.sigma[:] = 0.0
@@ -489,19 +500,51 @@ class WeakeningState(TangentialState):
         self.lam_cur[:] = self._relax.strength(self.delta)
         self.s0[:] = land.w
         k = np.where(weak, self.k, 1.0)
-        self.dshift[:] = np.where(weak, -1.0 / k, 0.0)
         self.bvec[:] = np.where(stick, land.w, 0.0)
         self.bvec[weak] = (land.sigma * self.fz * self.lam_cur / k + land.w)[weak]
         self.fR[:] = np.where(res, land.sigma * self.lam_d * self.fz, 0.0)
-        done = self.inv.factor(np.flatnonzero(~res), positive=False)
-        if not done:
-            raise MemoryLimitError("slip-weakening: out of memory for the inverse after a "
-                                   "burst")
-        self.neg = int(np.count_nonzero(weak))  # the landing's B is positive definite
+        self._rephase(old, weak, res)
         self.discontinuous = True
         self.failed_inside = [(EventKind.slip(s), int(self.b.sites[i]), F)
                               for i, s, F in land.failures]
         self._retrack()
+
+    def _rephase(self, old: np.ndarray, weak: np.ndarray, res: np.ndarray) -> None:
+        r"""The inverse of :math:`M` after a landing: updated bond by bond (a shift of the
+        diagonal for a bond that starts or stops weakening, a removal for one that becomes
+        residual, a bordering for one that stops being residual) when few bonds changed, else
+        factorised afresh. The landing is stable, so :math:`M` must have one negative
+        eigenvalue per weakening bond: the updates' pivots must say so."""
+        shift = np.where(weak, -1.0 / np.where(weak, self.k, 1.0), 0.0)
+        changed = np.flatnonzero(self.phase != old)
+        inv = self.inv
+        if changed.size <= max(8, int(inv.live.sum()) // 8):
+            for p in changed:
+                a, b = old[p], self.phase[p]
+                if b == RESIDUAL:
+                    if not inv.remove(p):
+                        break
+                    self.neg -= inv.pivot < 0
+                elif a == RESIDUAL:
+                    self.dshift[p] = shift[p]
+                    if not inv.add(np.array([p])):
+                        break
+                    self.neg += inv.pivot < 0
+                else:
+                    delta = shift[p] - self.dshift[p]
+                    if inv.shift(p, delta) is None:
+                        break
+                    if inv.pivot < 0:
+                        self.neg += 1 if delta < 0 else -1
+                self.dshift[p] = shift[p]
+            else:
+                if self.stable():
+                    return
+        self.dshift[:] = shift
+        if not inv.factor(np.flatnonzero(~res), positive=False):
+            raise MemoryLimitError("slip-weakening: out of memory for the inverse after a "
+                                   "burst")
+        self.neg = int(np.count_nonzero(weak))  # the landing is stable
 
     def _slip(self, p: int, D: float) -> float:
         """The slip :math:`s = D - u` of bond ``p`` at ``D``."""

@@ -1,0 +1,345 @@
+r"""A burst's landing as the least equilibrium above its start, followed on straight steps
+(docs/theory/pull.rst#slip-weakening).
+
+With the slip :math:`y_i \ge 0` of each bond since the fold, along its direction
+:math:`\sigma_i`, the excess of every bond over its strength is
+
+.. math:: F_i(y) = \sigma_i f_i - \lambda(\delta_i + y_i) f_{z,i}, \qquad
+          f = f^0 - K \Sigma y,
+
+with :math:`K = G_{xx}^{-1}` on all bonds. The overdamped slip rate of module
+:mod:`~roughslip.friction.relax` is :math:`\dot y = \max(F(y), 0)/\eta`: every bond's slip only
+grows, and a bond moves while its excess is positive. When :math:`-\Sigma K \Sigma` is
+nonnegative off its diagonal (a *cooperative* system: a slip anywhere only raises the force on
+the other bonds), the comparison theorem for such flows gives, for any positive mobilities,
+the least equilibrium above the start: the least :math:`y \ge 0` with :math:`F(y) \le 0`
+(Middleton's no-passing rule of driven elastic media). Every path that grows :math:`y` only
+where the excess is not negative stays below it, and one that ends at an equilibrium ends
+there. This module follows such a path on straight steps, each to its first event:
+
+* **stable** (:math:`B = \Sigma K_{PP}\Sigma - \mathrm{diag}(\kappa_P f_{z,P})` positive
+  definite on the moving set :math:`P`): the Newton step :math:`d = B^{-1} F_P`, along which
+  every moving excess falls linearly to zero: the landing, unless an event comes first;
+* **one bond alone**, when it softens faster than its own stiffness (:math:`B_{qq} < 0`) and
+  its slip lowers no moving bond's excess that is at 0: :math:`d = e_q`, no solve;
+* **unstable** otherwise, any :math:`d \ge 0` with :math:`B d \le 0`, so that no moving
+  excess falls: the bond :math:`p` with :math:`(B^{-1})_{pp} < 0` driven while the others hold
+  their excess, :math:`d = B^{-1} e_p / (B^{-1})_{pp}`; else :math:`d = -B^{-1} x` from the
+  last step :math:`x \ge 0` (a step of inverse iteration towards the unstable eigenvector);
+  else that eigenvector itself (Lanczos). In a cooperative system the last is nonnegative.
+
+Events: a weakening bond reaches :math:`d_c` (a positive shift of :math:`B`'s diagonal), a
+stuck bond reaches its strength (it joins :math:`P`: :math:`B` is bordered), and, on a step of
+one bond, a moving bond's excess falls to 0. :math:`B^{-1}` is updated, not recomputed
+(:class:`~roughslip.linalg.inverse.UpdatableInverse`), and the pivot of each update says how
+its inertia changed; steps of one bond leave it stale until a collective step needs it, and it
+is refactorised from the part known to be definite, bordered by the bonds that joined since.
+
+The pixel kernel's inverse is not exactly cooperative: bonds two pixels apart along a row or a
+column, with a bond in contact between them, couple with the wrong sign, by up to a few
+thousandths of the diagonal. The flow can then differ from the least equilibrium only if those
+couplings stop a moving bond or set off a transient failure. :func:`land` returns None, and the
+caller follows the flow, whenever no step keeps every slip from going back; the tests compare
+both on every burst of rough scenes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import linalg
+from scipy.sparse.linalg import eigsh
+
+from roughslip.errors import NumericalError
+from roughslip.friction.relax import Landing, Relaxation
+from roughslip.linalg.inverse import UpdatableInverse
+
+#: the order from which the unstable eigenvector is found by Lanczos iteration
+LANCZOS_MIN = 200
+#: the self-unstable bonds tried, in order, for a step of one bond alone
+SOLO_TRIES = 8
+
+
+class _Ascent:
+    """The state of the path: slips, forces, the moving set, its softening, and the inverse
+    of B on it (refreshed only when a step needs it)."""
+
+    def __init__(self, rx: Relaxation, f: np.ndarray, delta: np.ndarray, sigma: np.ndarray,
+                 moving: np.ndarray) -> None:
+        self.rx = rx
+        n = f.size
+        sg = np.where(moving, sigma, np.sign(f))
+        self.sg = np.where(sg == 0, 1.0, sg)
+        self.f, self.d0 = f.copy(), delta
+        self.y = np.zeros(n)
+        self.P = moving.copy()
+        self.free = (rx.lam_d == 0) & (delta >= rx.dc)  # zero strength: slips either way
+        self.kap = (rx.lam_s - rx.lam_d) / rx.dc * rx.fz
+        self.kt = np.where(moving & (delta < rx.dc), self.kap, 0.0)  # softening on P
+        self.diagK = np.diagonal(rx.K).copy()
+        self.inv = UpdatableInverse(self._entries, n, room=lambda m: True, definite=False)
+        self.fresh = False  # whether the inverse and neg describe the current B
+        #: bonds joined since B was last known positive definite on the rest of the moving
+        #: set (ok), in order: a factorisation bordered by them gives the inertia cheaply
+        self.pending: list[int] = []
+        self.ok = True
+        self.neg = 0  # negative eigenvalues of B
+        self.driver = -1
+        self.v0: np.ndarray | None = None  # the last unstable eigenvector (rows)
+        self.last: np.ndarray | None = None  # the last collective step (per bond)
+        #: excess below which a moving bond counts as at its strength
+        self.tiny = 1e-12 * rx.lam_s * rx.fs
+
+    def _entries(self, i: np.ndarray, j: np.ndarray, order: str) -> np.ndarray:
+        sg = self.sg
+        A = sg[i][:, None] * self.rx.K[np.ix_(i, j)] * sg[j][None, :]
+        if np.array_equal(i, j):
+            A[np.diag_indices(i.size)] -= self.kt[i]
+        return np.asarray(A, order=order)
+
+    def delta(self) -> np.ndarray:
+        return self.d0 + np.where(self.free, 0.0, self.y)
+
+    def excess(self) -> np.ndarray:
+        rx = self.rx
+        return self.sg * self.f - rx.strength(self.delta()) * rx.fz
+
+    # -- the inverse of B ---------------------------------------------------------------------
+    def refresh(self) -> bool:
+        """The inverse of B on the moving set afresh, and its inertia: a Cholesky
+        factorisation of the part known to be positive definite, bordered by the bonds
+        joined since (each pivot's sign counts); else an LU inverse and the inertia of an
+        LDL^T factorisation."""
+        base = self.P.copy()
+        base[self.pending] = False
+        self.neg, self.driver = 0, -1
+        try:
+            if not self.ok or not base.any():
+                raise NumericalError("no positive definite part")
+            self.inv.factor(np.flatnonzero(base), positive=True)
+            for q in self.pending:
+                if not self.inv.add(np.array([q])):
+                    raise NumericalError("a singular bordering")
+                if self.inv.pivot < 0:
+                    self.neg, self.driver = self.neg + 1, q
+        except NumericalError:
+            ids = np.flatnonzero(self.P)
+            _, D, _ = linalg.ldl(self._entries(ids, ids, "C"), check_finite=False)
+            self.neg = _negative(D)
+            try:
+                self.inv.factor(ids, positive=False)
+            except NumericalError:
+                return False
+            self.ok = False
+        self.fresh = True
+        self._definite()
+        return True
+
+    def _definite(self) -> None:
+        if self.neg == 0:  # positive definite on all of the moving set
+            self.ok, self.pending = True, []
+
+    def follow(self, kind: str, i: int, k: float) -> bool:
+        """Update a fresh inverse for an event of bond ``i``: its softening ``k`` ends
+        (``"dc"``), or it joins (``"join"``); the pivot says how the inertia changed."""
+        if kind == "join":  # a rise of the diagonal keeps a definite part definite
+            self.pending.append(i)
+        if not self.fresh:
+            return True
+        inv = self.inv
+        if kind == "dc":
+            if inv.shift(i, k) is None:
+                return False
+            self.neg -= inv.pivot < 0
+        else:
+            if not inv.add(np.array([i])):
+                return False
+            if inv.pivot < 0:
+                self.neg += 1
+                self.driver = i
+        if inv.k >= inv.block:
+            inv.flush()
+        self._definite()
+        return True
+
+    # -- directions ---------------------------------------------------------------------------
+    def solo(self, F: np.ndarray) -> int:
+        """A bond that can slip alone (module docstring): it softens faster than its own
+        stiffness, so its excess grows, and its slip lowers no moving bond's excess that is at
+        0. -1: none (of the first SOLO_TRIES)."""
+        cand = np.flatnonzero(self.P & ~self.free & (self.kt > self.diagK))
+        for q in cand[:SOLO_TRIES]:
+            q = int(q)
+            rate = -self.sg * self.rx.K[:, q] * self.sg[q]  # of the excess, per unit slip of q
+            held = self.P & ~self.free & (F <= self.tiny)
+            held[q] = False
+            if not np.any(held & (rate < 0)):
+                return q
+        return -1
+
+    def direction(self, F: np.ndarray) -> np.ndarray | None:
+        """A collective step on the rows of the inverse (module docstring), or None when no
+        candidate keeps every slip from going back."""
+        inv = self.inv
+        if self.neg == 0:
+            return self._forward(inv.apply(F[inv.ids]))
+        # unstable: drive one bond, the others held at their excess (the last to lose
+        # stability, then the most negative diagonal entry of the inverse), else the
+        # unstable eigenvector
+        diag = np.where(inv.live, inv.diagonal(), math.inf)
+        first = int(inv.row[self.driver]) if self.driver >= 0 else -1
+        for r in dict.fromkeys((first, int(np.argmin(diag)))):
+            if r >= 0 and diag[r] < 0:
+                d = self._forward(inv.column(r) / diag[r])
+                if d is not None:
+                    self.driver = int(inv.ids[r])
+                    return d
+        # the last step's direction x: d = -B^-1 x has B d = -x <= 0, as wanted if d >= 0
+        # (one step of inverse iteration towards the unstable eigenvector)
+        if self.last is not None:
+            x = np.where(inv.live, self.last[inv.ids], 0.0)
+            d = self._forward(-inv.apply(x))
+            if d is not None and np.any(d > 0):
+                return d
+        rows = np.flatnonzero(inv.live)
+        mu, v = self._lowest(self._entries(inv.ids[rows], inv.ids[rows], "C"))
+        if not mu < 0:
+            return None
+        d = np.zeros(inv.m)
+        d[rows] = v * np.sign(v.sum())
+        return self._forward(d)
+
+    def _lowest(self, B: np.ndarray) -> tuple[float, np.ndarray]:
+        """The lowest eigenpair of ``B`` (Lanczos from the last one's vector on large
+        sets)."""
+        m = B.shape[0]
+        if m <= LANCZOS_MIN:
+            mu, v = linalg.eigh(B, subset_by_index=[0, 0], check_finite=False)
+            return float(mu[0]), v[:, 0]
+        v0 = np.full(m, 1e-3)
+        if self.v0 is not None:  # the last one, on the rows it had
+            v0[: min(m, self.v0.size)] += self.v0[:m]
+        mu, v = eigsh(B, k=1, which="SA", v0=v0, tol=1e-14)
+        self.v0 = np.abs(v[:, 0])
+        return float(mu[0]), v[:, 0]
+
+    def _forward(self, d: np.ndarray) -> np.ndarray | None:
+        """``d`` with rounding-level negative entries cleared, or None when a bond of nonzero
+        strength would slip back."""
+        free = self.free[self.inv.ids]
+        back = (d < 0) & ~free
+        if back.any() and float(-d[back].min()) > 1e-12 * float(np.abs(d).max()):
+            return None
+        return np.where(free, d, np.maximum(d, 0.0))
+
+
+def _negative(D: np.ndarray) -> int:
+    """Negative eigenvalues of the block diagonal D of an LDL^T factorisation."""
+    n, i, neg = D.shape[0], 0, 0
+    while i < n:
+        if i + 1 < n and D[i + 1, i] != 0.0:
+            a, b, c = D[i, i], D[i + 1, i], D[i + 1, i + 1]
+            det = a * c - b * b
+            neg += 1 if det < 0 else (2 if a + c < 0 else 0)
+            i += 2
+        else:
+            neg += D[i, i] < 0
+            i += 1
+    return neg
+
+
+def land(rx: Relaxation, f: np.ndarray, w: np.ndarray, delta: np.ndarray, sigma: np.ndarray,
+         moving: np.ndarray, failing: int, best: float | None = None) -> Landing | None:
+    r"""The least equilibrium above the fold (module docstring): ``f`` the forces, ``w`` the
+    slips, ``delta`` the accumulated slips, ``sigma`` the directions (nonzero on ``moving``),
+    ``moving`` the bonds that slip at the fold, ``failing`` the one among them whose failure
+    set the burst off (the others are stable: B is positive definite on them).
+
+    ``best``: as in :meth:`Relaxation.run`, stop at the start of a step where the sum of the
+    strengths is at most ``best``. Returns None when the path cannot be followed on monotone
+    steps (module docstring): the caller follows the flow instead."""
+    a = _Ascent(rx, f, delta, sigma, moving)
+    a.pending = [int(failing)]
+    st = Landing(f.copy(), w.copy(), delta.copy(), np.where(moving, sigma, 0.0), moving.copy())
+    K, n = rx.K, f.size
+    st.peak = float(f.sum())
+    for step in range(8 * n + 8):
+        st.pieces = step + 1
+        dl = a.delta()
+        if best is not None and float((rx.strength(dl) * rx.fz).sum()) <= best:
+            st.stopped = True
+            return st
+        F = a.excess()
+        q = a.solo(F)
+        if q >= 0:  # one bond alone: the inverse no longer describes B
+            ids, d_rows, stable, a.fresh = np.array([q]), np.ones(1), False, False
+        else:
+            if not a.fresh and not a.refresh():
+                return None
+            d_rows = a.direction(F)
+            if d_rows is None:
+                return None
+            ids, stable = a.inv.ids, a.neg == 0
+            a.last = np.zeros(n)
+            a.last[ids] = d_rows / max(float(np.abs(d_rows).max()), np.finfo(float).tiny)
+        d = np.zeros(n)
+        d[ids] = d_rows
+        if ids.size == 1:  # forces per unit step
+            df = -K[:, ids[0]] * (a.sg[ids[0]] * d_rows[0])
+        else:
+            df = -(K @ (a.sg * d))
+        rate = a.sg * df + np.where(a.P & ~a.free, a.kt * d, 0.0)  # of the excess
+        t, kind, which = (1.0 if stable else math.inf), "land", -1
+        weak = a.P & (a.kt > 0) & (d > 0)
+        if weak.any():
+            tw = np.full(n, math.inf)
+            tw[weak] = (rx.dc - dl[weak]) / d[weak]
+            j = int(np.argmin(tw))
+            if tw[j] < t:
+                t, kind, which = max(float(tw[j]), 0.0), "dc", j
+        up = ~a.P & (rate > 0)
+        if up.any():
+            tj = np.full(n, math.inf)
+            tj[up] = -F[up] / rate[up]
+            j = int(np.argmin(tj))
+            if tj[j] < t:
+                t, kind, which = max(float(tj[j]), 0.0), "join", j
+        if q >= 0:  # a moving bond's excess falling to 0 ends a step of one bond
+            down = a.P & ~a.free & (rate < 0) & (F > a.tiny)
+            if down.any():
+                td = np.full(n, math.inf)
+                td[down] = F[down] / -rate[down]
+                j = int(np.argmin(td))
+                if td[j] < t:
+                    t, kind, which = float(td[j]), "held", j
+        if not math.isfinite(t):
+            return None
+        a.y += t * d
+        a.f += t * df
+        st.peak = max(st.peak, float(a.f.sum()))
+        Q = ~a.P
+        if np.any(-a.sg[Q] * a.f[Q] > rx.strength(a.d0[Q]) * rx.fz[Q]):
+            return None  # a stuck bond would fail backwards
+        if kind == "land":
+            break
+        if kind == "dc":
+            a.y[which] = rx.dc - a.d0[which]  # exactly at d_c
+            k = a.kt[which]
+            a.kt[which] = 0.0
+            if not a.follow("dc", which, k):
+                return None
+        elif kind == "join":
+            a.P[which] = True
+            a.kt[which] = a.kap[which] if a.d0[which] < rx.dc else 0.0
+            st.failures.append((which, float(a.sg[which]), float(a.f.sum())))
+            if not a.follow("join", which, 0.0):
+                return None
+    else:
+        return None
+    st.moving = a.P.copy()
+    st.sigma = np.where(a.P, a.sg, 0.0)
+    st.w = w + a.sg * a.y
+    st.delta = a.delta()
+    st.f = a.f
+    return st
