@@ -1,7 +1,7 @@
 """The report's rough-surface study (H = 0.8) under slip-weakening, beside the break law.
 
     python scripts/weakening_rough.py [--out runs/weakening] [--workers 2] [--samples 20]
-        [--slip-distances 0.01 0.05] [--lam-dynamic 0.1]
+        [--slip-distances 0.01 0.05] [--lam-dynamic 0.1] [--scenes 0 1 2]
 
 configs/rough_h08.toml (E = 1, nu = 0.3, rms height 1, pixel 1 = the short-wavelength
 cut-off, lambda_s = 0.2, 10 depths 0.1-2 rms from first touch). For the break law and for
@@ -51,6 +51,9 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=20)
     ap.add_argument("--slip-distances", type=float, nargs="+", default=[0.01, 0.05])
     ap.add_argument("--lam-dynamic", type=float, default=0.1)
+    ap.add_argument("--scenes", type=int, nargs="+", default=[0, 1, 2],
+                    help="which scenes (0: N = 128 at pixel 1, 1: N = 64 on the patch, "
+                         "2: N = 128 at pixel 0.5 on the patch)")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     lam = 0.2
@@ -69,7 +72,7 @@ def main() -> None:
     print("| scene | law | alpha (F_f ~ F_n^alpha) | +-bootstrap | F_f/(lam_s F_n) at "
           "depths 1, 5, 10 (+- s.e.) | seconds |")
     print("|---|---|---|---|---|---|")
-    for scene, sets in scenes:
+    for scene, sets in (scenes[i] for i in args.scenes):
         for law, extra in laws:
             cfg = load_config(ROOT / "configs" / "rough_h08.toml", sets + extra)
             p = args.out / f"{scene.split(' (')[0].replace(', ', '_').replace('=', '')}_" \

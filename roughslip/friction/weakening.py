@@ -77,6 +77,7 @@ from roughslip.friction.events import (
 from roughslip.friction.relax import Landing, Relaxation
 from roughslip.friction.result import PullResult
 from roughslip.friction.sliding import FollowEvents, TangentialState
+from roughslip.linalg import lapack64
 from roughslip.linalg.inverse import Tracked, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 
@@ -435,16 +436,24 @@ class WeakeningState(TangentialState):
     # -- bursts ----------------------------------------------------------------------------
     def _relaxation(self) -> Relaxation:
         """The fast-time flow of a burst, on :math:`K = G_{xx}^{-1}` over all bonds (made at
-        the first burst; the memory guard counts it)."""
+        the first burst). The memory guard counts it and the inverse of B on the moving
+        bonds, at most as large (:mod:`~roughslip.friction.least`)."""
         if self._relax is None:
             n = self.b.n
-            if inverse_bytes(n) > available_bytes():
+            need = 2 * inverse_bytes(n)
+            if need > available_bytes():
                 raise MemoryLimitError(
-                    f"slip-weakening: a burst needs G_xx^-1 on all {n} bonds, "
-                    f"~{inverse_bytes(n) / 2**30:.2f} GiB, but "
+                    f"slip-weakening: a burst needs G_xx^-1 on all {n} bonds and an inverse "
+                    f"on the moving ones, ~{need / 2**30:.2f} GiB, but "
                     f"{available_bytes() / 2**30:.2f} GiB are available")
-            K = np.linalg.inv(self.b.dense())
-            self._relax = Relaxation(0.5 * (K + K.T), self.fz, self.lam_s, self.lam_d, self.dc)
+            K = np.asfortranarray(self.b.dense())
+            lapack64.cholesky_inverse(K)  # G_xx is positive definite: its lower triangle
+            for j in range(0, n, 512):  # mirrored, a panel at a time
+                K[j:j + 512, j + 512:] = K[j + 512:, j:j + 512].T
+                blk = K[j:j + 512, j:j + 512]
+                upper = np.triu_indices(blk.shape[0], 1)
+                blk[upper] = blk.T[upper]
+            self._relax = Relaxation(K, self.fz, self.lam_s, self.lam_d, self.dc)
         return self._relax
 
     def _burst(self, D: float, p: int, s: float) -> None:
