@@ -447,12 +447,7 @@ class WeakeningState(TangentialState):
                     f"on the moving ones, ~{need / 2**30:.2f} GiB, but "
                     f"{available_bytes() / 2**30:.2f} GiB are available")
             K = np.asfortranarray(self.b.dense())
-            lapack64.cholesky_inverse(K)  # G_xx is positive definite: its lower triangle
-            for j in range(0, n, 512):  # mirrored, a panel at a time
-                K[j:j + 512, j + 512:] = K[j + 512:, j:j + 512].T
-                blk = K[j:j + 512, j:j + 512]
-                upper = np.triu_indices(blk.shape[0], 1)
-                blk[upper] = blk.T[upper]
+            lapack64.mirror_lower(lapack64.cholesky_inverse(K))  # G_xx is positive definite
             self._relax = Relaxation(K, self.fz, self.lam_s, self.lam_d, self.dc)
         return self._relax
 

@@ -358,11 +358,7 @@ class UpdatableInverse:
         finally:
             self.blas_seconds += time.perf_counter() - t0
         if positive and not self.lower:
-            n, b = A.shape[0], 512
-            for j in range(0, n, b):  # mirror the lower triangle, a panel at a time
-                A[j:j + b, j + b:] = A[j + b:, j:j + b].T
-                blk = A[j:j + b, j:j + b]
-                blk[np.triu_indices(blk.shape[0], 1)] = blk.T[np.triu_indices(blk.shape[0], 1)]
+            lapack64.mirror_lower(A)
         self._adopt(A, ids.size, ids)
         self.tracked = {}
         self.factorisations += 1

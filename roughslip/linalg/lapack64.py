@@ -130,6 +130,18 @@ def cholesky_inverse(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def mirror_lower(a: np.ndarray, block: int = 512) -> np.ndarray:
+    """Copy the lower triangle of square ``a`` onto its upper one (in place), a panel of
+    ``block`` columns at a time, so that no index array of the whole matrix is made."""
+    n = a.shape[0]
+    for j in range(0, n, block):
+        a[j:j + block, j + block:] = a[j + block:, j:j + block].T
+        blk = a[j:j + block, j:j + block]
+        upper = np.triu_indices(blk.shape[0], 1)
+        blk[upper] = blk.T[upper]
+    return a
+
+
 def _sweeps(n: int, dtype: np.dtype) -> bool:
     """Whether :func:`cholesky_inverse` of order ``n`` takes the block sweep."""
     return n > SWEEP_MIN_N and _lib(dtype) is not None
