@@ -86,7 +86,6 @@ class _Ascent:
         self.ok = True
         self.neg = 0  # negative eigenvalues of B
         self.driver = -1
-        self.v0: np.ndarray | None = None  # the last unstable eigenvector (rows)
         self.last: np.ndarray | None = None  # the last collective step (per bond)
         #: excess below which a moving bond counts as at its strength
         self.tiny = 1e-12 * rx.lam_s * rx.fs
@@ -211,17 +210,16 @@ class _Ascent:
         return self._forward(d)
 
     def _lowest(self, B: np.ndarray) -> tuple[float, np.ndarray]:
-        """The lowest eigenpair of ``B`` (Lanczos from the last one's vector on large
-        sets)."""
+        """The lowest eigenpair of ``B`` on the live rows (Lanczos on large sets, from the
+        last collective step)."""
         m = B.shape[0]
         if m <= LANCZOS_MIN:
             mu, v = linalg.eigh(B, subset_by_index=[0, 0], check_finite=False)
             return float(mu[0]), v[:, 0]
         v0 = np.full(m, 1e-3)
-        if self.v0 is not None:  # the last one, on the rows it had
-            v0[: min(m, self.v0.size)] += self.v0[:m]
+        if self.last is not None:
+            v0 += self.last[self.inv.ids[self.inv.live]]
         mu, v = eigsh(B, k=1, which="SA", v0=v0, tol=1e-14)
-        self.v0 = np.abs(v[:, 0])
         return float(mu[0]), v[:, 0]
 
     def _forward(self, d: np.ndarray) -> np.ndarray | None:

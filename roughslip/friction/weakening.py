@@ -112,7 +112,6 @@ class WeakeningState(TangentialState):
         self.fR = np.zeros(n)  # forces of residual bonds
         self.neg = 0  # negative eigenvalues of M
         self.snaps = 0  # bonds that reached their residual strength inside bursts
-        self.flows = 0  # bursts followed on the flow (module roughslip.friction.least)
         self.discontinuous = False  # the last event was a burst
         self._relax: Relaxation | None = None
         self.failed_inside: list[tuple[str, int, float]] = []
@@ -458,14 +457,10 @@ class WeakeningState(TangentialState):
         relax = self._relaxation()
         b = self.b
         f = self.forces(D)
-        phi, _, ids, live = self._rows()
-        dfdD = np.zeros(b.n)
-        dfdD[ids[live]] = phi[live]
-        # slips and their rates, w = D - u and dw/dD = 1 - G df/dD (stick bonds: as they are)
-        u, du = (b.apply(b.field(v), np.empty(b.shape)).ravel()[b.sites] for v in (f, dfdD))
+        # slips, w = D - u (stick bonds: as they are)
+        u = b.apply(b.field(f), np.empty(b.shape)).ravel()[b.sites]
         stick = self.phase == STICK
         w = np.where(stick, self.s0, D - u)
-        rate = np.where(stick, 0.0, 1.0 - du)
         delta = self.delta.copy()
         W = self.phase == WEAK
         delta[W] += self.sigma[W, X] * (w[W] - self.s0[W])
@@ -473,11 +468,16 @@ class WeakeningState(TangentialState):
         delta[R] = np.maximum(delta[R], self.dc)
         moving = ~stick
         sigma = self.sigma[:, X].copy()
-        moving[p], sigma[p], rate[p] = True, s, 0.0
+        moving[p], sigma[p] = True, s
         best = self.best if self.opt.early_stop else None
         land = least.land(relax, f, w, delta, sigma, moving, p, best=best)
-        if land is None:  # not on monotone steps: the flow itself
-            self.flows += 1
+        if land is None:  # not on monotone steps: the flow itself, from the slip rates
+            phi, _, ids, live = self._rows()  # dw/dD = 1 - G df/dD
+            dfdD = np.zeros(b.n)
+            dfdD[ids[live]] = phi[live]
+            du = b.apply(b.field(dfdD), np.empty(b.shape)).ravel()[b.sites]
+            rate = np.where(stick, 0.0, 1.0 - du)
+            rate[p] = 0.0
             land = relax.run(f, w, delta, sigma, moving, rate, limit=20 * b.n + 100, best=best)
         if land.stopped:  # no state after this point can exceed the best: stop here
             self.stopped = True
