@@ -242,7 +242,8 @@ def test_a_signal_stops_the_run_in_one_line_and_the_resume_gives_the_same_number
                                "kept; continue with: roughslip run ")
     assert wait_gone(proc.pid, ORPHAN_DEADLINE) == []
     assert not lock_path(out).exists()
-    assert read_run(out).n_complete == 1
+    # the manager stops after its first sample; a second worker may still finish one
+    assert 1 <= read_run(out).n_complete <= workers
     command = shlex.split(lines[0].split("continue with: ", 1)[1])
     assert command[:2] == ["roughslip", "run"] and command[-1] == "--resume"
     r = CliRunner().invoke(cli, command[1:])
