@@ -209,7 +209,7 @@ def test_bad_parameters_get_one_line_errors(hertz8):
         _weak(hertz8, 0.1, 0.0)
     with pytest.raises(InputError, match=r"lam_dynamic = 0\.1: slip_law = 'break' has no such"):
         pull(hertz8, lam=LAM, lam_dynamic=0.1)
-    with pytest.raises(InputError, match="the coupled model has no exact path"):
+    with pytest.raises(InputError, match="lam_dynamic: slip_law = 'slip-weakening' needs"):
         couple(hertz8.problem, depth=0.01, lam=LAM, slip_law="slip-weakening")
 
 

@@ -135,6 +135,21 @@ class BlockSolver(Protocol):
         return certified_slip_solves(self, rhs, C, S, P, w,
                                      lambda *a: free_slip_solve(self, C, S, *a))
 
+    def unit_responses(self, sites: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The forces (f_z, f_x), flat grids as rows, of the block's solution for a unit
+        right-hand side on the f_x unknown of each of ``sites`` (stick sites): the response
+        to a unit tangential displacement of one bond. The default solves them
+        (:meth:`solve_many`, certified)."""
+        shape = self.problem.shape
+        zero = np.zeros(shape)
+        rhs = []
+        for j in sites:
+            e = np.zeros(shape)
+            e.ravel()[j] = 1.0
+            rhs.append((zero, e, f"unit {int(j)}"))
+        out = self.solve_many(rhs)
+        return (np.array([o[0].ravel() for o in out]), np.array([o[1].ravel() for o in out]))
+
     def residual(self) -> float:
         """The worst relative residual of the solves so far."""
 
@@ -587,6 +602,24 @@ class DenseBlockSolver(BlockSolver):
             for j, k in enumerate(todo):
                 xs[k] = np.ascontiguousarray(X[:, j])
         return bs, xs
+
+    def unit_responses(self, sites: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`BlockSolver.unit_responses`: the columns of the inverse, uncertified (the
+        caller certifies the forces it combines from them against the FFT operator)."""
+        if not self.dense:
+            return BlockSolver.unit_responses(self, sites)
+        inv = self.inverse
+        layout = self._layout()
+        n = self.ny * self.nx
+        fz, fx = np.zeros((len(sites), n)), np.zeros((len(sites), n))
+        rows = inv.row[COMPONENTS.unknowns(np.asarray(sites, dtype=np.int64), "x")]
+        if np.any(rows < 0):
+            raise NumericalError("unit response of a site with no f_x unknown (internal error)")
+        for k, r in enumerate(rows):
+            c = inv.column(int(r))
+            fz[k, layout.z_sites] = c[layout.z_rows]
+            fx[k, layout.x_sites] = c[layout.x_rows]
+        return fz, fx
 
     def apply_inverse(self, rz: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(f_z, f_x) = the current inverse times the right-hand side, uncertified (the inner

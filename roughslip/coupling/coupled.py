@@ -75,6 +75,7 @@ from roughslip.friction.events import (  # noqa: F401  (TIE, RATE_TIE: public he
     X,
     follow_events,
 )
+from roughslip.friction.laws import LAWS
 from roughslip.friction.pull import check_friction
 from roughslip.friction.result import CoupledDetails, PullResult, PullState, renamed
 from roughslip.linalg.threads import blas_threads
@@ -145,6 +146,8 @@ def couple(
     record_states: bool = False,
     squeeze_method: str = "pk",
     history: str = "bonded",
+    lam_dynamic: float | None = None,
+    slip_distance: float | None = None,
 ) -> PullResult:
     r"""Squeeze a problem with bonded contacts and pull it with the coupled model until every
     bond has broken (module docstring; [Report2003] §6.1 with errata T25 and T26).
@@ -172,11 +175,14 @@ def couple(
         a new bond that holds the elastic point where it is when the gap closes (so no force
         jumps) and fails by the same law. Contacts gained while the squeeze corrects its
         sets, at :math:`D_x = 0`, always enter unbonded.
-    slip_law : {"break", "coulomb"}
+    slip_law : {"break", "coulomb", "slip-weakening"}
         What a bond carries once :math:`|f_x|` reaches :math:`\lambda f_z`: nothing
         (``"break"``, the report's law), or :math:`f_x = \pm\lambda f_z` in the direction
         of its force, following :math:`f_z` as it changes (``"coulomb"``; a slipping bond
-        whose slip the pull would turn around sticks again where it is, event ``"stick"``).
+        whose slip the pull would turn around sticks again where it is, event ``"stick"``),
+        or its strength :math:`\lambda(\delta) f_z` falling with its slip
+        (``"slip-weakening"``, :mod:`roughslip.coupling.weakening`: a certified
+        path-follower; the pull runs until every bond is at its residual strength).
     method : str
         ``"auto"`` or a name from :data:`SOLVERS`. The dense solver checks the memory of
         its inverse (:func:`dense_memory_bytes`) before each factorisation: ``dense``
@@ -202,6 +208,8 @@ def couple(
         at once, repeatedly), ``"indent"`` (the frictional indentation from first touch) or
         ``"frictionless"`` (the frictionless squeeze, then bonded where it is);
         docs/theory/coupled.rst#squeeze-histories.
+    lam_dynamic, slip_distance : float, optional
+        The slip-weakening law's :math:`\lambda_d` and :math:`d_c` (that law only).
 
     Returns
     -------
@@ -212,6 +220,8 @@ def couple(
     """
     t0 = time.perf_counter()
     _check_couple(problem, depth, force, lam, pull_control, gained, slip_law, squeeze_method)
+    law = LAWS.get(slip_law, "slip_law").bind(lam, lam_dynamic=lam_dynamic,
+                                                slip_distance=slip_distance)
     run_history = HISTORIES.get(history, "history")
     depth = None if depth is None else finite(depth, "depth")
     force = None if force is None else finite(force, "force")
@@ -231,6 +241,9 @@ def couple(
     solver, method = make_solver(problem, method, reference, tol, max_iter)
     limit = _event_limit(max_events, geo)
     setup.limit = limit
+    if law.lands:
+        return _couple_weakening(problem, solver, setup, law, history, pull_control, gained,
+                                 t0)
     with blas_threads(1):  # the dense solver raises it for its BLAS-3 work
         try:
             sq = run_history(problem, solver, setup)
@@ -265,6 +278,49 @@ def couple(
             squeeze_states=sq.states, squeeze_seconds=t_squeeze,
             blas_seconds=solver.blas_seconds, fallback=solver.fallback,
             slip_iterations=solver.slip_iterations, states=path.states))
+
+
+def _couple_weakening(problem: Problem, solver: BlockSolver, setup: Setup, law, history: str,
+                      pull_control: str, gained: str, t0: float) -> PullResult:
+    """:func:`couple` under slip-weakening (:mod:`roughslip.coupling.weakening`)."""
+    from roughslip.coupling.weakening import Weakening, squeeze_weakening
+
+    HISTORIES.get(history, "history")
+    w = Weakening(float(law.lam), float(law.lam_dynamic), float(law.slip_distance))
+    with blas_threads(1):
+        try:
+            sq = squeeze_weakening(problem, solver, setup, w, history)
+            wc = sq.state
+            if pull_control == "depth" and wc.force is not None:
+                wc.depth, wc.force = wc.depth_now(), None
+            elif pull_control == "force" and wc.force is None:
+                wc.depth, wc.force = None, wc.totals()[1]
+            wc.gained = gained
+            wc.relinearize()
+            start = wc.snapshot()
+            squeezed_depth = wc.depth_now()
+            t_squeeze = time.perf_counter() - t0
+            path = wc.run(setup.limit)
+        except NumericalError as exc:
+            raise NumericalError(f"coupled model: {exc}") from None
+    peak = path.peak
+    _check_finite("coupled model", fz=start.fz, fx=start.fx, **{"fz at peak": peak.fz})
+    residual = max(wc.worst, solver.residual())
+    message = path.message or (f"{len(path.events)} events, {wc.bursts} burst(s), "
+                               f"{wc.steps} certified steps")
+    return PullResult(
+        friction_force=float(peak.fx_total), normal_force_at_peak=float(peak.fz_total),
+        normal_force=float(start.fz_total), curve=Curve.of(path.events),
+        peak_event=path.peak_event, peak=PullState(peak.fz, peak.fx, peak.contact, peak.stick),
+        start=PullState(start.fz, start.fx, start.contact, start.stick),
+        converged=not path.message and residual <= 10 * setup.tol,
+        seconds=time.perf_counter() - t0, method=solver.method, slip_law=law.name,
+        residual=residual, solves=solver.solves, message=message,
+        details=CoupledDetails(
+            contact_area=float(start.contact.sum()) / start.contact.size, released=sq.released,
+            depth=float(squeezed_depth), pull_control=pull_control, history=history,
+            squeeze_states=sq.states, squeeze_seconds=t_squeeze,
+            blas_seconds=solver.blas_seconds, fallback=solver.fallback))
 
 
 def _check_couple(problem: Problem, depth: float | None, force: float | None, lam: float,
@@ -328,6 +384,8 @@ def indent(
     max_events: int | None = None,
     reference: bool = False,
     record_states: bool = False,
+    lam_dynamic: float | None = None,
+    slip_distance: float | None = None,
 ) -> IndentResult:
     r"""Frictional indentation: the rigid surface approaches from first touch to ``depth``,
     with no tangential motion (:math:`D_x = 0`), under the coupled model
@@ -349,9 +407,9 @@ def indent(
         Final penetration :math:`D_z` from first touch.
     lam : float
         Local friction coefficient.
-    slip_law : {"coulomb", "break"}
-    method, tol, max_iter, reference, record_states
-        As in :func:`couple`.
+    slip_law : {"coulomb", "break", "slip-weakening"}
+    method, tol, max_iter, reference, record_states, lam_dynamic, slip_distance
+        As in :func:`couple` (``record_states`` has no effect under slip-weakening).
     max_events : int, optional
         Stop after this many events (default ``20 x overlap sites + 100``).
 
@@ -361,12 +419,16 @@ def indent(
     """
     t0 = time.perf_counter()
     check_friction(lam, slip_law, coupled=True)
+    law = LAWS.get(slip_law, "slip_law").bind(lam, lam_dynamic=lam_dynamic,
+                                                slip_distance=slip_distance)
     depth = problem.check_depth(depth)
     if depth < 0:
         raise InputError(f"depth = {depth:g}: must be >= 0")
     solver, method = make_solver(problem, method, reference, tol, max_iter)
     setup = Setup(float(lam), depth, None, slip_law, tol, "pk",
                   _event_limit(max_events, problem.overlap(depth) > 0))
+    if law.lands:
+        return _indent_weakening(problem, solver, setup, law, t0)
     with blas_threads(1):
         try:
             st, path = indent_to(problem, solver, setup, record_states)
@@ -385,6 +447,37 @@ def indent(
         converged=out.converged,
         seconds=time.perf_counter() - t0, solves=solver.solves, method=out.method,
         residual=out.residual, slip_law=slip_law, message=out.message, states=path.states)
+
+
+def _indent_weakening(problem: Problem, solver: BlockSolver, setup: Setup, law, t0: float
+                      ) -> IndentResult:
+    """:func:`indent` under slip-weakening (:mod:`roughslip.coupling.weakening`)."""
+    from roughslip.coupling.weakening import STICK, Weakening, WeakeningContact
+
+    w = Weakening(float(law.lam), float(law.lam_dynamic), float(law.slip_distance))
+    top = (problem.base >= 0.0).ravel()
+    wc = WeakeningContact(solver, problem, w, top, np.zeros(problem.base.size),
+                          depth=setup.depth, drive="z", gained="bonded", tol=setup.tol)
+    with blas_threads(1):
+        try:
+            path = wc.run(setup.limit, end=("depth", float(setup.depth)))
+        except NumericalError as exc:
+            raise NumericalError(f"coupled indentation: {exc}") from None
+    snap = wc.snapshot()
+    _check_finite("coupled indentation", fz=snap.fz, fx=snap.fx)
+    counts = np.array(path.counts, dtype=np.int64).reshape(-1, 2)
+    moving = wc.Q & (wc.phase != STICK)
+    residual = max(wc.worst, solver.residual())
+    return IndentResult(
+        depth=float(wc.D), normal_force=float(snap.fz_total),
+        tangential_force=float(snap.fx_total), events=path.events,
+        contact_counts=counts[:, 0], stick_counts=counts[:, 1], fz=snap.fz, fx=snap.fx,
+        contact=snap.contact, stick=snap.stick,
+        slip=np.where(moving, wc.sigma, 0.0).reshape(problem.shape).astype(np.int8),
+        converged=not path.message and residual <= 10 * setup.tol,
+        seconds=time.perf_counter() - t0, solves=solver.solves, method=solver.method,
+        residual=residual, slip_law=law.name, message=path.message or
+        f"{len(path.events)} events, {wc.bursts} burst(s), {wc.steps} certified steps")
 
 
 def squeeze_pull_coupled(
@@ -410,6 +503,8 @@ def squeeze_pull_coupled(
     reference: bool = False,
     record_states: bool = False,
     history: str = "bonded",
+    lam_dynamic: float | None = None,
+    slip_distance: float | None = None,
 ) -> PullResult:
     """:func:`couple` on a problem built from plain numbers (or given, ignoring ``a`` ...
     ``threads``)."""
@@ -419,4 +514,4 @@ def squeeze_pull_coupled(
     return couple(problem, depth=depth, force=force, lam=lam, pull_control=pull_control,
                   gained=gained, slip_law=slip_law, method=method, tol=tol, max_iter=max_iter,
                   max_events=max_events, reference=reference, record_states=record_states,
-                  history=history)
+                  history=history, lam_dynamic=lam_dynamic, slip_distance=slip_distance)

@@ -202,8 +202,9 @@ class SlipWeakeningLaw(SlipLaw):
     slips, and its strength falls from :math:`\lambda_s f_z` (``lam``) to
     :math:`\lambda_d f_z` (``lam_dynamic``) over the slip :math:`d_c` (``slip_distance``).
     The break law is its limit :math:`\lambda_d = 0,\ d_c \to 0`; the Coulomb law is
-    :math:`\lambda_d = \lambda_s`. Decoupled only: under coupling its constraint is bilinear
-    (:math:`\lambda(\delta) f_z` with both varying), and no exact path is implemented."""
+    :math:`\lambda_d = \lambda_s`. Under coupling its constraint is bilinear
+    (:math:`\lambda(\delta) f_z` with both varying): the coupled model follows it with a
+    certified path-follower (:mod:`roughslip.coupling.weakening`)."""
 
     params: ClassVar[tuple[str, ...]] = ("lam_dynamic", "slip_distance")
     lam_dynamic: float = math.nan
@@ -237,6 +238,6 @@ LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull
     engine=slide, needs=frozenset({"tracked"})))
 LAWS.register("slip-weakening", "a failed bond slips, its strength falling from lam f_z to "
               "lam_dynamic f_z over the slip slip_distance")(SlipWeakeningLaw(
-    "slip-weakening", failed="slipping", curve="slip events", reverses=True, couples=False,
+    "slip-weakening", failed="slipping", curve="slip events", reverses=True, couples=True,
     lands=True, engine=weaken,
     needs=frozenset({"tracked", "growing", "shifted", "indefinite"})))

@@ -150,7 +150,8 @@ class _CoupledSample:
         try:
             r = couple(pb, **by, lam=cfg.pull.lam, pull_control=cfg.coupling.pull_control,
                        gained=cfg.coupling.gained, history=cfg.coupling.history,
-                       slip_law=cfg.pull.slip_law,
+                       slip_law=cfg.pull.slip_law, lam_dynamic=cfg.pull.lam_dynamic,
+                       slip_distance=cfg.pull.slip_distance,
                        tol=min(cfg.pull.tol, COUPLED_TOL), squeeze_method=cfg.squeeze.method)
         except NumericalError as exc:
             raise NumericalError(f"{where}: {exc}") from None

@@ -1,0 +1,1060 @@
+r"""Linear slip-weakening under coupling: a certified path-follower
+(docs/theory/coupled.rst#coupled-weakening).
+
+Every bond (a contact site that carries a tangential law) holds its elastic point at
+:math:`u_x = D_x + o_i - \sigma_i s_i`, with :math:`s_i \ge 0` its slip in the direction
+:math:`\sigma_i` of its force. A stick bond has its slip fixed; a moving bond (weakening or
+residual) has it free, and carries its strength,
+
+.. math:: \sigma_i f_{x,i} = \lambda(\delta_i) f_{z,i}, \qquad
+          \lambda(\delta) = \lambda_s - (\lambda_s - \lambda_d)\min(\delta/d_c, 1),
+
+with :math:`\delta_i` the slip since it first failed. With the contact set :math:`C` and the
+bonds :math:`Q` fixed, the block of the coupled model on :math:`f_z(C), f_x(Q)` is the SPD
+block of the stick solve, and every force, gap and the depth are affine in the drive
+:math:`D` and the slips :math:`s` of the moving bonds :math:`P`:
+:math:`f = f^0 + D f^1 + \sum_{j \in P} s_j c_j`, with :math:`c_j` the response to a unit slip
+of bond :math:`j`. The law on :math:`P`, :math:`R_i(s, D) = \sigma_i f_{x,i} - \lambda_i f_{z,i}
+= 0`, is then a system of quadratics: :math:`\lambda_i` is affine in :math:`s_i` on a weakening
+bond and :math:`f_{z,i}` affine in :math:`(s, D)`. Between events the state is the curve
+:math:`R = 0` in :math:`(s, D)`.
+
+The curve is followed by pseudo-arclength continuation: a tangent :math:`t_0` at a point
+:math:`x_0` of it, the predictor :math:`p(\tau) = x_0 + \tau t_0` and Newton's corrections on
+:math:`F(x) = (R(x), t_0\cdot(x - x_0) - \tau)`. A step :math:`[0, h]` is accepted only with its
+certificate:
+
+* :math:`F` is quadratic, so :math:`\|F(p(\tau))\| \le \|R(x_0)\| + \tau^2\|q\|` exactly, with
+  :math:`q_i = k_i t_{0,i}\,\mathrm{d}f_{z,i}(t_0)` (:math:`k_i = (\lambda_s-\lambda_d)/d_c` on
+  weakening bonds); the Jacobian :math:`A` is Lipschitz with the constant
+  :math:`L = \max_i 2 k_i \|\nabla f_{z,i}\|_1`; with :math:`\beta \ge \|A^{-1}\|` along the
+  predictor (a Neumann bound from the exact inverse at :math:`x_0`), Kantorovich's theorem puts
+  the one curve point with :math:`t_0\cdot(x-x_0) = \tau` within :math:`\rho = 2\beta\eta` of
+  :math:`p(\tau)` for every :math:`\tau \le h`, when :math:`\beta L \eta \le 1/2`;
+* every constraint that ends a state is affine in :math:`x` (a stick bond's
+  :math:`\lambda f_z \mp f_x \ge 0`, :math:`f_z \ge 0` on :math:`C`, :math:`\delta \le d_c` on a
+  weakening bond, a gap, through the largest kernel entry), so on the tube it is at least its
+  value on the predictor, affine in :math:`\tau`, less :math:`\|\gamma\|_1\rho`: positive at both
+  ends means no root in the step, so no event is missed;
+* the tangent's components move by at most :math:`\beta L (h\|t_0\|_\infty + \rho)` on the
+  tube, so the signs that end a state (the drive's, at a fold; a slip rate's, at a reversal)
+  and that of the rate of :math:`F_x` (an interior peak) are certified the same way.
+
+An event of an affine constraint is located exactly, by Newton on :math:`R = 0` and the
+constraint :math:`= 0`, once the tube shows it is the step's only root; a sign change of the
+tangent is approached by certified steps until the component is below ``TIE`` of the
+tangent's norm. A fold (the drive's component vanishing) or a state that is not stable (an
+eigenvalue of :math:`\partial R/\partial s` with a real part :math:`\ge 0`) sets off a burst at
+the held drive: the overdamped law :math:`\dot s_i = \max(e_i, 0)` (the excess over the
+strength, on every bond) integrated to rest from the fold's unstable direction, the landing
+polished by Newton and certified. Every state the path accepts is certified against the FFT
+operator.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg
+from scipy.integrate import solve_ivp
+
+from roughslip.errors import NumericalError
+from roughslip.friction.events import TIE, VISITS, Event, EventKind, EventPath, Snapshot, digest
+
+STICK, WEAK, RESID = 0, 1, 2
+#: Newton's iterations on a curve point before a step is refused
+NEWTON = 30
+#: the excess, relative to the largest normal force, below which a bond is at rest
+REST = 1e-10
+#: the excess, relative to the largest normal force, at which a bond stops or moves again
+#: inside a burst's flow
+FLOW_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class Weakening:
+    r"""The law's numbers: :math:`\lambda_s, \\lambda_d, d_c`."""
+
+    lam_s: float
+    lam_d: float
+    dc: float
+
+    @property
+    def k(self) -> float:
+        return (self.lam_s - self.lam_d) / self.dc
+
+    def lam(self, delta: np.ndarray) -> np.ndarray:
+        return self.lam_s - self.k * np.minimum(delta, self.dc)
+
+
+class _Linear:
+    """The affine response of the current sets: :math:`f = f^0 + D f^1 + s N` (rows of N: the
+    moving bonds), the depth :math:`d^0 + d^1 D + s\\cdot d_N`."""
+
+    def __init__(self, fz0, fx0, fz1, fx1, dep0, dep1, fzd):
+        self.fz0, self.fx0, self.fz1, self.fx1 = fz0, fx0, fz1, fx1
+        self.dep0, self.dep1, self.fzd = dep0, dep1, fzd
+        self.sites = np.empty(0, dtype=np.int64)
+        self.Nz = np.zeros((0, fz0.size))
+        self.Nx = np.zeros((0, fz0.size))
+        self.dN = np.zeros(0)
+
+
+class _Core:
+    r"""The coupled model's sets under slip-weakening, and the path that follows them
+    (module docstring). Fields are flat grids; ``C`` the contact sites, ``Q`` the bonds.
+
+    ``drive`` ``"x"``: the pull :math:`D_x` at the depth ``depth`` or the normal force
+    ``force``; ``"z"``: the depth :math:`D_z` itself (the frictional indentation, contacts
+    gained bonded).
+    """
+
+    def __init__(self, solver, problem, law: Weakening, C: np.ndarray, offset: np.ndarray, *,
+                 depth: float | None = None, force: float | None = None, drive: str = "x",
+                 gained: str = "unbonded", tol: float = 1e-12) -> None:
+        self.solver, self.law = solver, law
+        self.shape = problem.shape
+        self.base = problem.base.ravel().copy()
+        n = self.base.size
+        self.C = C.ravel().copy()
+        self.Q = self.C.copy()
+        self.offset = offset.ravel().copy()
+        self.phase = np.zeros(n, dtype=np.int8)
+        self.sigma = np.zeros(n)
+        self.delta = np.zeros(n)  # slip since the first failure, at the state's start
+        self.depth, self.force = depth, force
+        self.drive, self.gained = drive, gained
+        self.tol = tol
+        self.lin: _Linear | None = None
+        self.D = 0.0
+        self.s = np.zeros(0)
+        self.scale = 1.0  # the drive's scale: the first event's drive
+        self.scaled = False
+        self.gmax = self._kernel_max()
+        self.worst = 0.0
+        self.steps = 0
+        self.bursts = 0
+        self.stopped = ""
+
+    # -- the linear response --------------------------------------------------------------------
+    def _kernel_max(self) -> float:
+        """The largest displacement of a unit force, either component: bounds a gap's change
+        by the 1-norm of the force change."""
+        ny, nx = self.shape
+        e = np.zeros(self.shape)
+        e[ny // 2, nx // 2] = 1.0
+        z = np.zeros(self.shape)
+        out = 0.0
+        for f in ((e, z), (z, e)):
+            uz, ux = self.solver.displacements(*f)
+            out = max(out, float(np.abs(uz).max()), float(np.abs(ux).max()))
+        return out
+
+    @property
+    def moving(self) -> np.ndarray:
+        return self.Q & (self.phase != STICK)
+
+    def _grid(self, a: np.ndarray) -> np.ndarray:
+        return a.reshape(self.shape)
+
+    def linearize(self) -> None:
+        """Solve the current sets at :math:`s = 0` (the slips folded into the offsets) and the
+        responses of the moving bonds."""
+        sv, sh = self.solver, self.shape
+        C, Q = self._grid(self.C), self._grid(self.Q)
+        sv.prepare(C, Q)
+        zero, ones = np.zeros(sh), np.ones(sh)
+        base, off = self._grid(self.base), self._grid(self.offset)
+        if self.drive == "z":
+            (a, b) = sv.solve_many([(base, off, "w0"), (ones, zero, "w1")])
+            lin = _Linear(a[0].ravel(), a[1].ravel(), b[0].ravel(), b[1].ravel(), 0.0, 1.0,
+                          None)
+        elif self.force is None:
+            a, b = sv.solve_many([(base + self.depth, off, "w0"), (zero, ones, "w1")])
+            lin = _Linear(a[0].ravel(), a[1].ravel(), b[0].ravel(), b[1].ravel(),
+                          float(self.depth), 0.0, None)
+        else:
+            fb, fd, f1 = sv.solve_many([(base, off, "wb"), (ones, zero, "wd"),
+                                        (zero, ones, "w1")])
+            sd = float(fd[0].sum())
+            if not sd > 0:
+                raise NumericalError("load control: the contact set carries no force under a "
+                                     "uniform approach (no contact left)")
+            d0 = (self.force - float(fb[0].sum())) / sd
+            d1 = -float(f1[0].sum()) / sd
+            lin = _Linear((fb[0] + d0 * fd[0]).ravel(), (fb[1] + d0 * fd[1]).ravel(),
+                          (f1[0] + d1 * fd[0]).ravel(), (f1[1] + d1 * fd[1]).ravel(), d0, d1,
+                          (fd[0].ravel(), fd[1].ravel(), sd))
+        self.lin = lin
+        self._columns(np.flatnonzero(self.moving))
+        self.s = np.zeros(lin.sites.size)
+
+    def _columns(self, sites: np.ndarray) -> None:
+        """The responses of the moving bonds ``sites`` to a unit slip each (rows of N)."""
+        lin = self.lin
+        n = self.base.size
+        k = sites.size
+        Nz, Nx, dN = np.zeros((k, n)), np.zeros((k, n)), np.zeros(k)
+        if k:
+            fz, fx = self.solver.unit_responses(sites)
+            sg = -self.sigma[sites]
+            Nz, Nx = fz * sg[:, None], fx * sg[:, None]
+            if lin.fzd is not None:
+                fdz, fdx, sd = lin.fzd
+                dN = -Nz.sum(axis=1) / sd
+                Nz = Nz + dN[:, None] * fdz
+                Nx = Nx + dN[:, None] * fdx
+        lin.sites, lin.Nz, lin.Nx, lin.dN = sites, Nz, Nx, dN
+        lin.blk = None
+
+    def _add_column(self, j: int) -> None:
+        lin = self.lin
+        old = (lin.sites, lin.Nz, lin.Nx, lin.dN)
+        self._columns(np.array([j]))
+        lin.sites = np.concatenate([old[0], lin.sites])
+        lin.Nz = np.vstack([old[1], lin.Nz])
+        lin.Nx = np.vstack([old[2], lin.Nx])
+        lin.dN = np.concatenate([old[3], lin.dN])
+        lin.blk = None
+        self.s = np.concatenate([self.s, [0.0]])
+
+    def _drop_column(self, j: int) -> None:
+        lin = self.lin
+        keep = lin.sites != j
+        lin.sites, lin.Nz, lin.Nx, lin.dN = (lin.sites[keep], lin.Nz[keep], lin.Nx[keep],
+                                             lin.dN[keep])
+        lin.blk = None
+        self.s = self.s[keep]
+
+    # -- fields at a point ----------------------------------------------------------------------
+    def fields(self, s: np.ndarray, D: float) -> tuple[np.ndarray, np.ndarray, float]:
+        lin = self.lin
+        fz = lin.fz0 + D * lin.fz1 + s @ lin.Nz
+        fx = lin.fx0 + D * lin.fx1 + s @ lin.Nx
+        return fz, fx, lin.dep0 + lin.dep1 * D + float(s @ lin.dN)
+
+    def _lam(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Strength and its slope in s of the moving bonds."""
+        P = self.lin.sites
+        d = self.delta[P] + s
+        weak = self.phase[P] == WEAK
+        lam = np.where(weak, self.law.lam_s - self.law.k * d, self.law.lam_d)
+        return lam, np.where(weak, self.law.k, 0.0)
+
+    def _block(self):
+        """The moving bonds' own rows: (A_z, A_x) with :math:`A[i, j]` the change of
+        :math:`f(P_i)` per unit slip of :math:`P_j`, and the affine parts on P; kept until
+        the columns or the base point change."""
+        lin = self.lin
+        if getattr(lin, "blk", None) is None:
+            P = lin.sites
+            lin.blk = (np.ascontiguousarray(lin.Nz[:, P].T), np.ascontiguousarray(lin.Nx[:, P].T),
+                       lin.fz0[P], lin.fx0[P], lin.fz1[P], lin.fx1[P])
+        return lin.blk
+
+    def residual(self, s: np.ndarray, D: float, *_: object) -> np.ndarray:
+        r""":math:`R_i = \sigma_i f_{x,i} - \lambda_i f_{z,i}` on the moving bonds."""
+        Az, Ax, fz0, fx0, fz1, fx1 = self._block()
+        P = self.lin.sites
+        lam, _ = self._lam(s)
+        return self.sigma[P] * (fx0 + D * fx1 + Ax @ s) - lam * (fz0 + D * fz1 + Az @ s)
+
+    def jacobian(self, s: np.ndarray, D: float, *_: object) -> np.ndarray:
+        r""":math:`[\partial R/\partial s,\ \partial R/\partial D]`."""
+        Az, Ax, fz0, _, fz1, fx1 = self._block()
+        P = self.lin.sites
+        lam, k = self._lam(s)
+        sg = self.sigma[P]
+        Js = sg[:, None] * Ax - lam[:, None] * Az
+        Js[np.diag_indices(P.size)] += k * (fz0 + D * fz1 + Az @ s)
+        RD = sg * fx1 - lam * fz1
+        return np.column_stack([Js, RD])
+
+    def fscale(self) -> float:
+        fz = self.lin.fz0 + self.D * self.lin.fz1
+        return max(float(np.abs(fz[self.C]).max()) if self.C.any() else 0.0,
+                   np.finfo(float).tiny)
+
+    # -- the constraints ------------------------------------------------------------------------
+    def _norms(self) -> None:
+        """Per site, the 1-norms of the gradients of f_z and f_x in (s, D); the bound of a
+        gap's gradient; the gradient of the total F_x."""
+        lin = self.lin
+        lin.nz1 = np.abs(lin.Nz).sum(axis=0) + np.abs(lin.fz1)
+        lin.nx1 = np.abs(lin.Nx).sum(axis=0) + np.abs(lin.fx1)
+        lin.g1 = (self.gmax * (float(np.abs(lin.Nz).sum() + np.abs(lin.Nx).sum())
+                               + float(np.abs(lin.fz1).sum() + np.abs(lin.fx1).sum()))
+                  + float(np.abs(lin.dN).sum()) + abs(lin.dep1))
+        lin.gF = np.append(lin.Nx.sum(axis=1), lin.fx1.sum())
+        lin.gz = np.append(lin.Nz.sum(axis=1), lin.fz1.sum())
+
+    def gaps(self, fz: np.ndarray, fx: np.ndarray, dep: float) -> np.ndarray:
+        uz, _ = self.solver.displacements(self._grid(fz), self._grid(fx))
+        return uz.ravel() - self.base - dep
+
+    def constraints(self, s: np.ndarray, D: float, v: np.ndarray | None = None,
+                    end: tuple[str, float] | None = None):
+        """Every constraint that ends the state, ``c >= 0``, at ``(s, D)``: (kind codes,
+        sites, values, rates along ``v``, gradient 1-norms)."""
+        lin, law = self.lin, self.law
+        fz, fx, dep = self.fields(s, D)
+        B = np.flatnonzero(self.Q & (self.phase == STICK))
+        Cs = np.flatnonzero(self.C)
+        P = lin.sites
+        Wr = np.flatnonzero(self.phase[P] == WEAK)
+        off = np.flatnonzero(~self.C)
+        lamB = law.lam(self.delta[B])
+        g = self.gaps(fz, fx, dep)[off]
+        kinds = [np.full(B.size, 0), np.full(B.size, 1), np.full(Cs.size, 2),
+                 np.full(Wr.size, 3), np.full(off.size, 4)]
+        sites = [B, B, Cs, P[Wr], off]
+        vals = [lamB * fz[B] - fx[B], lamB * fz[B] + fx[B], fz[Cs],
+                law.dc - self.delta[P[Wr]] - s[Wr], g]
+        norms = [lamB * lin.nz1[B] + lin.nx1[B]] * 2 + [lin.nz1[Cs], np.ones(Wr.size),
+                                                        np.full(off.size, lin.g1)]
+        if end is not None:
+            kinds.append(np.array([5]))
+            sites.append(np.array([-1]))
+            if end[0] == "depth":
+                vals.append(np.array([end[1] - D]))
+                norms.append(np.array([1.0]))
+            else:
+                vals.append(np.array([end[1] - float(fz.sum())]))
+                norms.append(np.array([float(np.abs(lin.gz).sum())]))
+        out = [np.concatenate(kinds), np.concatenate(sites), np.concatenate(vals), None,
+               np.concatenate(norms)]
+        if v is not None:
+            vs, vD = v[:-1], v[-1]
+            dz = vs @ lin.Nz + vD * lin.fz1
+            dx = vs @ lin.Nx + vD * lin.fx1
+            ddep = vD * lin.dep1 + float(vs @ lin.dN)
+            dg = self.gaps(dz, dx, ddep + 0.0)[off] + self.base[off]  # gaps() subtracts base
+            rates = [lamB * dz[B] - dx[B], lamB * dz[B] + dx[B], dz[Cs], -vs[Wr], dg]
+            if end is not None:
+                rates.append(np.array([-vD if end[0] == "depth" else -float(dz.sum())]))
+            out[3] = np.concatenate(rates)
+        return out, (fz, fx, dep)
+
+    # -- the path-follower ----------------------------------------------------------------------
+    def _tangent(self, s: np.ndarray, D: float, prev: np.ndarray | None, fz=None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """The unit tangent of R = 0 at (s, D), oriented along ``prev`` (else D growing), and
+        the inverse of the augmented Jacobian [J; t]."""
+        JA = self.jacobian(s, D, fz)
+        p = s.size
+        row = np.zeros(p + 1)
+        if prev is None:
+            row[-1] = 1.0
+        else:
+            row[:] = prev
+        A = np.vstack([JA, row])
+        rhs = np.zeros(p + 1)
+        rhs[-1] = 1.0
+        try:
+            z = linalg.solve(A, rhs)
+        except linalg.LinAlgError:
+            raise NumericalError("coupled slip-weakening: a singular augmented Jacobian "
+                                 f"at D = {D!r}") from None
+        t = z / np.linalg.norm(z)
+        if prev is not None and float(t @ prev) < 0:
+            t = -t
+        A[-1] = t
+        return t, linalg.inv(A)
+
+    def _newton(self, x: np.ndarray, t0: np.ndarray, x0: np.ndarray, h: float,
+                Ainv: np.ndarray | None = None) -> np.ndarray | None:
+        """The curve point with t0.(x - x0) = h, from ``x`` (None: no convergence): chord
+        iterations on ``Ainv`` (the augmented Jacobian's inverse at x0) while they contract
+        fast, then Newton's."""
+        fs = self.fscale()
+        if Ainv is not None:
+            last = math.inf
+            for _ in range(8):
+                s, D = x[:-1], float(x[-1])
+                R = self.residual(s, D)
+                dx = Ainv @ np.append(R, float(t0 @ (x - x0)) - h)
+                x = x - dx
+                step = float(np.abs(dx).max())
+                if (np.abs(R).max(initial=0.0) <= 1e-14 * fs
+                        and step <= 1e-15 * max(np.abs(x).max(), self.scale)):
+                    return x
+                if step > 0.25 * last:
+                    break
+                last = step
+        for _ in range(NEWTON):
+            s, D = x[:-1], float(x[-1])
+            R = self.residual(s, D)
+            F = np.append(R, float(t0 @ (x - x0)) - h)
+            A = np.vstack([self.jacobian(s, D), t0])
+            try:
+                dx = linalg.solve(A, F)
+            except linalg.LinAlgError:
+                return None
+            x = x - dx
+            if (np.abs(R).max(initial=0.0) <= 1e-14 * fs
+                    and np.abs(dx).max() <= 1e-15 * max(np.abs(x).max(), self.scale)):
+                return x
+        s, D = x[:-1], float(x[-1])
+        R = self.residual(s, D)
+        return x if np.abs(R).max(initial=0.0) <= 1e-12 * fs else None
+
+    def _kantorovich(self, t0, Ainv, R0, h):
+        """(beta, rho) of the tube around p(tau), tau <= h (module docstring), or None."""
+        lin = self.lin
+        P = lin.sites
+        lam, k = self._lam(self.s)
+        beta0 = float(np.abs(Ainv).sum(axis=1).max())
+        L = float((2 * k * lin.nz1[P]).max(initial=0.0))
+        tn = float(np.abs(t0).max())
+        r0 = float(np.abs(R0).max(initial=0.0))
+        if L == 0.0:
+            return beta0, beta0 * r0, 0.0, beta0
+        if beta0 * L * h * tn >= 0.5:
+            return None
+        beta = beta0 / (1 - beta0 * L * h * tn)
+        ts, tD = t0[:-1], t0[-1]
+        dfz = ts @ lin.Nz[:, P] + tD * lin.fz1[P] if P.size else np.zeros(0)
+        q = float(np.abs(k * ts * dfz).max(initial=0.0))
+        eta = r0 + h * h * q
+        if beta * beta * L * eta > 0.5:  # Kantorovich: beta L |A^-1 F| <= 1/2
+            return None
+        rho = 2 * beta * eta
+        grow = beta0 * L * (h * tn + rho)
+        if grow >= 1:
+            return None
+        return beta, rho, L, beta0 / (1 - grow)
+
+    def _scales(self, kinds: np.ndarray, end: tuple[str, float] | None) -> np.ndarray:
+        """The unit of each constraint's tie tolerance: the largest normal force, d_c, the
+        largest height, the end's own."""
+        fs = self.fscale()
+        gs = max(float(np.abs(self.base).max()), abs(self.lin.dep0), 1e-300)
+        es = 1.0 if end is None else max(abs(end[1]), 1e-300)
+        table = np.array([fs, fs, fs, self.law.dc, gs, es])
+        return table[kinds]
+
+    def _reversible(self) -> np.ndarray:
+        """The moving bonds whose slip direction matters: all but residual bonds of zero
+        residual strength."""
+        P = self.lin.sites
+        return ~((self.phase[P] == RESID) & (self.law.lam_d == 0.0))
+
+    def _value(self, kind: int, site: int, s: np.ndarray, D: float,
+               end: tuple[str, float] | None) -> float:
+        fz, fx, dep = self.fields(s, D)
+        if kind in (0, 1):
+            lam = float(self.law.lam(self.delta[site]))
+            return lam * fz[site] - (fx[site] if kind == 0 else -fx[site])
+        if kind == 2:
+            return float(fz[site])
+        if kind == 3:
+            r = int(np.flatnonzero(self.lin.sites == site)[0])
+            return self.law.dc - self.delta[site] - float(s[r])
+        if kind == 4:
+            return float(self.gaps(fz, fx, dep)[site])
+        return end[1] - D if end[0] == "depth" else end[1] - float(fz.sum())
+
+    def advance(self, end: tuple[str, float] | None, on_point) -> tuple[str, int]:
+        """Follow the curve from the current point to the next event and stop there: the event
+        (``"slip+"``, ``"slip-"``, ``"lost"``, ``"residual"``, ``"gained"``, ``"end"``,
+        ``"stick"``, ``"fold"``) and its site. ``on_point(s, D)`` sees every accepted point."""
+        names = (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS, EventKind.LOST, EventKind.RESIDUAL,
+                 EventKind.GAINED, EventKind.END)
+        prev, h = None, None
+        peak_side = True  # F_x rising at the last point
+        for _ in range(200_000):
+            s, D = self.s, self.D
+            x0 = np.append(s, D)
+            R0 = self.residual(s, D)
+            t0, Ainv = self._tangent(s, D, prev)
+            tn = float(np.abs(t0).max())
+            if t0[-1] <= TIE * tn:
+                return "fold", -1
+            (kinds, sites, c0, c1, g1), _ = self.constraints(s, D, t0, end)
+            tie = TIE * self._scales(kinds, end)
+            bad = c0 < -tie
+            if bad.any():
+                raise NumericalError("coupled slip-weakening: a violated constraint on the "
+                                     f"path at D = {D!r} (internal error)")
+            # an event due here goes before a reversal (as in the Coulomb law's loop: a bond
+            # that touches and at once slips would otherwise turn the slip zone back)
+            # due here: located to the secant's tolerance, at a rate rounding cannot decide
+            now = (c0 <= 1e-3 * tie) & (c1 < -TIE * g1 * tn)
+            if now.any():
+                e = _first(now, sites)
+                return names[kinds[e]], int(sites[e])
+            ts = t0[:-1]
+            rev = self._reversible() & (ts < 0)
+            if rev.any():
+                r = int(np.flatnonzero(rev)[np.argmin(ts[rev])])
+                return EventKind.STICK, int(self.lin.sites[r])
+            fall = c1 < 0
+            tau = np.full(c0.size, np.inf)
+            tau[fall] = c0[fall] / -c1[fall]
+            tau_ev = float(tau.min(initial=np.inf))
+            gF = self.lin.gF
+            F1 = float(gF @ t0)
+            tieF = TIE * float(np.abs(gF).sum()) * tn
+            if self.drive == "x" and peak_side and F1 <= tieF:
+                on_point(s, D, True)  # F_x stops rising: a peak of the curve
+            peak_side = F1 > tieF
+            if h is None:
+                h = tau_ev if math.isfinite(tau_ev) else self.scale
+            h = min(h, tau_ev * (1 + 1e-12)) if math.isfinite(tau_ev) else h
+            hmin = 1e-14 * max(float(np.abs(x0).max()), self.scale)
+            while True:
+                if not h > hmin:
+                    raise NumericalError("coupled slip-weakening: the path-follower cannot "
+                                         f"certify a step at D = {D!r} (step {h:.3g})")
+                if tau_ev <= h:
+                    e = _first(tau <= tau_ev * (1 + 1e-9) + hmin, sites, tau)
+                    got = self._locate(e, kinds, sites, c0, x0, t0, tau_ev, end, Ainv)
+                    if got is not None:
+                        te, xe = got
+                        # the rows due at the landing too (ties): applied from there on
+                        ce = self.constraints(xe[:-1], float(xe[-1]), None, end)[0][2]
+                        ties = (ce <= tie) | (np.arange(c0.size) == e)
+                        if np.all(ce >= -tie) and self._certified(t0, Ainv, R0, te, c0, c1, g1, tie, ties, gF,
+                                           peak_side, x0, xe, fall_row=e):
+                            self._accept(xe)
+                            on_point(xe[:-1], float(xe[-1]), False)
+                            return names[kinds[e]], int(sites[e])
+                        h = 0.5 * te
+                    else:
+                        h = 0.5 * tau_ev
+                    continue
+                x1 = self._newton(x0 + h * t0, t0, x0, h, Ainv)
+                if x1 is not None and self._certified(t0, Ainv, R0, h, c0, c1, g1, tie,
+                                                      np.zeros(c0.size, bool), gF,
+                                                      peak_side, x0, x1):
+                    self._accept(x1)
+                    on_point(x1[:-1], float(x1[-1]), False)
+                    prev, h = t0, 2 * h
+                    break
+                h *= 0.5
+        raise NumericalError("coupled slip-weakening: no event after 200000 steps")
+
+    def _accept(self, x: np.ndarray) -> None:
+        self.s, self.D = x[:-1].copy(), float(x[-1])
+        self.steps += 1
+
+    def _locate(self, e, kinds, sites, c0, x0, t0, tau_ev, end, Ainv=None):
+        """The curve point where constraint ``e`` vanishes, by the secant method in tau
+        from its predicted root: (tau, x) or None."""
+        k, j = int(kinds[e]), int(sites[e])
+        scale = float(self._scales(np.array([k]), end)[0])
+        ta, ca = 0.0, float(c0[e])
+        tb = tau_ev
+        xb = None
+        for _ in range(40):
+            xb = self._newton(x0 + tb * t0, t0, x0, tb, Ainv)
+            if xb is None:
+                return None
+            cb = self._value(k, j, xb[:-1], float(xb[-1]), end)
+            if abs(cb) <= 1e-3 * TIE * scale:
+                return tb, xb
+            if cb == ca:
+                return None
+            tn = tb - cb * (tb - ta) / (cb - ca)
+            if not (0 < tn < 4 * max(tau_ev, tb)):
+                return None
+            ta, ca, tb = tb, cb, tn
+            if abs(tb - ta) <= 1e-15 * max(abs(tb), self.scale):
+                xb = self._newton(x0 + tb * t0, t0, x0, tb, Ainv)
+                return None if xb is None else (tb, xb)
+        return None
+
+    def _tangent_bound(self, t0, Ainv, dx: float, L: float, beta_t: float) -> np.ndarray:
+        r"""Per component, how far the tangent (scaled to :math:`t_0\cdot z = 1`) moves on
+        the tube, whose points are within ``dx`` of :math:`x_0`: with
+        :math:`\Delta A` the change of the augmented Jacobian,
+        :math:`z - t_0 = -A_0^{-1}\Delta A\,t_0 + A_0^{-1}\Delta A\,A^{-1}\Delta A\,t_0`,
+        and :math:`|(\Delta A\,t_0)_i| \le k_i\,dx\,(|\mathrm{d}f_{z,i}(t_0)| +
+        |t_{0,i}|\,\|\nabla f_{z,i}\|_1)` (the law's quadratic terms only)."""
+        lin = self.lin
+        P = lin.sites
+        _, k = self._lam(self.s)
+        if L == 0.0 or not P.size:
+            return np.zeros(t0.size)
+        ts, tD = t0[:-1], t0[-1]
+        dfz = ts @ lin.Nz[:, P] + tD * lin.fz1[P]
+        u = np.append(k * dx * (np.abs(dfz) + np.abs(ts) * lin.nz1[P]), 0.0)
+        second = L * dx * beta_t * float(u.max())
+        return np.abs(Ainv) @ (u + second)
+
+    def _certified(self, t0, Ainv, R0, h, c0, c1, g1, tie, skip, gF, rising, x0, x1,
+                   fall_row: int | None = None) -> bool:
+        """The step's certificate (module docstring): the curve on [0, h] stays in the tube,
+        no constraint but ``skip`` has a root on it, the tangent keeps its signs, and the
+        located event's own constraint falls monotonically."""
+        kb = self._kantorovich(t0, Ainv, R0, h)
+        if kb is None:
+            return False
+        beta, rho, L, beta_t = kb
+        tn = float(np.abs(t0).max())
+        slack = 1e-13 * max(float(np.abs(x1).max()), self.scale)  # the point's own rounding
+        if float(np.abs(x1 - (x0 + h * t0)).max()) > rho * (1 + 1e-9) + slack:
+            return False  # Newton left the tube: not the branch the certificate is about
+        dz = beta_t * L * (h * tn + rho) * tn
+        dzv = self._tangent_bound(t0, Ainv, h * tn + rho, L, beta_t)
+        lbA = np.minimum(c0, c0 + h * c1) - g1 * (rho + slack)
+        lbB = c0 + np.minimum(0.0, h * (c1 - g1 * dz))
+        ok = np.maximum(lbA, lbB) > -tie
+        if not ok[~skip].all():
+            return False
+        if fall_row is not None and not c1[fall_row] + g1[fall_row] * dz < 0:
+            return False
+        if t0[-1] - dzv[-1] <= 0:
+            return False
+        # a slip rate may come within the tie of zero: it then runs back by at most TIE d_c
+        ts = t0[:-1]
+        back = h * np.maximum(dzv[:-1] - ts, 0.0)
+        if np.any(self._reversible() & (ts - dzv[:-1] <= 0) & (back > TIE * self.law.dc)):
+            return False
+        if self.drive == "x" and rising:
+            if not float(gF @ t0) - float(np.abs(gF) @ dzv) > 0:
+                return False
+        return True
+
+
+def _first(mask: np.ndarray, sites: np.ndarray, order: np.ndarray | None = None) -> int:
+    """The row of ``mask`` with the lowest ``order`` then the lowest site (the package's tie
+    rule)."""
+    rows = np.flatnonzero(mask)
+    if order is not None:
+        best = order[rows].min()
+        rows = rows[order[rows] <= best * (1 + 1e-9)]
+    return int(rows[np.argmin(sites[rows])])
+
+
+class _Events:
+    """The operations that change the sets, the burst, and the driver (mixed into
+    :class:`WeakeningContact`)."""
+
+    # -- sets ----------------------------------------------------------------------------------
+    def rebase(self) -> None:
+        """Fold the moving bonds' slips into their offsets and accumulated slips (s = 0)."""
+        lin = self.lin
+        if lin is None:
+            return
+        P = lin.sites
+        if P.size and self.s.any():
+            s = self.s
+            lin.fz0 = lin.fz0 + s @ lin.Nz
+            lin.fx0 = lin.fx0 + s @ lin.Nx
+            lin.dep0 = lin.dep0 + float(s @ lin.dN)
+            lin.blk = None
+            self.offset[P] -= self.sigma[P] * s
+            self.delta[P] += s
+        self.s = np.zeros(P.size)
+
+    def relinearize(self) -> None:
+        self.rebase()
+        self.linearize()
+        self._norms()
+
+    def apply(self, kind: str, j: int) -> None:
+        """Change the sets for the event ``kind`` at site ``j`` (at the current point)."""
+        self.rebase()
+        if kind in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
+            self.sigma[j] = 1.0 if kind == EventKind.SLIP_PLUS else -1.0
+            weak = self.delta[j] < self.law.dc and self.law.k > 0
+            self.phase[j] = WEAK if weak else RESID
+            self._add_column(j)
+            self._norms()
+        elif kind == EventKind.STICK:
+            self.phase[j] = STICK
+            self.sigma[j] = 0.0
+            self._drop_column(j)
+            self._norms()
+        elif kind == EventKind.RESIDUAL:
+            self.phase[j] = RESID
+        elif kind == EventKind.LOST:
+            self.C[j] = self.Q[j] = False
+            self.phase[j], self.sigma[j], self.delta[j] = STICK, 0.0, 0.0
+            self.relinearize()
+        elif kind == EventKind.GAINED:
+            if self.drive == "z" or self.gained == "bonded":
+                fz, fx, _ = self.fields(self.s, self.D)
+                ux = self.solver.displacements(self._grid(fz), self._grid(fx))[1].ravel()
+                self.offset[j] = ux[j] - (self.D if self.drive == "x" else 0.0)
+                self.Q[j] = True
+                self.phase[j], self.sigma[j], self.delta[j] = STICK, 0.0, 0.0
+            self.C[j] = True
+            self.relinearize()
+        else:
+            raise NumericalError(f"coupled slip-weakening: unknown event {kind!r}")
+
+    def holds(self) -> bool:
+        """Whether a bond sticks or weakens (the pull goes on while one does)."""
+        return bool(np.any(self.Q & (self.phase != RESID)))
+
+    def certify(self) -> None:
+        """The forces at the current point against the FFT operator: u_z on C and u_x on the
+        bonds are what they impose; refreshed once from fresh solves, else an error."""
+        for attempt in range(2):
+            res = self._check()
+            self.worst = max(self.worst, res) if attempt else self.worst
+            if res <= 100 * self.tol:
+                self.worst = max(self.worst, res)
+                return
+            self.relinearize()
+        raise NumericalError(f"coupled slip-weakening: residual {res:.2e} against the FFT "
+                             "operator")
+
+    def _check(self) -> float:
+        s, D = self.s, self.D
+        fz, fx, dep = self.fields(s, D)
+        uz, ux = self.solver.displacements(self._grid(fz), self._grid(fx))
+        uz, ux = uz.ravel(), ux.ravel()
+        want_z = self.base + dep
+        want_x = (D if self.drive == "x" else 0.0) + self.offset.copy()
+        P = self.lin.sites
+        want_x[P] -= self.sigma[P] * s
+        rz, rx = (uz - want_z)[self.C], (ux - want_x)[self.Q]
+        scale = max(float(np.linalg.norm(np.concatenate([want_z[self.C], want_x[self.Q]]))),
+                    np.finfo(float).tiny)
+        return float(np.linalg.norm(np.concatenate([rz, rx]))) / scale
+
+    # -- stability and bursts ------------------------------------------------------------------
+    def _spectrum(self) -> tuple[np.ndarray, np.ndarray]:
+        Js = self.jacobian(self.s, self.D)[:, :-1]
+        if not Js.size:
+            return np.zeros(0, complex), np.zeros((0, 0), complex)
+        return linalg.eig(Js)
+
+    def stable(self) -> bool:
+        """Every eigenvalue of dR/ds on the moving bonds has a negative real part."""
+        w, _ = self._spectrum()
+        return bool(np.all(w.real < 0))
+
+    def _violation(self) -> tuple[str, int] | None:
+        """At the current point: a contact in tension, a gap closed, a stick bond beyond its
+        strength (by more than the rest tolerance); the worst of the first kind found."""
+        fz, fx, dep = self.fields(self.s, self.D)
+        fs = self.fscale()
+        C = np.flatnonzero(self.C)
+        neg = fz[C] < -TIE * fs
+        if neg.any():
+            return EventKind.LOST, int(C[neg][np.argmin(fz[C][neg])])
+        off = np.flatnonzero(~self.C)
+        if off.size:
+            g = self.gaps(fz, fx, dep)[off]
+            gs = max(float(np.abs(self.base).max()), abs(dep), 1e-300)
+            pen = g < -TIE * gs
+            if pen.any():
+                return EventKind.GAINED, int(off[pen][np.argmin(g[pen])])
+        B = np.flatnonzero(self.Q & (self.phase == STICK))
+        if B.size:
+            ex = np.abs(fx[B]) - self.law.lam(self.delta[B]) * fz[B]
+            over = ex > REST * fs
+            if over.any():
+                r = np.flatnonzero(over)
+                r = r[ex[r] >= ex[r].max() * (1 - 1e-9)]
+                j = int(B[r].min())
+                return EventKind.slip(fx[j]), j
+        return None
+
+    def burst(self, push: np.ndarray | None = None) -> list[tuple[str, int, float]]:
+        r"""Relax at the held drive to the rest of the overdamped law
+        :math:`\dot s_i = \max(e_i, 0)` (module docstring), from ``push`` (a direction of
+        the moving bonds' slips) or from the unstable mode; returns the failures on the way
+        (kind, site, F_x)."""
+        failed: list[tuple[str, int, float]] = []
+        self.bursts += 1
+        self._stopped: set[int] = set()
+        self._pushed = False
+        if push is not None:
+            self._push(push)
+        elif self._violation() is None and not self.stable():
+            self._push(self.unstable_mode())
+        for _ in range(100_000):
+            v = self._violation()
+            if v is not None:
+                if v[0] in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
+                    failed.append((v[0], v[1], self.totals()[0]))
+                self.apply(*v)
+                continue
+            if not self.lin.sites.size:
+                return failed
+            if self._rest():
+                return failed
+            self._flow()
+        raise NumericalError("coupled slip-weakening: a burst did not come to rest")
+
+    def unstable_mode(self) -> np.ndarray:
+        """The direction a burst leaves in: the mode of dR/ds of the largest real part, with
+        the sign in which the drive forces it (its left eigenvector against dR/dD), the
+        bonds it would take back held (the decoupled law's rule at a fold)."""
+        JA = self.jacobian(self.s, self.D)
+        w, vl, vr = linalg.eig(JA[:, :-1], left=True, right=True)
+        i = int(np.argmax(w.real))
+        v, u = np.real(vr[:, i]), np.real(vl[:, i])
+        if float(u @ v) < 0:
+            u = -u
+        if float(u @ JA[:, -1]) < 0:
+            v = -v
+        vp = np.maximum(v, 0.0)
+        return vp if vp.any() else np.abs(v)
+
+    def _push(self, v: np.ndarray) -> None:
+        self.s = self.s + 1e-9 * self.law.dc * v / max(float(np.abs(v).max()), 1e-300)
+        self._pushed = True
+
+    def _rest(self) -> bool:
+        """At rest: arrested bonds stick, the others are polished to R = 0 by Newton, and the
+        state is stable (else pushed along its unstable mode)."""
+        fs = self.fscale()
+        R = self.residual(self.s, self.D)
+        if self._pushed or R.max(initial=0.0) > 1e-6 * fs:
+            return False
+        arrested = (R < -REST * fs) & self._reversible()
+        for j in self.lin.sites[arrested]:
+            self.apply(EventKind.STICK, int(j))
+        for _ in range(NEWTON):
+            R = self.residual(self.s, self.D)
+            if np.abs(R).max(initial=0.0) <= 1e-14 * fs:
+                break
+            Js = self.jacobian(self.s, self.D)[:, :-1]
+            self.s = self.s - linalg.solve(Js, R)
+        else:
+            return False
+        if self._violation() is not None:
+            return False
+        if self.stable():
+            return True
+        self._push(self.unstable_mode())
+        return False
+
+    def _flow(self) -> None:
+        r"""Integrate the overdamped law (BDF) to its next event or to rest. The rate is
+        smooth on the mobile bonds (:math:`\dot s = e`); a bond whose excess falls below
+        :data:`FLOW_EPS` of the largest normal force stops (an event), and one stopped comes
+        back when its excess rises above it: the kink of :math:`\max(e, 0)` is an event,
+        never a step."""
+        D, fs, law = self.D, self.fscale(), self.law
+        P = self.lin.sites
+        M = ~np.isin(P, np.fromiter(self._stopped, dtype=np.int64, count=len(self._stopped)))
+        Js0 = self.jacobian(self.s, D)[:, :-1]
+        c = 1.0 / max(float(np.abs(np.diag(Js0)).max(initial=0.0)), np.finfo(float).tiny)
+        B = np.flatnonzero(self.Q & (self.phase == STICK))
+        Wr = np.flatnonzero((self.phase[P] == WEAK) & M)
+        Cs = np.flatnonzero(self.C)
+        eps = FLOW_EPS * fs
+
+        def rate(t, y):
+            return c * np.where(M, self.residual(y, D), 0.0)
+
+        def jac(t, y):
+            return c * M[:, None] * self.jacobian(y, D)[:, :-1]
+
+        def join(t, y):
+            fz, fx, _ = self.fields(y, D)
+            return float((np.abs(fx[B]) - law.lam(self.delta[B]) * fz[B]).max()) / fs - 2 * REST
+
+        def resid(t, y):
+            return float((law.dc - self.delta[P[Wr]] - y[Wr]).min()) / law.dc
+
+        def lost(t, y):
+            return float(self.fields(y, D)[0][Cs].min()) / fs + 2 * TIE
+
+        def stop(t, y):
+            return float(self.residual(y, D)[M].min()) / fs + FLOW_EPS
+
+        def go(t, y):
+            return float(self.residual(y, D)[~M].max()) / fs - FLOW_EPS
+
+        def calm(t, y):  # at rest to the polish's reach
+            return float(np.abs(self.residual(y, D)[M]).max()) / fs - 0.1 * REST
+
+        events = []
+        for fn, on, sign in ((join, B.size, 1), (resid, Wr.size, -1), (lost, Cs.size, -1),
+                             (stop, M.any(), -1), (go, (~M).any(), 1), (calm, M.any(), -1)):
+            if on:
+                fn.terminal, fn.direction = True, sign
+                events.append(fn)
+        self._pushed = False
+        sol = solve_ivp(rate, (0.0, 1e12), self.s, method="BDF", jac=jac, events=events,
+                        rtol=1e-9, atol=1e-12 * law.dc)
+        if sol.status < 0:
+            raise NumericalError(f"coupled slip-weakening: the burst's flow failed: "
+                                 f"{sol.message}")
+        self.s = sol.y[:, -1].copy()
+        if sol.status != 1:
+            return
+        R = self.residual(self.s, D)
+        for fn, te in zip(events, sol.t_events, strict=True):
+            if not te.size:
+                continue
+            if fn is resid:
+                r = int(np.argmin(law.dc - self.delta[P[Wr]] - self.s[Wr]))
+                self.apply(EventKind.RESIDUAL, int(P[Wr][r]))
+            elif fn is stop:
+                self._stopped.add(int(P[M][np.argmin(R[M])]))
+            elif fn is go:
+                self._stopped.discard(int(P[~M][np.argmax(R[~M])]))
+
+    def totals(self) -> tuple[float, float]:
+        fz, fx, _ = self.fields(self.s, self.D)
+        return float(fx.sum()), float(fz.sum())
+
+
+class WeakeningContact(_Events, _Core):
+    __doc__ = _Core.__doc__
+
+    def signature(self) -> bytes:
+        """The discrete state: contact, bonds, phases and slip directions."""
+        return digest(self.C, self.Q, self.phase, self.sigma)
+
+    def snapshot(self) -> Snapshot:
+        fz, fx, _ = self.fields(self.s, self.D)
+        F_x, F_z = float(fx.sum()), float(fz.sum())
+        return Snapshot(F_x, F_z, self.D if self.drive == "x" else 0.0, self._grid(fz).copy(),
+                        self._grid(fx).copy(), self._grid(self.Q & (self.phase == STICK)).copy(),
+                        self._grid(self.C).copy())
+
+    def depth_now(self) -> float:
+        return self.fields(self.s, self.D)[2]
+
+    def run(self, limit: int, end: tuple[str, float] | None = None) -> EventPath:
+        """Follow the path from the current point: a pull (``drive`` x) until no bond sticks
+        or weakens, a driven depth until ``end`` (``("depth", D_z)`` or ``("force", F_z)``).
+        Every burst is recorded by the failures inside it and its landing (``"jump"``); the
+        peak is the largest F_x of the stable path (its interior maxima located) and the
+        landings."""
+        self.relinearize()
+        path = EventPath([], None, self.snapshot())
+
+        def record(kind: str, site: int, F: float | None = None) -> None:
+            F_x, F_z = self.totals()
+            path.events.append(Event(self.D if self.drive == "x" else 0.0,
+                                     F_x if F is None else F, F_z, kind, site,
+                                     self.depth_now()))
+            path.counts.append((int(self.C.sum()), int((self.Q & (self.phase == STICK)).sum())))
+
+        def on_point(s: np.ndarray, D: float, _peak: bool) -> None:
+            if self.drive != "x":
+                return
+            F = float((self.lin.fx0 + D * self.lin.fx1 + s @ self.lin.Nx).sum())
+            if F > path.peak.fx_total:
+                path.peak = self.snapshot()
+                path.peak_event = len(path.events)
+
+        def relax(push=None) -> None:
+            if push is None and self._violation() is None and self.stable():
+                return
+            for k_in, j_in, F_in in self.burst(push):
+                record(k_in, j_in, F_in)
+            self.certify()
+            record(EventKind.JUMP, -1)
+            on_point(self.s, self.D, False)
+
+        seen: dict[tuple, int] = {}
+        seen_at = self.D
+        record(EventKind.START, -1)
+        relax()
+        path.peak = self.snapshot() if self.drive == "x" else path.peak
+        while True:
+            if self.drive == "x" and not self.holds():
+                break
+            if len(path.events) > limit:
+                path.message = f"stopped after {limit} events"
+                break
+            kind, j = self.advance(end, on_point)
+            if self.D != seen_at:
+                seen.clear()
+                seen_at = self.D
+            key = (str(kind), j, self.signature())
+            seen[key] = seen.get(key, 0) + 1
+            if seen[key] >= VISITS:
+                raise NumericalError(f"the events cycle at {'D_x' if self.drive == 'x' else 'D_z'}"
+                                     f" = {self.D!r}: {kind!r} at site {j} came back "
+                                     f"{VISITS - 1} times (no quasi-static continuation)")
+            if not self.scaled and self.D > 0:
+                self.scale, self.scaled = self.D, True
+            if kind == EventKind.END:
+                self.certify()
+                record(kind, -1)
+                break
+            if kind == "fold":
+                relax(self.unstable_mode())
+                continue
+            record(kind, j)
+            self.apply(kind, j)
+            self.certify()
+            relax()
+        return path
+
+
+def settle(wc: WeakeningContact) -> int:
+    """Relax the state at its drive when it is not admissible or not stable (a burst,
+    module docstring); returns the bonds that failed on the way."""
+    wc.relinearize()
+    if wc._violation() is None and wc.stable():
+        return 0
+    failed = wc.burst()
+    wc.certify()
+    return len(failed)
+
+
+@dataclass
+class WeakeningSqueeze:
+    """A history's outcome under slip-weakening: the state at :math:`D_x = 0` and what it
+    took."""
+
+    state: WeakeningContact
+    released: int
+    states: int
+
+
+def squeeze_weakening(problem, solver, setup, law: Weakening, history: str
+                      ) -> WeakeningSqueeze:
+    """The squeeze histories under slip-weakening (docs/theory/coupled.rst#coupled-weakening):
+
+    * ``"frictionless"``: the frictionless squeeze, every contact bonded where it is;
+    * ``"bonded"`` and ``"simultaneous"``: every contact of the bonded squeeze bonded with
+      :math:`u_x = 0`, then released by the law's own overdamped flow, which moves every
+      overloaded bond at once and has no order: under this law the two coincide;
+    * ``"indent"``: the frictional indentation from first touch, the depth driven, every
+      site bonding where it touches and failing by the law.
+    """
+    from roughslip.coupling.histories import _bonded_overlap
+    from roughslip.coupling.histories import frictionless as frictionless_history
+
+    n = problem.base.size
+    if history == "frictionless":
+        sq = frictionless_history(problem, solver, setup)
+        st = sq.state
+        wc = WeakeningContact(solver, problem, law, st.C, st.offset, depth=setup.depth,
+                              force=setup.force, tol=setup.tol)
+        return WeakeningSqueeze(wc, settle(wc), sq.states)
+    if history in ("bonded", "simultaneous"):
+        st, k = _bonded_overlap(problem, solver, setup)
+        wc = WeakeningContact(solver, problem, law, st.C, np.zeros(n), depth=setup.depth,
+                              force=setup.force, tol=setup.tol)
+        wc.relinearize()
+        released = settle(wc)
+        return WeakeningSqueeze(wc, released, k + wc.bursts)
+    if history == "indent":
+        if setup.depth is not None:
+            end, scale_depth = ("depth", float(setup.depth)), float(setup.depth)
+        else:
+            end = ("force", float(setup.force))
+            scale_depth = 0.0 if setup.force == 0 else setup.normal(problem).depth
+        top = (problem.base >= 0.0).ravel()
+        wc = WeakeningContact(solver, problem, law, top, np.zeros(n), depth=scale_depth,
+                              drive="z", gained="bonded", tol=setup.tol)
+        path = wc.run(setup.limit, end=end)
+        if path.message:
+            raise NumericalError(f"coupled indentation: {path.message}")
+        wc.rebase()
+        dz = wc.D
+        wc.drive, wc.D, wc.gained = "x", 0.0, "unbonded"
+        wc.scaled, wc.scale = False, 1.0
+        wc.depth, wc.force = (dz, None) if setup.force is None else (None, setup.force)
+        released = int((wc.Q & (wc.phase != STICK)).sum())
+        settle(wc)
+        return WeakeningSqueeze(wc, released, len(path.events))
+    raise NumericalError(f"coupled slip-weakening: no history {history!r}")

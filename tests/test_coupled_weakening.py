@@ -1,0 +1,108 @@
+"""Slip-weakening under coupling: the certified path-follower against its limits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roughslip.contact.problem import Problem
+from roughslip.contact.squeeze import squeeze
+from roughslip.coupling.coupled import couple, indent
+from roughslip.coupling.histories import HISTORIES
+from roughslip.errors import InputError
+from roughslip.friction.pull import pull
+from roughslip.surfaces.synthetic import sample_rng, self_affine
+
+LAM = 0.2
+
+
+def rough(n=16, seed=1):
+    return self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(seed, 0),
+                       oversample=2)
+
+
+def _weak(pb, ld, dc, **kw):
+    return couple(pb, lam=LAM, slip_law="slip-weakening", lam_dynamic=ld, slip_distance=dc,
+                  **kw)
+
+
+@pytest.mark.parametrize("history", HISTORIES.names())
+@pytest.mark.parametrize(("seed", "depth", "ld", "dc"), [(1, 1.0, 0.1, 0.05),
+                                                         (2, 1.0, 0.0, 0.05)])
+def test_half_poisson_ratio_is_the_decoupled_weakening_pull(history, seed, depth, ld, dc):
+    """At nu = 1/2 nothing couples: f_z is the frictionless squeeze's and the path is the
+    decoupled law's, bursts included, after every history; the friction to 1e-10."""
+    h = rough(16, seed)
+    d = pull(squeeze(h, depth=depth, nu=0.5, tol=1e-13), lam=LAM, slip_law="slip-weakening",
+             lam_dynamic=ld, slip_distance=dc, early_stop=False)
+    c = _weak(Problem.from_arrays(h, nu=0.5), ld, dc, depth=depth, history=history)
+    assert c.converged, c.message
+    assert c.details.released == 0
+    assert c.friction_force == pytest.approx(d.friction_force, rel=1e-10)
+    fails = sorted(e.site for e in c.events if e.kind in ("slip+", "slip-"))
+    assert fails == sorted(d.curve.site[np.isin(d.curve.kind, ["slip+", "slip-"])].tolist())
+
+
+@pytest.mark.parametrize("history", ["frictionless", "indent"])
+@pytest.mark.parametrize("control", ["depth", "force"])
+def test_equal_coefficients_are_the_coupled_coulomb_pull(history, control):
+    """lam_d = lam_s is the Coulomb law: the same events, slip for slip, and the same
+    forces to 1e-10, under both controls."""
+    pb = Problem.from_arrays(rough(16, 2), nu=0.25)
+    kw = dict(depth=1.5) if control == "depth" else dict(force=20.0, pull_control="force")
+    ref = couple(pb, lam=LAM, slip_law="coulomb", history=history, **kw)
+    w = _weak(pb, LAM, 0.05, history=history, **kw)
+    assert ref.converged and w.converged, w.message
+    assert [(e.kind, e.site) for e in w.events] == [(e.kind, e.site) for e in ref.events]
+    scale = np.abs(ref.curve.fx).max()
+    assert np.allclose(w.curve.fx, ref.curve.fx, rtol=0, atol=1e-10 * scale)
+    assert np.allclose(w.curve.dx, ref.curve.dx, rtol=1e-10)
+    assert w.friction_force == pytest.approx(ref.friction_force, rel=1e-10)
+
+
+def test_equal_coefficients_indent_as_the_coulomb_indentation():
+    """The frictional indentation under the law with lam_d = lam_s is today's Coulomb
+    indentation: the same events and final forces."""
+    pb = Problem.from_arrays(rough(16, 3), nu=0.25)
+    ref = indent(pb, depth=1.5, lam=LAM, slip_law="coulomb")
+    w = indent(pb, depth=1.5, lam=LAM, slip_law="slip-weakening", lam_dynamic=LAM,
+               slip_distance=0.05)
+    assert w.converged, w.message
+    assert [(e.kind, e.site) for e in w.events] == [(e.kind, e.site) for e in ref.events]
+    scale = np.abs(ref.fz).max()
+    assert np.allclose(w.fz, ref.fz, rtol=0, atol=1e-10 * scale)
+    assert np.allclose(w.fx, ref.fx, rtol=0, atol=1e-10 * scale)
+    assert np.array_equal(w.stick, ref.stick)
+
+
+def test_vanishing_slip_distance_is_the_coupled_break_law():
+    """lam_d = 0 with d_c far below the pixel's weakening scale: every failure is a burst
+    that relaxes the bond to zero force, so the failed bonds and the friction are the
+    coupled break law's."""
+    pb = Problem.from_arrays(rough(16, 1), nu=0.25)
+    ref = couple(pb, depth=1.0, lam=LAM, slip_law="break", history="frictionless")
+    w = _weak(pb, 0.0, 1e-9, depth=1.0, history="frictionless")
+    assert w.converged, w.message
+    assert w.friction_force == pytest.approx(ref.friction_force, rel=1e-6)
+    broke = sorted(e.site for e in ref.events if e.kind in ("slip+", "slip-"))
+    failed = sorted(e.site for e in w.events if e.kind in ("slip+", "slip-"))
+    assert failed == broke
+
+
+def test_the_path_agrees_with_the_direct_reference():
+    """The updated inverse against a fresh factorisation and dense sums at every state:
+    the same events, forces within the block's conditioning times the tolerance."""
+    pb = Problem.from_arrays(rough(12, 4), nu=0.25)
+    kw = dict(depth=1.2, history="bonded")
+    ref = _weak(pb, 0.1, 0.05, method="dense", reference=True, **kw)
+    fast = _weak(pb, 0.1, 0.05, **kw)
+    assert [(e.kind, e.site) for e in fast.events] == [(e.kind, e.site) for e in ref.events]
+    assert fast.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
+
+
+def test_coupled_weakening_rejects_bad_input():
+    pb = Problem.from_arrays(rough(8), nu=0.25)
+    with pytest.raises(InputError, match="slip_distance: slip_law = 'slip-weakening' needs"):
+        couple(pb, depth=0.5, lam=LAM, slip_law="slip-weakening", lam_dynamic=0.1)
+    with pytest.raises(InputError, match="lam_dynamic = 0.3: must satisfy"):
+        _weak(pb, 0.3, 0.05, depth=0.5)
