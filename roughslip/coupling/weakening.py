@@ -75,7 +75,7 @@ FLOW_EPS = 1e-9
 
 @dataclass(frozen=True)
 class Weakening:
-    r"""The law's numbers: :math:`\lambda_s, \\lambda_d, d_c`."""
+    r"""The law's numbers: :math:`\lambda_s, \lambda_d, d_c`."""
 
     lam_s: float
     lam_d: float
