@@ -273,9 +273,14 @@ class _Core:
         return np.column_stack([Js, RD])
 
     def fscale(self) -> float:
-        fz = self.lin.fz0 + self.D * self.lin.fz1
-        return max(float(np.abs(fz[self.C]).max()) if self.C.any() else 0.0,
-                   np.finfo(float).tiny)
+        """The force unit of the ties: the largest normal force, or what the drive adds over
+        its scale where there is none yet (first touch), as in the affine models."""
+        if not self.C.any():
+            return np.finfo(float).tiny
+        lin = self.lin
+        fz = np.abs(lin.fz0 + self.D * lin.fz1)[self.C].max()
+        rate = np.abs(lin.fz1[self.C]).max() * max(self.scale, abs(self.D))
+        return max(float(fz), float(rate), np.finfo(float).tiny)
 
     # -- the constraints ------------------------------------------------------------------------
     def _norms(self) -> None:
@@ -714,8 +719,11 @@ class _Events:
         P = self.lin.sites
         want_x[P] -= self.sigma[P] * s
         rz, rx = (uz - want_z)[self.C], (ux - want_x)[self.Q]
+        # relative to the displacements imposed, or to the heights' scale where the drive
+        # imposes none (an indentation at first touch)
+        m = int(self.C.sum() + self.Q.sum())
         scale = max(float(np.linalg.norm(np.concatenate([want_z[self.C], want_x[self.Q]]))),
-                    np.finfo(float).tiny)
+                    float(np.abs(self.base).max()) * math.sqrt(m), np.finfo(float).tiny)
         return float(np.linalg.norm(np.concatenate([rz, rx]))) / scale
 
     # -- stability and bursts ------------------------------------------------------------------
