@@ -104,5 +104,5 @@ def test_coupled_weakening_rejects_bad_input():
     pb = Problem.from_arrays(rough(8), nu=0.25)
     with pytest.raises(InputError, match="slip_distance: slip_law = 'slip-weakening' needs"):
         couple(pb, depth=0.5, lam=LAM, slip_law="slip-weakening", lam_dynamic=0.1)
-    with pytest.raises(InputError, match="lam_dynamic = 0.3: must satisfy"):
+    with pytest.raises(InputError, match=r"lam_dynamic = 0\.3: must satisfy"):
         _weak(pb, 0.3, 0.05, depth=0.5)

@@ -285,7 +285,6 @@ def _couple_weakening(problem: Problem, solver: BlockSolver, setup: Setup, law, 
     """:func:`couple` under slip-weakening (:mod:`roughslip.coupling.weakening`)."""
     from roughslip.coupling.weakening import Weakening, squeeze_weakening
 
-    HISTORIES.get(history, "history")
     w = Weakening(float(law.lam), float(law.lam_dynamic), float(law.slip_distance))
     with blas_threads(1):
         try:

@@ -406,10 +406,11 @@ class _Core:
         return x if np.abs(R).max(initial=0.0) <= 1e-12 * fs else None
 
     def _kantorovich(self, t0, Ainv, R0, h):
-        """(beta, rho) of the tube around p(tau), tau <= h (module docstring), or None."""
+        """The tube around p(tau), tau <= h (module docstring): (beta, rho, L, beta on the
+        whole tube), or None when the theorem's conditions fail."""
         lin = self.lin
         P = lin.sites
-        lam, k = self._lam(self.s)
+        _, k = self._lam(self.s)
         beta0 = float(np.abs(Ainv).sum(axis=1).max())
         L = float((2 * k * lin.nz1[P]).max(initial=0.0))
         tn = float(np.abs(t0).max())
@@ -468,7 +469,6 @@ class _Core:
         names = (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS, EventKind.LOST, EventKind.RESIDUAL,
                  EventKind.GAINED, EventKind.END)
         prev, h = None, None
-        peak_side = True  # F_x rising at the last point
         for _ in range(200_000):
             s, D = self.s, self.D
             x0 = np.append(s, D)
@@ -502,9 +502,7 @@ class _Core:
             gF = self.lin.gF
             F1 = float(gF @ t0)
             tieF = TIE * float(np.abs(gF).sum()) * tn
-            if self.drive == "x" and peak_side and F1 <= tieF:
-                on_point(s, D, True)  # F_x stops rising: a peak of the curve
-            peak_side = F1 > tieF
+            peak_side = F1 > tieF  # F_x rising: its sign must hold over the step
             if h is None:
                 h = tau_ev if math.isfinite(tau_ev) else self.scale
             h = min(h, tau_ev * (1 + 1e-12)) if math.isfinite(tau_ev) else h
@@ -521,10 +519,11 @@ class _Core:
                         # the rows due at the landing too (ties): applied from there on
                         ce = self.constraints(xe[:-1], float(xe[-1]), None, end)[0][2]
                         ties = (ce <= tie) | (np.arange(c0.size) == e)
-                        if np.all(ce >= -tie) and self._certified(t0, Ainv, R0, te, c0, c1, g1, tie, ties, gF,
-                                           peak_side, x0, xe, fall_row=e):
+                        if np.all(ce >= -tie) and self._certified(
+                                t0, Ainv, R0, te, c0, c1, g1, tie, ties, gF, peak_side, x0,
+                                xe, fall_row=e):
                             self._accept(xe)
-                            on_point(xe[:-1], float(xe[-1]), False)
+                            on_point(xe[:-1], float(xe[-1]))
                             return names[kinds[e]], int(sites[e])
                         h = 0.5 * te
                     else:
@@ -535,7 +534,7 @@ class _Core:
                                                       np.zeros(c0.size, bool), gF,
                                                       peak_side, x0, x1):
                     self._accept(x1)
-                    on_point(x1[:-1], float(x1[-1]), False)
+                    on_point(x1[:-1], float(x1[-1]))
                     prev, h = t0, 2 * h
                     break
                 h *= 0.5
@@ -597,7 +596,7 @@ class _Core:
         kb = self._kantorovich(t0, Ainv, R0, h)
         if kb is None:
             return False
-        beta, rho, L, beta_t = kb
+        _, rho, L, beta_t = kb
         tn = float(np.abs(t0).max())
         slack = 1e-13 * max(float(np.abs(x1).max()), self.scale)  # the point's own rounding
         if float(np.abs(x1 - (x0 + h * t0)).max()) > rho * (1 + 1e-9) + slack:
@@ -727,16 +726,10 @@ class _Events:
         return float(np.linalg.norm(np.concatenate([rz, rx]))) / scale
 
     # -- stability and bursts ------------------------------------------------------------------
-    def _spectrum(self) -> tuple[np.ndarray, np.ndarray]:
-        Js = self.jacobian(self.s, self.D)[:, :-1]
-        if not Js.size:
-            return np.zeros(0, complex), np.zeros((0, 0), complex)
-        return linalg.eig(Js)
-
     def stable(self) -> bool:
         """Every eigenvalue of dR/ds on the moving bonds has a negative real part."""
-        w, _ = self._spectrum()
-        return bool(np.all(w.real < 0))
+        Js = self.jacobian(self.s, self.D)[:, :-1]
+        return not Js.size or bool(np.all(linalg.eigvals(Js).real < 0))
 
     def _violation(self) -> tuple[str, int] | None:
         """At the current point: a contact in tension, a gap closed, a stick bond beyond its
@@ -850,7 +843,6 @@ class _Events:
         B = np.flatnonzero(self.Q & (self.phase == STICK))
         Wr = np.flatnonzero((self.phase[P] == WEAK) & M)
         Cs = np.flatnonzero(self.C)
-        eps = FLOW_EPS * fs
 
         def rate(t, y):
             return c * np.where(M, self.residual(y, D), 0.0)
@@ -952,7 +944,7 @@ class WeakeningContact(_Events, _Core):
                                      self.depth_now()))
             path.counts.append((int(self.C.sum()), int((self.Q & (self.phase == STICK)).sum())))
 
-        def on_point(s: np.ndarray, D: float, _peak: bool) -> None:
+        def on_point(s: np.ndarray, D: float) -> None:
             if self.drive != "x":
                 return
             F = float((self.lin.fx0 + D * self.lin.fx1 + s @ self.lin.Nx).sum())
@@ -967,7 +959,7 @@ class WeakeningContact(_Events, _Core):
                 record(k_in, j_in, F_in)
             self.certify()
             record(EventKind.JUMP, -1)
-            on_point(self.s, self.D, False)
+            on_point(self.s, self.D)
 
         seen: dict[tuple, int] = {}
         seen_at = self.D
