@@ -91,15 +91,29 @@ class Weakening:
 
 class _Linear:
     """The affine response of the current sets: :math:`f = f^0 + D f^1 + s N` (rows of N: the
-    moving bonds), the depth :math:`d^0 + d^1 D + s\\cdot d_N`."""
+    moving bonds), the depth :math:`d^0 + d^1 D + s\\cdot d_N`. Forces vanish off the
+    contact set, so N keeps only its columns ``idx`` (the contact sites); the affine parts
+    are flat grids."""
 
-    def __init__(self, fz0, fx0, fz1, fx1, dep0, dep1, fzd):
+    def __init__(self, fz0, fx0, fz1, fx1, dep0, dep1, fzd, idx):
         self.fz0, self.fx0, self.fz1, self.fx1 = fz0, fx0, fz1, fx1
         self.dep0, self.dep1, self.fzd = dep0, dep1, fzd
+        self.idx = idx
         self.sites = np.empty(0, dtype=np.int64)
-        self.Nz = np.zeros((0, fz0.size))
-        self.Nx = np.zeros((0, fz0.size))
+        self.Nz = np.zeros((0, idx.size))
+        self.Nx = np.zeros((0, idx.size))
         self.dN = np.zeros(0)
+
+    def spread(self, a0: np.ndarray, s: np.ndarray, N: np.ndarray) -> np.ndarray:
+        """The flat grid :math:`a^0 + s N` (a new array)."""
+        out = a0.copy()
+        if s.size:
+            out[self.idx] += s @ N
+        return out
+
+    def cols(self, sites: np.ndarray) -> np.ndarray:
+        """The positions of contact ``sites`` among the columns of N."""
+        return np.searchsorted(self.idx, sites)
 
 
 class _Core:
@@ -167,14 +181,15 @@ class _Core:
         sv.prepare(C, Q)
         zero, ones = np.zeros(sh), np.ones(sh)
         base, off = self._grid(self.base), self._grid(self.offset)
+        idx = np.flatnonzero(self.C)
         if self.drive == "z":
             (a, b) = sv.solve_many([(base, off, "w0"), (ones, zero, "w1")])
             lin = _Linear(a[0].ravel(), a[1].ravel(), b[0].ravel(), b[1].ravel(), 0.0, 1.0,
-                          None)
+                          None, idx)
         elif self.force is None:
             a, b = sv.solve_many([(base + self.depth, off, "w0"), (zero, ones, "w1")])
             lin = _Linear(a[0].ravel(), a[1].ravel(), b[0].ravel(), b[1].ravel(),
-                          float(self.depth), 0.0, None)
+                          float(self.depth), 0.0, None, idx)
         else:
             fb, fd, f1 = sv.solve_many([(base, off, "wb"), (ones, zero, "wd"),
                                         (zero, ones, "w1")])
@@ -186,7 +201,7 @@ class _Core:
             d1 = -float(f1[0].sum()) / sd
             lin = _Linear((fb[0] + d0 * fd[0]).ravel(), (fb[1] + d0 * fd[1]).ravel(),
                           (f1[0] + d1 * fd[0]).ravel(), (f1[1] + d1 * fd[1]).ravel(), d0, d1,
-                          (fd[0].ravel(), fd[1].ravel(), sd))
+                          (fd[0].ravel()[idx], fd[1].ravel()[idx], sd), idx)
         self.lin = lin
         self._columns(np.flatnonzero(self.moving))
         self.s = np.zeros(lin.sites.size)
@@ -194,13 +209,12 @@ class _Core:
     def _columns(self, sites: np.ndarray) -> None:
         """The responses of the moving bonds ``sites`` to a unit slip each (rows of N)."""
         lin = self.lin
-        n = self.base.size
         k = sites.size
-        Nz, Nx, dN = np.zeros((k, n)), np.zeros((k, n)), np.zeros(k)
+        Nz, Nx, dN = np.zeros((k, lin.idx.size)), np.zeros((k, lin.idx.size)), np.zeros(k)
         if k:
             fz, fx = self.solver.unit_responses(sites)
             sg = -self.sigma[sites]
-            Nz, Nx = fz * sg[:, None], fx * sg[:, None]
+            Nz, Nx = fz[:, lin.idx] * sg[:, None], fx[:, lin.idx] * sg[:, None]
             if lin.fzd is not None:
                 fdz, fdx, sd = lin.fzd
                 dN = -Nz.sum(axis=1) / sd
@@ -231,8 +245,8 @@ class _Core:
     # -- fields at a point ----------------------------------------------------------------------
     def fields(self, s: np.ndarray, D: float) -> tuple[np.ndarray, np.ndarray, float]:
         lin = self.lin
-        fz = lin.fz0 + D * lin.fz1 + s @ lin.Nz
-        fx = lin.fx0 + D * lin.fx1 + s @ lin.Nx
+        fz = lin.spread(lin.fz0 + D * lin.fz1, s, lin.Nz)
+        fx = lin.spread(lin.fx0 + D * lin.fx1, s, lin.Nx)
         return fz, fx, lin.dep0 + lin.dep1 * D + float(s @ lin.dN)
 
     def _lam(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -250,7 +264,9 @@ class _Core:
         lin = self.lin
         if getattr(lin, "blk", None) is None:
             P = lin.sites
-            lin.blk = (np.ascontiguousarray(lin.Nz[:, P].T), np.ascontiguousarray(lin.Nx[:, P].T),
+            cP = lin.cols(P)
+            lin.blk = (np.ascontiguousarray(lin.Nz[:, cP].T),
+                       np.ascontiguousarray(lin.Nx[:, cP].T),
                        lin.fz0[P], lin.fx0[P], lin.fz1[P], lin.fx1[P])
         return lin.blk
 
@@ -287,8 +303,8 @@ class _Core:
         """Per site, the 1-norms of the gradients of f_z and f_x in (s, D); the bound of a
         gap's gradient; the gradient of the total F_x."""
         lin = self.lin
-        lin.nz1 = np.abs(lin.Nz).sum(axis=0) + np.abs(lin.fz1)
-        lin.nx1 = np.abs(lin.Nx).sum(axis=0) + np.abs(lin.fx1)
+        lin.nz1 = lin.spread(np.abs(lin.fz1), np.ones(lin.sites.size), np.abs(lin.Nz))
+        lin.nx1 = lin.spread(np.abs(lin.fx1), np.ones(lin.sites.size), np.abs(lin.Nx))
         lin.g1 = (self.gmax * (float(np.abs(lin.Nz).sum() + np.abs(lin.Nx).sum())
                                + float(np.abs(lin.fz1).sum() + np.abs(lin.fx1).sum()))
                   + float(np.abs(lin.dN).sum()) + abs(lin.dep1))
@@ -332,8 +348,8 @@ class _Core:
                np.concatenate(norms)]
         if v is not None:
             vs, vD = v[:-1], v[-1]
-            dz = vs @ lin.Nz + vD * lin.fz1
-            dx = vs @ lin.Nx + vD * lin.fx1
+            dz = lin.spread(vD * lin.fz1, vs, lin.Nz)
+            dx = lin.spread(vD * lin.fx1, vs, lin.Nx)
             ddep = vD * lin.dep1 + float(vs @ lin.dN)
             dg = self.gaps(dz, dx, ddep + 0.0)[off] + self.base[off]  # gaps() subtracts base
             rates = [lamB * dz[B] - dx[B], lamB * dz[B] + dx[B], dz[Cs], -vs[Wr], dg]
@@ -355,18 +371,20 @@ class _Core:
         else:
             row[:] = prev
         A = np.vstack([JA, row])
-        rhs = np.zeros(p + 1)
-        rhs[-1] = 1.0
         try:
-            z = linalg.solve(A, rhs)
+            X = linalg.inv(A, check_finite=False)
         except linalg.LinAlgError:
             raise NumericalError("coupled slip-weakening: a singular augmented Jacobian "
                                  f"at D = {D!r}") from None
+        # [J; row]^-1 = [X_J, z] with J z = 0, row.z = 1: the tangent is z / |z|, and
+        # [J; t]^-1 = [X_J - t (t.X_J), t] (J t = 0, t.t = 1)
+        z = X[:, -1]
         t = z / np.linalg.norm(z)
         if prev is not None and float(t @ prev) < 0:
             t = -t
-        A[-1] = t
-        return t, linalg.inv(A)
+        X[:, :-1] -= np.outer(t, t @ X[:, :-1])
+        X[:, -1] = t
+        return t, X
 
     def _newton(self, x: np.ndarray, t0: np.ndarray, x0: np.ndarray, h: float,
                 Ainv: np.ndarray | None = None) -> np.ndarray | None:
@@ -421,7 +439,7 @@ class _Core:
             return None
         beta = beta0 / (1 - beta0 * L * h * tn)
         ts, tD = t0[:-1], t0[-1]
-        dfz = ts @ lin.Nz[:, P] + tD * lin.fz1[P] if P.size else np.zeros(0)
+        dfz = self._block()[0] @ ts + tD * lin.fz1[P] if P.size else np.zeros(0)
         q = float(np.abs(k * ts * dfz).max(initial=0.0))
         eta = r0 + h * h * q
         if beta * beta * L * eta > 0.5:  # Kantorovich: beta L |A^-1 F| <= 1/2
@@ -583,7 +601,7 @@ class _Core:
         if L == 0.0 or not P.size:
             return np.zeros(t0.size)
         ts, tD = t0[:-1], t0[-1]
-        dfz = ts @ lin.Nz[:, P] + tD * lin.fz1[P]
+        dfz = self._block()[0] @ ts + tD * lin.fz1[P]
         u = np.append(k * dx * (np.abs(dfz) + np.abs(ts) * lin.nz1[P]), 0.0)
         second = L * dx * beta_t * float(u.max())
         return np.abs(Ainv) @ (u + second)
@@ -623,6 +641,18 @@ class _Core:
         return True
 
 
+def _growth(J: np.ndarray) -> float:
+    """The largest real part of the eigenvalues of ``J`` when positive, else 0 (a negative
+    definite symmetric part settles it without them)."""
+    if not J.size:
+        return 0.0
+    try:
+        linalg.cholesky(-0.5 * (J + J.T), check_finite=False)
+        return 0.0
+    except linalg.LinAlgError:
+        return max(float(linalg.eigvals(J).real.max()), 0.0)
+
+
 def _first(mask: np.ndarray, sites: np.ndarray, order: np.ndarray | None = None) -> int:
     """The row of ``mask`` with the lowest ``order`` then the lowest site (the package's tie
     rule)."""
@@ -646,8 +676,8 @@ class _Events:
         P = lin.sites
         if P.size and self.s.any():
             s = self.s
-            lin.fz0 = lin.fz0 + s @ lin.Nz
-            lin.fx0 = lin.fx0 + s @ lin.Nx
+            lin.fz0 = lin.spread(lin.fz0, s, lin.Nz)
+            lin.fx0 = lin.spread(lin.fx0, s, lin.Nx)
             lin.dep0 = lin.dep0 + float(s @ lin.dN)
             lin.blk = None
             self.offset[P] -= self.sigma[P] * s
@@ -727,9 +757,18 @@ class _Events:
 
     # -- stability and bursts ------------------------------------------------------------------
     def stable(self) -> bool:
-        """Every eigenvalue of dR/ds on the moving bonds has a negative real part."""
+        """Every eigenvalue of dR/ds on the moving bonds has a negative real part. A negative
+        definite symmetric part settles it at the cost of a Cholesky factor (an eigenvalue's
+        real part is the Rayleigh quotient of the symmetric part at its eigenvector);
+        else the eigenvalues are computed."""
         Js = self.jacobian(self.s, self.D)[:, :-1]
-        return not Js.size or bool(np.all(linalg.eigvals(Js).real < 0))
+        if not Js.size:
+            return True
+        try:
+            linalg.cholesky(-0.5 * (Js + Js.T), check_finite=False)
+            return True
+        except linalg.LinAlgError:
+            return bool(np.all(linalg.eigvals(Js).real < 0))
 
     def _violation(self) -> tuple[str, int] | None:
         """At the current point: a contact in tension, a gap closed, a stick bond beyond its
@@ -782,6 +821,8 @@ class _Events:
                 return failed
             if self._rest():
                 return failed
+            if not self._pushed and self._violation() is not None:
+                continue  # the polish at rest left a bond beyond its strength: that first
             self._flow()
         raise NumericalError("coupled slip-weakening: a burst did not come to rest")
 
@@ -840,6 +881,11 @@ class _Events:
         M = ~np.isin(P, np.fromiter(self._stopped, dtype=np.int64, count=len(self._stopped)))
         Js0 = self.jacobian(self.s, D)[:, :-1]
         c = 1.0 / max(float(np.abs(np.diag(Js0)).max(initial=0.0)), np.finfo(float).tiny)
+        # an implicit step longer than 2/mu damps a mode growing at the rate mu: the flow
+        # would settle on an unstable equilibrium. The steps stay below 1/mu of the
+        # fastest growth of the mobile bonds' block at the flow's start.
+        grow = _growth(c * Js0[np.ix_(M, M)])
+        max_step = 1.0 / grow if grow > 0 else np.inf
         B = np.flatnonzero(self.Q & (self.phase == STICK))
         Wr = np.flatnonzero((self.phase[P] == WEAK) & M)
         Cs = np.flatnonzero(self.C)
@@ -882,7 +928,8 @@ class _Events:
             try:
                 with np.errstate(over="raise", invalid="raise"):
                     sol = solve_ivp(rate, (0.0, span), self.s, method="BDF", jac=jac,
-                                    events=events, rtol=1e-9, atol=1e-12 * law.dc)
+                                    events=events, rtol=1e-9, atol=1e-12 * law.dc,
+                                    max_step=max_step)
                 break
             except FloatingPointError:
                 continue
@@ -947,7 +994,8 @@ class WeakeningContact(_Events, _Core):
         def on_point(s: np.ndarray, D: float) -> None:
             if self.drive != "x":
                 return
-            F = float((self.lin.fx0 + D * self.lin.fx1 + s @ self.lin.Nx).sum())
+            lin = self.lin
+            F = float(lin.spread(lin.fx0 + D * lin.fx1, s, lin.Nx).sum())
             if F > path.peak.fx_total:
                 path.peak = self.snapshot()
                 path.peak_event = len(path.events)
