@@ -33,7 +33,7 @@ certificate:
   :math:`p(\tau)` for every :math:`\tau \le h`, when :math:`\beta L \eta \le 1/2`;
 * every constraint that ends a state is affine in :math:`x` (a stick bond's
   :math:`\lambda f_z \mp f_x \ge 0`, :math:`f_z \ge 0` on :math:`C`, :math:`\delta \le d_c` on a
-  weakening bond, a gap, through the largest kernel entry), so on the tube it is at least its
+  weakening bond, a gap, through the kernel's decay), so on the tube it is at least its
   value on the predictor, affine in :math:`\tau`, less :math:`\|\gamma\|_1\rho`: positive at both
   ends means no root in the step, so no event is missed;
 * the tangent's components move by at most :math:`\beta L (h\|t_0\|_\infty + \rho)` on the
@@ -147,6 +147,7 @@ class _Core:
         self.scale = 1.0  # the drive's scale: the first event's drive
         self.scaled = False
         self.gmax = self._kernel_max()
+        self.zx = self._zx_ratio()
         self.worst = 0.0
         self.steps = 0
         self.bursts = 0
@@ -165,6 +166,19 @@ class _Core:
             uz, ux = self.solver.displacements(*f)
             out = max(out, float(np.abs(uz).max()), float(np.abs(ux).max()))
         return out
+
+    def _zx_ratio(self) -> float | None:
+        r"""The bound :math:`|G_{zx}| \le r\,G_{zz}` over every offset of the grid (unit
+        forces at a corner reach them all, the kernels being even or odd in each axis), or
+        None when :math:`G_{zz}` is not positive everywhere."""
+        e = np.zeros(self.shape)
+        e[0, 0] = 1.0
+        z = np.zeros(self.shape)
+        gzz = self.solver.displacements(e, z)[0]
+        gzx = self.solver.displacements(z, e)[0]
+        if not float(gzz.min()) > 0:
+            return None
+        return float((np.abs(gzx) / gzz).max())
 
     @property
     def moving(self) -> np.ndarray:
@@ -300,14 +314,24 @@ class _Core:
 
     # -- the constraints ------------------------------------------------------------------------
     def _norms(self) -> None:
-        """Per site, the 1-norms of the gradients of f_z and f_x in (s, D); the bound of a
-        gap's gradient; the gradient of the total F_x."""
+        r"""Per site, the 1-norms of the gradients of f_z and f_x in (s, D); the bound of
+        each gap's gradient, :math:`\|\nabla g_j\|_1 \le \sum_k G_{zz,jk}(\|\nabla
+        f_{z,k}\|_1 + r\|\nabla f_{x,k}\|_1)` with :math:`|G_{zx}| \le r G_{zz}`, else through
+        the kernel's largest entry; the gradient of the total F_x."""
         lin = self.lin
         lin.nz1 = lin.spread(np.abs(lin.fz1), np.ones(lin.sites.size), np.abs(lin.Nz))
         lin.nx1 = lin.spread(np.abs(lin.fx1), np.ones(lin.sites.size), np.abs(lin.Nx))
+        rest = float(np.abs(lin.dN).sum()) + abs(lin.dep1)
         lin.g1 = (self.gmax * (float(np.abs(lin.Nz).sum() + np.abs(lin.Nx).sum())
-                               + float(np.abs(lin.fz1).sum() + np.abs(lin.fx1).sum()))
-                  + float(np.abs(lin.dN).sum()) + abs(lin.dep1))
+                               + float(np.abs(lin.fz1).sum() + np.abs(lin.fx1).sum())) + rest)
+        lin.gn = np.full(int((~self.C).sum()), lin.g1)
+        if self.zx is not None:
+            # |dg_j| <= sum_k G_zz,jk (|df_z,k| + r |df_x,k|): one product with the
+            # positive kernel, with a margin for its rounding
+            w = lin.nz1 + self.zx * lin.nx1
+            uz = self.solver.displacements(self._grid(w), np.zeros(self.shape))[0].ravel()
+            tight = uz[~self.C] * (1 + 1e-9) + 1e-12 * lin.g1 + rest
+            lin.gn = np.minimum(lin.gn, tight)
         lin.gF = np.append(lin.Nx.sum(axis=1), lin.fx1.sum())
         lin.gz = np.append(lin.Nz.sum(axis=1), lin.fz1.sum())
 
@@ -334,7 +358,7 @@ class _Core:
         vals = [lamB * fz[B] - fx[B], lamB * fz[B] + fx[B], fz[Cs],
                 law.dc - self.delta[P[Wr]] - s[Wr], g]
         norms = [lamB * lin.nz1[B] + lin.nx1[B]] * 2 + [lin.nz1[Cs], np.ones(Wr.size),
-                                                        np.full(off.size, lin.g1)]
+                                                        lin.gn]
         if end is not None:
             kinds.append(np.array([5]))
             sites.append(np.array([-1]))
