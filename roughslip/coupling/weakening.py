@@ -665,16 +665,17 @@ class _Core:
         return True
 
 
-def _growth(J: np.ndarray) -> float:
-    """The largest real part of the eigenvalues of ``J`` when positive, else 0 (a negative
-    definite symmetric part settles it without them)."""
+def _abscissa(J: np.ndarray) -> float:
+    """The largest real part of the eigenvalues of ``J``, or -inf where a Cholesky factor of
+    the negated symmetric part proves them all negative (an eigenvalue's real part is the
+    Rayleigh quotient of the symmetric part at its eigenvector), or ``J`` is empty."""
     if not J.size:
-        return 0.0
+        return -np.inf
     try:
         linalg.cholesky(-0.5 * (J + J.T), check_finite=False)
-        return 0.0
+        return -np.inf
     except linalg.LinAlgError:
-        return max(float(linalg.eigvals(J).real.max()), 0.0)
+        return float(linalg.eigvals(J).real.max())
 
 
 def _first(mask: np.ndarray, sites: np.ndarray, order: np.ndarray | None = None) -> int:
@@ -781,18 +782,9 @@ class _Events:
 
     # -- stability and bursts ------------------------------------------------------------------
     def stable(self) -> bool:
-        """Every eigenvalue of dR/ds on the moving bonds has a negative real part. A negative
-        definite symmetric part settles it at the cost of a Cholesky factor (an eigenvalue's
-        real part is the Rayleigh quotient of the symmetric part at its eigenvector);
-        else the eigenvalues are computed."""
-        Js = self.jacobian(self.s, self.D)[:, :-1]
-        if not Js.size:
-            return True
-        try:
-            linalg.cholesky(-0.5 * (Js + Js.T), check_finite=False)
-            return True
-        except linalg.LinAlgError:
-            return bool(np.all(linalg.eigvals(Js).real < 0))
+        """Every eigenvalue of dR/ds on the moving bonds has a negative real part
+        (:func:`_abscissa`)."""
+        return _abscissa(self.jacobian(self.s, self.D)[:, :-1]) < 0
 
     def _violation(self) -> tuple[str, int] | None:
         """At the current point: a contact in tension, a gap closed, a stick bond beyond its
@@ -908,7 +900,7 @@ class _Events:
         # an implicit step longer than 2/mu damps a mode growing at the rate mu: the flow
         # would settle on an unstable equilibrium. The steps stay below 1/mu of the
         # fastest growth of the mobile bonds' block at the flow's start.
-        grow = _growth(c * Js0[np.ix_(M, M)])
+        grow = _abscissa(c * Js0[np.ix_(M, M)])
         max_step = 1.0 / grow if grow > 0 else np.inf
         B = np.flatnonzero(self.Q & (self.phase == STICK))
         Wr = np.flatnonzero((self.phase[P] == WEAK) & M)
