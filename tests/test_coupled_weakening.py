@@ -128,6 +128,26 @@ def test_growth_rate_of_a_flow_block():
     assert _abscissa(np.zeros((0, 0))) < 0
 
 
+def test_growth_bound_of_a_flow_block():
+    """The flow's step bound uses the numerical abscissa: never below the largest real part
+    of the eigenvalues, equal to it for a symmetric block, -inf when the symmetric part is
+    negative definite."""
+    from roughslip.coupling.weakening import _abscissa, _growth_bound
+
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        J = rng.standard_normal((7, 7)) - 1.5 * np.eye(7)
+        mu, om = _abscissa(J), _growth_bound(J)
+        assert om >= mu - 1e-12 * np.abs(J).max()
+    X = rng.standard_normal((6, 6))
+    sym = X @ X.T - 3.0 * np.eye(6)
+    assert _growth_bound(sym) == pytest.approx(float(np.linalg.eigvalsh(sym).max()), rel=1e-12)
+    assert _growth_bound(-(X @ X.T) - 0.1 * np.eye(6)) == -np.inf
+    nonnormal = np.array([[-1.0, 10.0], [0.0, -1.0]])
+    assert _growth_bound(nonnormal) == pytest.approx(4.0)  # symmetric part: -1 +- 5
+    assert _growth_bound(np.zeros((0, 0))) == -np.inf
+
+
 @pytest.mark.parametrize("control", ["depth", "force"])
 def test_gap_gradient_bound_holds(monkeypatch, control):
     """The gaps' gradient bound that certifies a step (one product with the positive kernel)

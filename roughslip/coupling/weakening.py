@@ -678,6 +678,23 @@ def _abscissa(J: np.ndarray) -> float:
         return float(linalg.eigvals(J).real.max())
 
 
+def _growth_bound(J: np.ndarray) -> float:
+    """An upper bound of :func:`_abscissa`: the largest eigenvalue of the symmetric part
+    (the numerical abscissa; the same Rayleigh quotient argument), or -inf where a Cholesky
+    factor of its negation proves it negative, or ``J`` is empty. One symmetric eigenvalue
+    costs a tridiagonal reduction, not the non-symmetric QR iteration."""
+    if not J.size:
+        return -np.inf
+    S = -0.5 * (J + J.T)
+    try:
+        linalg.cholesky(S, check_finite=False)
+        return -np.inf
+    except linalg.LinAlgError:
+        k = J.shape[0] - 1
+        return float(linalg.eigvalsh(-S, subset_by_index=[k, k], driver="evr",
+                                     check_finite=False)[0])
+
+
 def _first(mask: np.ndarray, sites: np.ndarray, order: np.ndarray | None = None) -> int:
     """The row of ``mask`` with the lowest ``order`` then the lowest site (the package's tie
     rule)."""
@@ -898,38 +915,52 @@ class _Events:
         Js0 = self.jacobian(self.s, D)[:, :-1]
         c = 1.0 / max(float(np.abs(np.diag(Js0)).max(initial=0.0)), np.finfo(float).tiny)
         # an implicit step longer than 2/mu damps a mode growing at the rate mu: the flow
-        # would settle on an unstable equilibrium. The steps stay below 1/mu of the
-        # fastest growth of the mobile bonds' block at the flow's start.
-        grow = _abscissa(c * Js0[np.ix_(M, M)])
+        # would settle on an unstable equilibrium. The steps stay below 1/omega <= 1/mu,
+        # omega the mobile bonds' block's numerical abscissa at the flow's start.
+        grow = _growth_bound(c * Js0[np.ix_(M, M)])
         max_step = 1.0 / grow if grow > 0 else np.inf
         B = np.flatnonzero(self.Q & (self.phase == STICK))
         Wr = np.flatnonzero((self.phase[P] == WEAK) & M)
         Cs = np.flatnonzero(self.C)
 
+        memo: dict[str, tuple[np.ndarray, object]] = {}
+
+        def at(name, y, fn):  # the events see one point at a time: each field once
+            got = memo.get(name)
+            if got is None or not np.array_equal(got[0], y):
+                got = memo[name] = (y.copy(), fn(y, D))
+            return got[1]
+
+        def residual(y):
+            return at("R", y, self.residual)
+
+        def fields(y):
+            return at("f", y, self.fields)
+
         def rate(t, y):
-            return c * np.where(M, self.residual(y, D), 0.0)
+            return c * np.where(M, residual(y), 0.0)
 
         def jac(t, y):
             return c * M[:, None] * self.jacobian(y, D)[:, :-1]
 
         def join(t, y):
-            fz, fx, _ = self.fields(y, D)
+            fz, fx, _ = fields(y)
             return float((np.abs(fx[B]) - law.lam(self.delta[B]) * fz[B]).max()) / fs - 2 * REST
 
         def resid(t, y):
             return float((law.dc - self.delta[P[Wr]] - y[Wr]).min()) / law.dc
 
         def lost(t, y):
-            return float(self.fields(y, D)[0][Cs].min()) / fs + 2 * TIE
+            return float(fields(y)[0][Cs].min()) / fs + 2 * TIE
 
         def stop(t, y):
-            return float(self.residual(y, D)[M].min()) / fs + FLOW_EPS
+            return float(residual(y)[M].min()) / fs + FLOW_EPS
 
         def go(t, y):
-            return float(self.residual(y, D)[~M].max()) / fs - FLOW_EPS
+            return float(residual(y)[~M].max()) / fs - FLOW_EPS
 
         def calm(t, y):  # at rest to the polish's reach
-            return float(np.abs(self.residual(y, D)[M]).max()) / fs - 0.1 * REST
+            return float(np.abs(residual(y)[M]).max()) / fs - 0.1 * REST
 
         events = []
         for fn, on, sign in ((join, B.size, 1), (resid, Wr.size, -1), (lost, Cs.size, -1),
