@@ -177,3 +177,33 @@ def test_gap_gradient_bound_holds(monkeypatch, control):
     assert w.converged and len(seen) > 10
     assert max(seen) <= 1.0
     assert max(seen) > 0.1  # a bound that means something, not the kernel's largest entry
+
+
+def test_a_stopped_bond_beyond_its_strength_moves_again(monkeypatch):
+    """A bond stopped in one flow whose excess a change of the sets has put above the flow's
+    threshold moves in the next: it starts the flow mobile, so the burst lands where it
+    lands with no bond held. Injected before the first flows of a bonded history's
+    release, the pull is the one without the injection, event for event."""
+    from roughslip.coupling import weakening as wk
+
+    pb = Problem.from_arrays(rough(16, 3), nu=0.25)
+    kw = dict(depth=1.5, history="bonded")
+    ref = _weak(pb, 0.1, 0.05, **kw)
+    flow = wk.WeakeningContact._flow
+    injected = []
+
+    def held_flow(self):
+        R = self.residual(self.s, self.D)
+        over = np.flatnonzero(R > 10 * wk.FLOW_EPS * self.fscale())
+        if len(injected) < 3 and over.size:
+            j = int(self.lin.sites[over[np.argmax(R[over])]])
+            self._stopped.add(j)
+            injected.append(j)
+        return flow(self)
+
+    monkeypatch.setattr(wk.WeakeningContact, "_flow", held_flow)
+    w = _weak(pb, 0.1, 0.05, **kw)
+    assert injected, "the scene has no flow with a bond beyond its strength"
+    assert w.converged, w.message
+    assert [(e.kind, e.site) for e in w.events] == [(e.kind, e.site) for e in ref.events]
+    assert w.friction_force == ref.friction_force

@@ -640,7 +640,10 @@ class _Core:
             return False
         _, rho, L, beta_t = kb
         tn = float(np.abs(t0).max())
-        slack = 1e-13 * max(float(np.abs(x1).max()), self.scale)  # the point's own rounding
+        # the point's own rounding: of its size, and of Newton's tolerance on R through beta
+        # (a point of tiny slips under large forces is fixed no closer than that)
+        slack = (1e-13 * max(float(np.abs(x1).max()), self.scale)
+                 + 2e-14 * beta_t * self.fscale())
         if float(np.abs(x1 - (x0 + h * t0)).max()) > rho * (1 + 1e-9) + slack:
             return False  # Newton left the tube: not the branch the certificate is about
         dz = beta_t * L * (h * tn + rho) * tn
@@ -911,6 +914,12 @@ class _Events:
         never a step."""
         D, fs, law = self.D, self.fscale(), self.law
         P = self.lin.sites
+        held = np.isin(P, np.fromiter(self._stopped, dtype=np.int64, count=len(self._stopped)))
+        # the thresholds are crossings inside a flow; a change of the sets between flows can
+        # put a bond past one, and a stopped bond beyond it would never start again
+        R0 = self.residual(self.s, D)
+        self._stopped.difference_update(P[held & (R0 > FLOW_EPS * fs)].tolist())
+        self._stopped.update(P[~held & (R0 < -FLOW_EPS * fs)].tolist())
         M = ~np.isin(P, np.fromiter(self._stopped, dtype=np.int64, count=len(self._stopped)))
         Js0 = self.jacobian(self.s, D)[:, :-1]
         c = 1.0 / max(float(np.abs(np.diag(Js0)).max(initial=0.0)), np.finfo(float).tiny)
