@@ -2,7 +2,8 @@
 
     python scripts/coupling_effect.py [--sizes 64] [--samples 10] [--nu 0.0 0.25 0.45]
                                       [--depths 8] [--no-hertz] [--out runs/coupling]
-                                      [--slip-law break|coulomb] [--resume]
+                                      [--slip-law break|coulomb|slip-weakening]
+                                      [--law 0.1:0.05] [--resume]
                                       [--histories bonded simultaneous indent frictionless]
 
 The report's own open question ([Report2003] §6.1). For each nu (default 0, 0.25, 0.45) it
@@ -11,7 +12,9 @@ surfaces (H = 0.8, ``--samples`` samples, ``--depths`` depths 0.3-2 rms, one gri
 ``--sizes``) and on the Hertz sphere (configs/hertz.toml), and prints the friction exponent alpha
 of F_friction ~ F_n^alpha for both, the mean ratio of the friction forces, and the fraction of
 bonds released already at D_x = 0 under coupling (slipping, under ``--slip-law coulomb``, which
-runs both models with the Coulomb law). ``--histories`` runs the coupled model once per squeeze
+runs both models with the Coulomb law; under ``--slip-law slip-weakening``, with
+``--law lam_dynamic:slip_distance``, the bonds weakening or at their residual strength).
+``--histories`` runs the coupled model once per squeeze
 history (``coupling.history``), one row each; the friction ratio is the mean over samples of
 each sample's mean ratio over depths, with the bootstrap standard deviation of that mean over
 resamples of the samples (1000 resamples, seed 0). Prints Markdown (docs/results.md holds the
@@ -65,13 +68,22 @@ def main() -> None:
     ap.add_argument("--no-hertz", action="store_true", help="skip the Hertz scene")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "coupling")
-    ap.add_argument("--slip-law", choices=["break", "coulomb"], default="break")
+    ap.add_argument("--slip-law", choices=["break", "coulomb", "slip-weakening"],
+                    default="break")
+    ap.add_argument("--law", default="0.1:0.05",
+                    help="lam_dynamic:slip_distance of --slip-law slip-weakening")
     ap.add_argument("--resume", action="store_true",
                     help="continue the run files of an interrupted invocation")
     ap.add_argument("--histories", nargs="+", default=["bonded"],
                     help="squeeze histories of the coupled model (coupling.history)")
     args = ap.parse_args()
     law = args.slip_law
+    extra, tag = [], "" if law == "break" else f"_{law}"
+    if law == "slip-weakening":
+        ld, dc = (float(v) for v in args.law.split(":"))
+        extra = [f"pull.lam_dynamic={ld!r}", f"pull.slip_distance={dc!r}"]
+        tag += f"_{ld:g}_{dc:g}"
+        law = f"{law} (lam_d {ld:g}, d_c {dc:g})"
     args.out.mkdir(parents=True, exist_ok=True)
     print(f"# cores: {os.cpu_count()}; rough: N = {args.sizes}, {args.samples} samples, "
           f"H = 0.8, {args.depths} depths 0.3-2 rms; Hertz: N = 64; lambda = 0.2; slip law {law}\n")
@@ -93,9 +105,8 @@ def main() -> None:
                 coupled = history is not None
                 cfg = load_config(ROOT / "configs" / name, [*base, f"material.nu={nu}",
                                   f"coupling.enabled={'true' if coupled else 'false'}",
-                                  f"pull.slip_law='{law}'"]
+                                  f"pull.slip_law='{args.slip_law}'", *extra]
                                   + ([f"coupling.history='{history}'"] if coupled else []))
-                tag = "" if law == "break" else f"_{law}"
                 kind = "decoupled" if not coupled else (
                     "coupled" if history == "bonded" else f"coupled_{history}")
                 p = args.out / f"{scene}_nu{nu}{tag}_{kind}.h5"
