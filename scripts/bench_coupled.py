@@ -18,6 +18,13 @@ FFT calls and in dense linear algebra (BLAS/LAPACK: the dense solver's factorisa
 with its inverse and updates). ``--slip-law coulomb`` times both models under the Coulomb law.
 Threads: BLAS and FFT use ``--threads``.
 
+``--slip-law slip-weakening`` times both under slip-weakening (``--law lam_dynamic:slip_distance``,
+default 0.1:0.05; the coupled model's path-follower and bursts; its ``blas%`` is left out, the
+dense solver's timer seeing only the squeeze). ``--profile`` runs each coupled
+solve a second time under the profiler and prints where its time goes: the path between events
+(the certified steps), the bursts (their flows), and, across both, the dense linear algebra
+(LAPACK: inverses, eigenvalues, factorisations, the flows' LU) and the FFT products.
+
 ``--floor`` times instead what any exact coupled pull on the explicit inverse of the block
 must do once, against the decoupled pull (medians of ``--repeat``): assembling the order-2n
 block of every contact site, f_z and f_x, which is where the pull starts after the
@@ -41,7 +48,10 @@ contact set has changed. The table counts those products against the states.
 from __future__ import annotations
 
 import argparse
+import cProfile
+import functools
 import os
+import pstats
 import statistics
 import time
 
@@ -185,6 +195,27 @@ def _pull_states(problem: Problem, depth: float) -> tuple[object, list[tuple]]:
     return result, states
 
 
+def profile_shares(fn) -> tuple[float, dict[str, float]]:
+    """Run ``fn`` under the profiler: its seconds there and the shares of the path between
+    events, the bursts, dense linear algebra and FFT (module docstring)."""
+    prof = cProfile.Profile()
+    t0 = time.perf_counter()
+    prof.runcall(fn)
+    total = time.perf_counter() - t0
+    stats = pstats.Stats(prof).stats
+    cum = {"path": 0.0, "bursts": 0.0}
+    own = {"dense": 0.0, "fft": 0.0}
+    for (path, _, name), (_, _, tt, ct, _) in stats.items():
+        if path.endswith("coupling/weakening.py") and name in ("advance", "burst"):
+            cum["path" if name == "advance" else "bursts"] += ct
+        where = f"{path} {name}"
+        if "linalg" in where and "roughslip" not in where:
+            own["dense"] += tt
+        elif path.endswith("elastic/fft.py") or "pyfftw" in where or "numpy/fft" in where:
+            own["fft"] += tt
+    return total, {k: v / total for k, v in {**cum, **own}.items()}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawTextHelpFormatter)
@@ -192,7 +223,12 @@ def main() -> None:
     ap.add_argument("--areas", type=float, nargs="+", default=[0.05, 0.175])
     ap.add_argument("--methods", nargs="+", default=["auto"])
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--slip-law", choices=["break", "coulomb"], default="break")
+    ap.add_argument("--slip-law", choices=["break", "coulomb", "slip-weakening"],
+                    default="break")
+    ap.add_argument("--law", default="0.1:0.05",
+                    help="lam_dynamic:slip_distance of --slip-law slip-weakening")
+    ap.add_argument("--profile", action="store_true",
+                    help="profile each coupled solve once more and print its shares")
     ap.add_argument("--histories", nargs="+", default=list(HISTORIES.names()),
                     choices=HISTORIES.names())
     ap.add_argument("--floor", action="store_true",
@@ -211,8 +247,13 @@ def main() -> None:
         gap_bound(args.sizes, args.areas, args.threads, args.near)
         return
     law = args.slip_law
+    kw: dict[str, float] = {}
+    if law == "slip-weakening":
+        ld, dc = (float(v) for v in args.law.split(":"))
+        kw = dict(lam_dynamic=ld, slip_distance=dc)
     print(f"# cores: {os.cpu_count()}, threads {args.threads}; H = 0.8, nu = 0.25, lam = 0.2, "
-          f"open grid, slip law {law}")
+          f"open grid, slip law {law}"
+          + (f" (lam_d {kw['lam_dynamic']:g}, d_c {kw['slip_distance']:g})" if kw else ""))
     print(f"{'N':>5} {'area':>6} {'sites':>6} {'squeeze s':>10} {'pull s':>7} {'method':>8} "
           f"{'history':>13} {'coupled s':>10} {'states':>7} {'events':>7} {'solves':>7} "
           f"{'ratio':>6} {'ratio2':>6} {'sq%':>5} {'fft%':>5} {'blas%':>5}")
@@ -222,7 +263,7 @@ def main() -> None:
         normal = NormalSolver(problem, tol=1e-8).solve(depth=depth)  # a run's squeeze
         t_sq = time.perf_counter() - t0
         normal = solver.solve(depth=depth)
-        t_dec = median_times([lambda normal=normal: pull(normal, lam=0.2, slip_law=law)],
+        t_dec = median_times([lambda normal=normal: pull(normal, lam=0.2, slip_law=law, **kw)],
                              args.repeat)[0]
         for method in args.methods:
             for history in args.histories:
@@ -230,7 +271,7 @@ def main() -> None:
                 fft0 = op.fft_seconds + op.with_threads(1).fft_seconds
                 t0 = time.perf_counter()
                 c = couple(problem, depth=depth, lam=0.2, method=method, slip_law=law,
-                           history=history)
+                           history=history, **kw)
                 t_c = time.perf_counter() - t0
                 fft = op.fft_seconds + op.with_threads(1).fft_seconds - fft0
                 print(f"{n:>5} {normal.contact_area:>6.3f} {normal.n_contact:>6} "
@@ -238,9 +279,15 @@ def main() -> None:
                       f"{t_c:>10.2f} {c.details.squeeze_states:>7} {len(c.events):>7} "
                       f"{c.solves:>7} {t_c / t_dec:>6.1f} {t_c / (t_dec + t_sq):>6.1f} "
                       f"{100 * c.details.squeeze_seconds / t_c:>4.0f}% {100 * fft / t_c:>4.0f}% "
-                      f"{100 * c.details.blas_seconds / t_c:>4.0f}%"
+                      + (f"{'-':>5}" if kw else f"{100 * c.details.blas_seconds / t_c:>4.0f}%")
                       + ("" if c.converged else f"  NOT CONVERGED: {c.message}"),
                       flush=True)
+                if args.profile:
+                    t_p, sh = profile_shares(functools.partial(
+                        couple, problem, depth=depth, lam=0.2, method=method, slip_law=law,
+                        history=history, **kw))
+                    print(f"#   profiled {t_p:.2f} s: " + ", ".join(
+                        f"{k} {100 * v:.0f}%" for k, v in sh.items()), flush=True)
 
 
 if __name__ == "__main__":
