@@ -56,7 +56,12 @@ import statistics
 import time
 
 import numpy as np
-from benchlib import depth_for_area, median_times  # the same scenes as the squeeze benchmark
+from benchlib import (  # the same scenes as the squeeze benchmark
+    add_law_arguments,
+    depth_for_area,
+    law_keywords,
+    median_times,
+)
 
 from roughslip import couple, pull
 from roughslip.contact.problem import Problem
@@ -223,10 +228,7 @@ def main() -> None:
     ap.add_argument("--areas", type=float, nargs="+", default=[0.05, 0.175])
     ap.add_argument("--methods", nargs="+", default=["auto"])
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--slip-law", choices=["break", "coulomb", "slip-weakening"],
-                    default="break")
-    ap.add_argument("--law", default="0.1:0.05",
-                    help="lam_dynamic:slip_distance of --slip-law slip-weakening")
+    add_law_arguments(ap)
     ap.add_argument("--profile", action="store_true",
                     help="profile each coupled solve once more and print its shares")
     ap.add_argument("--histories", nargs="+", default=list(HISTORIES.names()),
@@ -247,10 +249,7 @@ def main() -> None:
         gap_bound(args.sizes, args.areas, args.threads, args.near)
         return
     law = args.slip_law
-    kw: dict[str, float] = {}
-    if law == "slip-weakening":
-        ld, dc = (float(v) for v in args.law.split(":"))
-        kw = dict(lam_dynamic=ld, slip_distance=dc)
+    kw = law_keywords(args)
     print(f"# cores: {os.cpu_count()}, threads {args.threads}; H = 0.8, nu = 0.25, lam = 0.2, "
           f"open grid, slip law {law}"
           + (f" (lam_d {kw['lam_dynamic']:g}, d_c {kw['slip_distance']:g})" if kw else ""))

@@ -3,12 +3,30 @@ import it, never each other)."""
 
 from __future__ import annotations
 
+import argparse
 import statistics
 import time
 
 import numpy as np
 
 from roughslip.contact.squeeze import NormalSolver
+from roughslip.friction.laws import LAWS
+
+
+def add_law_arguments(ap: argparse.ArgumentParser) -> None:
+    """``--slip-law`` (the registry's names, default break) and ``--law
+    lam_dynamic:slip_distance`` (the slip-weakening law's numbers, default 0.1:0.05)."""
+    ap.add_argument("--slip-law", choices=LAWS.names(), default="break")
+    ap.add_argument("--law", default="0.1:0.05",
+                    help="lam_dynamic:slip_distance of --slip-law slip-weakening")
+
+
+def law_keywords(args: argparse.Namespace) -> dict[str, float]:
+    """The keywords of ``pull``/``couple`` that ``--law`` gives (none but for slip-weakening)."""
+    if args.slip_law != "slip-weakening":
+        return {}
+    ld, dc = (float(v) for v in args.law.split(":"))
+    return {"lam_dynamic": ld, "slip_distance": dc}
 
 
 def floor_seconds(shape, repeat=9) -> float:

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from benchlib import add_law_arguments, law_keywords  # the scripts' shared helpers
 
 from roughslip.analysis.fit import fit_files
 from roughslip.run.config import load_config
@@ -68,10 +69,7 @@ def main() -> None:
     ap.add_argument("--no-hertz", action="store_true", help="skip the Hertz scene")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "coupling")
-    ap.add_argument("--slip-law", choices=["break", "coulomb", "slip-weakening"],
-                    default="break")
-    ap.add_argument("--law", default="0.1:0.05",
-                    help="lam_dynamic:slip_distance of --slip-law slip-weakening")
+    add_law_arguments(ap)
     ap.add_argument("--resume", action="store_true",
                     help="continue the run files of an interrupted invocation")
     ap.add_argument("--histories", nargs="+", default=["bonded"],
@@ -79,8 +77,9 @@ def main() -> None:
     args = ap.parse_args()
     law = args.slip_law
     extra, tag = [], "" if law == "break" else f"_{law}"
-    if law == "slip-weakening":
-        ld, dc = (float(v) for v in args.law.split(":"))
+    kw = law_keywords(args)
+    if kw:
+        ld, dc = kw["lam_dynamic"], kw["slip_distance"]
         extra = [f"pull.lam_dynamic={ld!r}", f"pull.slip_distance={dc!r}"]
         tag += f"_{ld:g}_{dc:g}"
         law = f"{law} (lam_d {ld:g}, d_c {dc:g})"
