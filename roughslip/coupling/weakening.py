@@ -668,34 +668,35 @@ class _Core:
         return True
 
 
-def _abscissa(J: np.ndarray) -> float:
-    """The largest real part of the eigenvalues of ``J``, or -inf where a Cholesky factor of
-    the negated symmetric part proves them all negative (an eigenvalue's real part is the
-    Rayleigh quotient of the symmetric part at its eigenvector), or ``J`` is empty."""
+def _proved_stable(J: np.ndarray) -> bool:
+    """Whether a Cholesky factor of the negated symmetric part of ``J`` exists (or ``J`` is
+    empty): then every eigenvalue has a negative real part, an eigenvalue's real part being
+    the Rayleigh quotient of the symmetric part at its eigenvector."""
     if not J.size:
-        return -np.inf
+        return True
     try:
         linalg.cholesky(-0.5 * (J + J.T), check_finite=False)
-        return -np.inf
+        return True
     except linalg.LinAlgError:
-        return float(linalg.eigvals(J).real.max())
+        return False
+
+
+def _abscissa(J: np.ndarray) -> float:
+    """The largest real part of the eigenvalues of ``J``, or -inf where
+    :func:`_proved_stable` settles their sign."""
+    return -np.inf if _proved_stable(J) else float(linalg.eigvals(J).real.max())
 
 
 def _growth_bound(J: np.ndarray) -> float:
     """An upper bound of :func:`_abscissa`: the largest eigenvalue of the symmetric part
-    (the numerical abscissa; the same Rayleigh quotient argument), or -inf where a Cholesky
-    factor of its negation proves it negative, or ``J`` is empty. One symmetric eigenvalue
-    costs a tridiagonal reduction, not the non-symmetric QR iteration."""
-    if not J.size:
+    (the numerical abscissa; the same Rayleigh quotient argument), or -inf where
+    :func:`_proved_stable` holds. One symmetric eigenvalue costs a tridiagonal reduction,
+    not the non-symmetric QR iteration."""
+    if _proved_stable(J):
         return -np.inf
-    S = -0.5 * (J + J.T)
-    try:
-        linalg.cholesky(S, check_finite=False)
-        return -np.inf
-    except linalg.LinAlgError:
-        k = J.shape[0] - 1
-        return float(linalg.eigvalsh(-S, subset_by_index=[k, k], driver="evr",
-                                     check_finite=False)[0])
+    k = J.shape[0] - 1
+    return float(linalg.eigvalsh(0.5 * (J + J.T), subset_by_index=[k, k], driver="evr",
+                                 check_finite=False)[0])
 
 
 def _first(mask: np.ndarray, sites: np.ndarray, order: np.ndarray | None = None) -> int:
