@@ -9,7 +9,7 @@ from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import squeeze
 from roughslip.coupling.coupled import couple, indent
 from roughslip.coupling.histories import HISTORIES
-from roughslip.errors import InputError
+from roughslip.errors import InputError, NumericalError
 from roughslip.friction.pull import pull
 from roughslip.surfaces.synthetic import sample_rng, self_affine
 
@@ -207,3 +207,42 @@ def test_a_stopped_bond_beyond_its_strength_moves_again(monkeypatch):
     assert w.converged, w.message
     assert [(e.kind, e.site) for e in w.events] == [(e.kind, e.site) for e in ref.events]
     assert w.friction_force == ref.friction_force
+
+
+def test_a_burst_leaves_a_fold_whatever_its_push(monkeypatch):
+    """A fold is located to a tolerance on its stable side, where the mode's rate is about
+    1e-9 of the stiffest bond's: a push of 1e-9 d_c left this scene's first burst at the
+    residual's rounding floor, integrating for ever. The push grows until the mode escapes,
+    and the landing does not depend on it: every burst pushed by 1e-3 d_c or more gives the
+    same events and the same friction."""
+    from roughslip.coupling import weakening as wk
+
+    h = self_affine((32, 32), hurst=0.8, rms_height=1.0, rng=sample_rng(8, 2), oversample=2)
+    pb = Problem.from_arrays(h, nu=0.25)
+    kw = dict(depth=1.369 * float(h.std()), history="frictionless")
+    push, pushes = wk.WeakeningContact._push, []
+
+    def logged(self, mode):
+        s0 = self.s.copy()
+        push(self, mode)
+        pushes.append(float(np.abs(self.s - s0).max()) / self.law.dc)
+
+    monkeypatch.setattr(wk.WeakeningContact, "_push", logged)
+    ref = _weak(pb, 0.1, 0.05, **kw)
+    assert ref.converged, ref.message
+    assert max(pushes) > 10 * wk.PUSHES[0], "no burst of the scene starts at a neutral fold"
+    monkeypatch.setattr(wk, "PUSHES", (1e-3, 1e-2))
+    w = _weak(pb, 0.1, 0.05, **kw)
+    assert [(e.kind, e.site) for e in w.events] == [(e.kind, e.site) for e in ref.events]
+    assert w.friction_force == pytest.approx(ref.friction_force, rel=1e-12)
+
+
+def test_a_fold_no_push_can_leave_is_refused(monkeypatch):
+    """A mode that would not grow at the least escape rate after the largest push is an
+    error naming the fold, never an endless flow."""
+    from roughslip.coupling import weakening as wk
+
+    monkeypatch.setattr(wk, "ESCAPE", np.inf)
+    pb = Problem.from_arrays(rough(16, 1), nu=0.25)
+    with pytest.raises(NumericalError, match="cannot leave the fold at D_x"):
+        _weak(pb, 0.1, 0.05, depth=1.5, history="frictionless")

@@ -71,6 +71,11 @@ REST = 1e-10
 #: the excess, relative to the largest normal force, at which a bond stops or moves again
 #: inside a burst's flow
 FLOW_EPS = 1e-9
+#: a burst's push along its unstable mode, in d_c: the first that makes the mode grow at
+#: :data:`ESCAPE` (a fold's mode is neutral until pushed)
+PUSHES = (1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
+#: the least growth rate of a burst's mode, relative to the stiffest bond's rate
+ESCAPE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -834,11 +839,12 @@ class _Events:
                 return EventKind.slip(fx[j]), j
         return None
 
-    def burst(self, push: np.ndarray | None = None) -> list[tuple[str, int, float]]:
+    def burst(self, push: tuple[np.ndarray, float] | None = None
+              ) -> list[tuple[str, int, float]]:
         r"""Relax at the held drive to the rest of the overdamped law
-        :math:`\dot s_i = \max(e_i, 0)` (module docstring), from ``push`` (a direction of
-        the moving bonds' slips) or from the unstable mode; returns the failures on the way
-        (kind, site, F_x)."""
+        :math:`\dot s_i = \max(e_i, 0)` (module docstring), from ``push`` (a mode of
+        :meth:`unstable_mode`, at a fold) or from the unstable mode; returns the failures
+        on the way (kind, site, F_x)."""
         failed: list[tuple[str, int, float]] = []
         self.bursts += 1
         self._stopped: set[int] = set()
@@ -863,10 +869,11 @@ class _Events:
             self._flow()
         raise NumericalError("coupled slip-weakening: a burst did not come to rest")
 
-    def unstable_mode(self) -> np.ndarray:
+    def unstable_mode(self) -> tuple[np.ndarray, float]:
         """The direction a burst leaves in: the mode of dR/ds of the largest real part, with
         the sign in which the drive forces it (its left eigenvector against dR/dD), the
-        bonds it would take back held (the decoupled law's rule at a fold)."""
+        bonds it would take back held (the decoupled law's rule at a fold); and that real
+        part relative to the stiffest bond's (the diagonal of dR/ds), the mode's rate."""
         JA = self.jacobian(self.s, self.D)
         w, vl, vr = linalg.eig(JA[:, :-1], left=True, right=True)
         i = int(np.argmax(w.real))
@@ -876,10 +883,38 @@ class _Events:
         if float(u @ JA[:, -1]) < 0:
             v = -v
         vp = np.maximum(v, 0.0)
-        return vp if vp.any() else np.abs(v)
+        return vp if vp.any() else np.abs(v), float(w[i].real) * self._rate_scale(JA)
 
-    def _push(self, v: np.ndarray) -> None:
-        self.s = self.s + 1e-9 * self.law.dc * v / max(float(np.abs(v).max()), 1e-300)
+    @staticmethod
+    def _rate_scale(JA: np.ndarray) -> float:
+        return 1.0 / max(float(np.abs(np.diag(JA[:, :-1])).max(initial=0.0)),
+                         np.finfo(float).tiny)
+
+    def _push(self, mode: tuple[np.ndarray, float]) -> None:
+        r"""Move the slips along a burst's unstable direction, by the first of
+        :data:`PUSHES` (in d_c) at which the mode grows at least at :data:`ESCAPE`.
+
+        A fold is located to a tolerance on the stable side: there the mode's rate is
+        :math:`\approx 0` and grows with the push :math:`x` as :math:`2ax` (the path's
+        quadratic term), so a tiny push leaves the flow at the residual's rounding floor,
+        where the integrator's steps stay bounded and the escape takes unbounded time.
+        The landing does not depend on the push once it escapes (the polish finds the same
+        rest); a fold it cannot leave within the largest push is refused."""
+        v, rate = mode
+        v = v / max(float(np.abs(v).max()), 1e-300)
+        s0 = self.s
+        for k in PUSHES:
+            self.s = s0 + k * self.law.dc * v
+            if k != PUSHES[0]:
+                JA = self.jacobian(self.s, self.D)
+                rate = float(linalg.eigvals(JA[:, :-1]).real.max()) * self._rate_scale(JA)
+            if rate >= ESCAPE:
+                break
+        else:
+            raise NumericalError(
+                f"coupled slip-weakening: a burst cannot leave the fold at "
+                f"{'D_x' if self.drive == 'x' else 'D_z'} = {self.D!r}: its mode grows at "
+                f"{rate:.2e} of the stiffest bond's rate after a push of {PUSHES[-1]:g} d_c")
         self._pushed = True
 
     def _rest(self) -> bool:
