@@ -34,7 +34,7 @@ writes into ``OUT_DIR``:
 * ``coupled_events.png``: the coupled theory page's event path and stick/slip maps, from two
   coupled pulls of one 24 x 24 rough surface (H = 0.8, seed 7, depth 1.6 rms, lambda = 0.2,
   nu = 0.25 and 0.45, the ``bonded`` history) computed here (about a second).
-* ``histories.png``, ``hertz_exponents.png``, ``rough_exponents.png``,
+* ``histories.png``, ``histories_weakening.png``, ``hertz_exponents.png``, ``rough_exponents.png``,
   ``coupled_finite_size.png``, ``indentation.png``, ``weakening_rough.png``,
   ``burst_exponents.png``: the studies of ``docs/results.md`` (the squeeze histories, the
   Hertz and the rough-surface exponents against N, the coupled finite-size study, the
@@ -570,6 +570,61 @@ def histories(out: Path) -> None:
     save(plt, fig, out / "histories.png")
 
 
+def histories_weakening(out: Path) -> None:
+    """The squeeze-histories study under slip-weakening: the coupled/decoupled friction
+    ratio against N for each history and law (break, and slip-weakening at two slip
+    distances), with its bootstrap error, read from the results page's table."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    rows = _markdown_table(ROOT / "docs" / "results.md", "| N | $\\nu$ | history | law |")
+    data: dict[tuple[float, str, str], list[tuple[int, float, float]]] = {}
+    for row in rows:
+        ratio, err = _plus_minus(row[5])
+        data.setdefault((float(row[1]), row[2], row[3]), []).append((int(row[0]), ratio, err))
+    order = ("bonded", "simultaneous", "indent", "frictionless")
+    laws = sorted({law for _, _, law in data}, key=lambda s: (s != "break", s))
+    styles = {law: (":", "white") if law == "break" else ("-", None) if k == 1 else ("--", None)
+              for k, law in enumerate(laws)}
+    nus = sorted({nu for nu, _, _ in data})
+    sizes = sorted({n for pts in data.values() for n, _, _ in pts})
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(nus), figsize=(7.5, 3.9), sharey=True, layout="constrained")
+    for ax, nu in zip(np.atleast_1d(axes), nus, strict=True):
+        ax.axhline(1.0, color="0.5", lw=0.8, ls=":")
+        for j, name in enumerate(order):
+            for k, law in enumerate(laws):
+                pts = sorted(data.get((nu, name, law), []))
+                if not pts:
+                    continue
+                N, ratio, err = (np.array(c, dtype=float) for c in zip(*pts, strict=True))
+                shift = 2.0 ** (0.03 * (4 * k + j - 5.5))  # side by side
+                ls, mfc = styles[law]
+                ax.errorbar(N * shift, ratio, yerr=err, fmt="os^D"[j] + ls, color=f"C{j}",
+                            mfc=mfc or f"C{j}", ms=4, lw=1, capsize=2)
+        ax.set_xscale("log", base=2)
+        ax.set_xticks(sizes, [str(n) for n in sizes])
+        ax.minorticks_off()
+        ax.set_xlim(min(sizes) / 1.3, max(sizes) * 1.3)
+        ax.set_ylim(0, 1.1)
+        ax.set_title(f"$\\nu$ = {nu:g}", fontsize=9)
+        ax.set_xlabel("grid size N (unit pixels: a larger patch)", fontsize=8)
+        ax.tick_params(labelsize=8)
+        ax.grid(True, alpha=0.3)
+    first = np.atleast_1d(axes)[0]
+    first.set_ylabel("$F_{\\rm fric}$ coupled / decoupled", fontsize=8)
+    handles = [first.plot([], [], "os^D"[j], color=f"C{j}", ms=4, label=name)[0]
+               for j, name in enumerate(order)]
+    handles += [first.plot([], [], styles[law][0], color="0.3", lw=1,
+                           label=law if law == "break" else f"slip-weakening, {law}")[0]
+                for law in laws]
+    fig.legend(handles=handles, loc="outside lower center", ncol=4, fontsize=8, frameon=False,
+               title="squeeze history and law (mean over the samples, $\\pm$ bootstrap s.d.)",
+               title_fontsize=8)
+    fig.suptitle("coupled over decoupled friction force, $\\lambda_s$ = 0.2, $\\lambda_d$ = "
+                 "0.1; H = 0.8, 6 depths 0.3-2 rms", fontsize=10)
+    save(plt, fig, out / "histories_weakening.png")
+
+
 #: the results page, whose tables the figures of :func:`results_figures` are drawn from
 RESULTS = ROOT / "docs" / "results.md"
 
@@ -866,6 +921,7 @@ def results_figures(out: Path) -> None:
     """The figures of the results page drawn from its own tables (recorded numbers: the
     studies take minutes to hours and are not run again)."""
     histories(out)
+    histories_weakening(out)
     hertz_exponents(out)
     rough_exponents(out)
     coupled_finite_size(out)

@@ -246,3 +246,14 @@ def test_a_fold_no_push_can_leave_is_refused(monkeypatch):
     pb = Problem.from_arrays(rough(16, 1), nu=0.25)
     with pytest.raises(NumericalError, match="cannot leave the fold at D_x"):
         _weak(pb, 0.1, 0.05, depth=1.5, history="frictionless")
+
+
+def test_a_stalled_flow_is_refused(monkeypatch):
+    """A burst's flow that reaches no event within its budget of rate evaluations is an
+    error naming the drive, never an endless integration."""
+    from roughslip.coupling import weakening as wk
+
+    monkeypatch.setattr(wk, "FLOW_EVALS", 2)
+    pb = Problem.from_arrays(rough(16, 1), nu=0.25)
+    with pytest.raises(NumericalError, match=r"flow at D_x = .* reached no event in 2 "):
+        _weak(pb, 0.1, 0.05, depth=1.5, history="frictionless")

@@ -76,6 +76,9 @@ FLOW_EPS = 1e-9
 PUSHES = (1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
 #: the least growth rate of a burst's mode, relative to the stiffest bond's rate
 ESCAPE = 1e-6
+#: the rate evaluations a burst's flow may take to its next event or rest before it is
+#: refused as stalled (a flow at the residual's rounding floor takes bounded steps for ever)
+FLOW_EVALS = 100_000
 
 
 @dataclass(frozen=True)
@@ -982,7 +985,16 @@ class _Events:
         def fields(y):
             return at("f", y, self.fields)
 
+        evals, drive = 0, "D_x" if self.drive == "x" else "D_z"
+
         def rate(t, y):
+            nonlocal evals
+            evals += 1
+            if evals > FLOW_EVALS:
+                raise NumericalError(
+                    f"coupled slip-weakening: a burst's flow at {drive} = {D!r} reached no "
+                    f"event in {FLOW_EVALS} evaluations (it stalled near a rest it cannot "
+                    "leave)")
             return c * np.where(M, residual(y), 0.0)
 
         def jac(t, y):
