@@ -159,6 +159,8 @@ class _Core:
         self.worst = 0.0
         self.steps = 0
         self.bursts = 0
+        self.changes = 0  # set changes (events), to tell a flow that came back from one that moved
+        self._origin: tuple[int, np.ndarray, int] | None = None  # the last push: changes, s, level
         self.stopped = ""
 
     # -- the linear response --------------------------------------------------------------------
@@ -745,6 +747,7 @@ class _Events:
 
     def apply(self, kind: str, j: int) -> None:
         """Change the sets for the event ``kind`` at site ``j`` (at the current point)."""
+        self.changes += 1
         self.rebase()
         if kind in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
             self.sigma[j] = 1.0 if kind == EventKind.SLIP_PLUS else -1.0
@@ -850,6 +853,7 @@ class _Events:
         on the way (kind, site, F_x)."""
         failed: list[tuple[str, int, float]] = []
         self.bursts += 1
+        self._origin = None
         self._stopped: set[int] = set()
         self._pushed = False
         if push is not None:
@@ -894,30 +898,45 @@ class _Events:
                          np.finfo(float).tiny)
 
     def _push(self, mode: tuple[np.ndarray, float]) -> None:
-        r"""Move the slips along a burst's unstable direction, by the first of
-        :data:`PUSHES` (in d_c) at which the mode grows at least at :data:`ESCAPE`.
+        r"""Move the slips along a burst's unstable direction by the first of :data:`PUSHES`
+        (in d_c) at which the mode grows at least at :data:`ESCAPE` and that is larger than
+        a push the flow brought back.
 
-        A fold is located to a tolerance on the stable side: there the mode's rate is
+        A fold is located to a tolerance on its stable side: there the mode's rate is
         :math:`\approx 0` and grows with the push :math:`x` as :math:`2ax` (the path's
         quadratic term), so a tiny push leaves the flow at the residual's rounding floor,
-        where the integrator's steps stay bounded and the escape takes unbounded time.
-        The landing does not depend on the push once it escapes (the polish finds the same
-        rest); a fold it cannot leave within the largest push is refused."""
+        where the integrator's steps stay bounded and the escape takes unbounded time. A
+        slowly growing mode pushed along its positive part (the bonds it would take back
+        held) can decay below the rest tolerance before it grows; the polish then returns
+        to the state pushed from, with no set changed. The landing does not depend on the
+        push once the flow escapes (the polish finds the same rest); a state no push leaves
+        is refused."""
         v, rate = mode
         v = v / max(float(np.abs(v).max()), 1e-300)
-        s0 = self.s
-        for k in PUSHES:
-            self.s = s0 + k * self.law.dc * v
-            if k != PUSHES[0]:
+        s0 = self.s.copy()
+        first = 0
+        if self._origin is not None:
+            changes, s_prev, level = self._origin
+            if (changes == self.changes and s_prev.size == s0.size
+                    and float(np.abs(s0 - s_prev).max(initial=0.0))
+                    <= 0.5 * PUSHES[level] * self.law.dc):
+                first = level + 1
+        for level in range(first, len(PUSHES)):
+            self.s = s0 + PUSHES[level] * self.law.dc * v
+            if level != 0 and rate < ESCAPE:
                 JA = self.jacobian(self.s, self.D)
                 rate = float(linalg.eigvals(JA[:, :-1]).real.max()) * self._rate_scale(JA)
-            if rate >= ESCAPE:
+            if rate >= ESCAPE and (float(np.abs(self.residual(self.s, self.D)).max())
+                                   >= FLOW_EPS * self.fscale()):
                 break
         else:
+            self.s = s0
             raise NumericalError(
-                f"coupled slip-weakening: a burst cannot leave the fold at "
+                f"coupled slip-weakening: a burst cannot leave the state at "
                 f"{'D_x' if self.drive == 'x' else 'D_z'} = {self.D!r}: its mode grows at "
-                f"{rate:.2e} of the stiffest bond's rate after a push of {PUSHES[-1]:g} d_c")
+                f"{rate:.2e} of the stiffest bond's rate, or the flow came back, after a push "
+                f"of {PUSHES[-1]:g} d_c")
+        self._origin = (self.changes, s0, level)
         self._pushed = True
 
     def _rest(self) -> bool:
@@ -925,7 +944,7 @@ class _Events:
         state is stable (else pushed along its unstable mode)."""
         fs = self.fscale()
         R = self.residual(self.s, self.D)
-        if self._pushed or R.max(initial=0.0) > 1e-6 * fs:
+        if self._pushed or R.max(initial=0.0) > REST * fs:
             return False
         arrested = (R < -REST * fs) & self._reversible()
         for j in self.lin.sites[arrested]:
