@@ -17,7 +17,8 @@ runs both models with the Coulomb law; under ``--slip-law slip-weakening``, with
 ``--histories`` runs the coupled model once per squeeze
 history (``coupling.history``), one row each; the friction ratio is the mean over samples of
 each sample's mean ratio over depths, with the bootstrap standard deviation of that mean over
-resamples of the samples (1000 resamples, seed 0). Prints Markdown (docs/results.md holds the
+resamples of the samples (1000 resamples, seed 0); a depth whose coupled or decoupled pull did
+not converge is left out of its sample's mean, and the seconds column counts them. Prints Markdown (docs/results.md holds the
 output of a run). ``--resume`` continues the run files an interrupted invocation with the same
 options left in ``--out`` (their completed samples are kept; the seconds column then counts this
 invocation's work only).
@@ -121,13 +122,27 @@ def main() -> None:
                 fc = fit_files([paths[history]])[0].fit
                 rc = read_run(paths[history])
                 done = rc.complete & rd.complete
-                per_sample = np.mean(rc.scalars["friction_force"][done]
-                                     / rd.scalars["friction_force"][done], axis=1)
+                ratios = (rc.scalars["friction_force"][done]
+                          / rd.scalars["friction_force"][done])
+                out = _unconverged(rc, done) | _unconverged(rd, done)
+                per_sample = np.nanmean(np.where(out, np.nan, ratios), axis=1)
+                per_sample = per_sample[np.isfinite(per_sample)]
                 ratio, err = per_sample.mean(), bootstrap_std(per_sample)
+                left = f" ({int(out.sum())} unconverged left out)" if out.any() else ""
                 print(f"| {scene.rstrip('0123456789')} | {round(n ** 0.5)} | {nu} | {history} "
                       f"| {fmt(fd)} | {fmt(fc)} | {ratio:.3f} ± {err:.3f} | "
                       f"{released_fraction(paths[history]):.2f} | {secs[None]:.0f} / "
-                      f"{secs[history]:.0f} |", flush=True)
+                      f"{secs[history]:.0f}{left} |", flush=True)
+
+
+def _unconverged(r, done: np.ndarray) -> np.ndarray:
+    """The (sample, depth) entries of the samples ``done`` whose pull did not converge (a
+    coupled path that ends in a cycle, say): left out of the ratio, as the fit leaves them
+    out of alpha."""
+    flags = r.scalars.get("pull_converged")
+    if flags is None:
+        return np.zeros((int(done.sum()), r.scalars["friction_force"].shape[1]), bool)
+    return np.asarray(flags[done], dtype=float) == 0
 
 
 def fmt(f) -> str:

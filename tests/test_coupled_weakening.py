@@ -282,3 +282,16 @@ def test_a_push_the_flow_brings_back_grows(monkeypatch):
     with pytest.raises(NumericalError, match="or the flow came back"):
         _weak(pb, 0.1, 0.05, depth=1.5, history="frictionless")
     assert levels == list(range(levels[0], len(wk.PUSHES)))
+
+
+def test_a_contact_cycle_inside_a_burst_ends_the_pull_unconverged():
+    """A 32^2 scene where, inside a burst, a site closes its gap when out of contact and
+    pulls when in contact: no quasi-static continuation. The burst stops on the site's
+    second return (not after its iteration limit) and the pull ends there, reported as not
+    converged, with the message naming the drive and the site."""
+    h = self_affine((32, 32), hurst=0.8, rms_height=1.0, rng=sample_rng(8, 2), oversample=2)
+    depth = 0.3 * (2.0 / 0.3) ** (4 / 5) * float(h.std())  # the study's fifth depth
+    w = _weak(Problem.from_arrays(h, nu=0.25), 0.1, 0.05, depth=depth, history="frictionless")
+    assert not w.converged
+    assert w.message.startswith("the events cycle inside a burst at D_x = ")
+    assert "'gained' at site 31 came back 2 times" in w.message

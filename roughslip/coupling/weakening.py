@@ -64,6 +64,12 @@ from roughslip.errors import NumericalError
 from roughslip.friction.events import TIE, VISITS, Event, EventKind, EventPath, Snapshot, digest
 
 STICK, WEAK, RESID = 0, 1, 2
+
+
+class EventCycle(NumericalError):
+    """The sets came back to a state they left at the same drive: no quasi-static
+    continuation. The pull ends there, not converged; anywhere else, an error."""
+
 #: Newton's iterations on a curve point before a step is refused
 NEWTON = 30
 #: the excess, relative to the largest normal force, below which a bond is at rest
@@ -860,9 +866,14 @@ class _Events:
             self._push(push)
         elif self._violation() is None and not self.stable():
             self._push(self.unstable_mode())
+        seen: dict[tuple, int] = {}
         for _ in range(100_000):
             v = self._violation()
             if v is not None:
+                key = (str(v[0]), v[1], self.signature())
+                seen[key] = seen.get(key, 0) + 1
+                if seen[key] >= VISITS:
+                    raise self._cycle(*v, "inside a burst")
                 if v[0] in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
                     failed.append((v[0], v[1], self.totals()[0]))
                 self.apply(*v)
@@ -875,6 +886,11 @@ class _Events:
                 continue  # the polish at rest left a bond beyond its strength: that first
             self._flow()
         raise NumericalError("coupled slip-weakening: a burst did not come to rest")
+
+    def _cycle(self, kind: str, j: int, where: str) -> EventCycle:
+        return EventCycle(f"the events cycle {where} at "
+                          f"{'D_x' if self.drive == 'x' else 'D_z'} = {self.D!r}: {str(kind)!r} at "
+                          f"site {j} came back {VISITS - 1} times (no quasi-static continuation)")
 
     def unstable_mode(self) -> tuple[np.ndarray, float]:
         """The direction a burst leaves in: the mode of dR/ds of the largest real part, with
@@ -1135,37 +1151,40 @@ class WeakeningContact(_Events, _Core):
         seen: dict[tuple, int] = {}
         seen_at = self.D
         record(EventKind.START, -1)
-        relax()
-        path.peak = self.snapshot() if self.drive == "x" else path.peak
-        while True:
-            if self.drive == "x" and not self.holds():
-                break
-            if len(path.events) > limit:
-                path.message = f"stopped after {limit} events"
-                break
-            kind, j = self.advance(end, on_point)
-            if self.D != seen_at:
-                seen.clear()
-                seen_at = self.D
-            key = (str(kind), j, self.signature())
-            seen[key] = seen.get(key, 0) + 1
-            if seen[key] >= VISITS:
-                raise NumericalError(f"the events cycle at {'D_x' if self.drive == 'x' else 'D_z'}"
-                                     f" = {self.D!r}: {kind!r} at site {j} came back "
-                                     f"{VISITS - 1} times (no quasi-static continuation)")
-            if not self.scaled and self.D > 0:
-                self.scale, self.scaled = self.D, True
-            if kind == EventKind.END:
-                self.certify()
-                record(kind, -1)
-                break
-            if kind == "fold":
-                relax(self.unstable_mode())
-                continue
-            record(kind, j)
-            self.apply(kind, j)
-            self.certify()
+        try:
             relax()
+            path.peak = self.snapshot() if self.drive == "x" else path.peak
+            while True:
+                if self.drive == "x" and not self.holds():
+                    break
+                if len(path.events) > limit:
+                    path.message = f"stopped after {limit} events"
+                    break
+                kind, j = self.advance(end, on_point)
+                if self.D != seen_at:
+                    seen.clear()
+                    seen_at = self.D
+                key = (str(kind), j, self.signature())
+                seen[key] = seen.get(key, 0) + 1
+                if seen[key] >= VISITS:
+                    raise self._cycle(kind, j, "on the path")
+                if not self.scaled and self.D > 0:
+                    self.scale, self.scaled = self.D, True
+                if kind == EventKind.END:
+                    self.certify()
+                    record(kind, -1)
+                    break
+                if kind == "fold":
+                    relax(self.unstable_mode())
+                    continue
+                record(kind, j)
+                self.apply(kind, j)
+                self.certify()
+                relax()
+        except EventCycle as exc:
+            if self.drive != "x":
+                raise
+            path.message = str(exc)  # the pull ends there, not converged
         return path
 
 
