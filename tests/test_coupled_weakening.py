@@ -295,3 +295,18 @@ def test_a_contact_cycle_inside_a_burst_ends_the_pull_unconverged():
     assert not w.converged
     assert w.message.startswith("the events cycle inside a burst at D_x = ")
     assert "'gained' at site 31 came back 2 times" in w.message
+
+
+def test_a_burst_whose_flow_stands_still_is_refused(monkeypatch):
+    """A flow that changes neither the slips nor the sets while the state is not at rest
+    would repeat for ever: on its third time the burst stops with an error naming the
+    drive."""
+    from roughslip.coupling import weakening as wk
+
+    def still(self):
+        self._pushed = False
+
+    monkeypatch.setattr(wk.WeakeningContact, "_flow", still)
+    pb = Problem.from_arrays(rough(16, 1), nu=0.25)
+    with pytest.raises(NumericalError, match=r"flow makes no progress at D_x = "):
+        _weak(pb, 0.1, 0.05, depth=1.5, history="frictionless")

@@ -867,6 +867,7 @@ class _Events:
         elif self._violation() is None and not self.stable():
             self._push(self.unstable_mode())
         seen: dict[tuple, int] = {}
+        idle = 0  # flows in a row that changed nothing
         for _ in range(100_000):
             v = self._violation()
             if v is not None:
@@ -884,7 +885,18 @@ class _Events:
                 return failed
             if not self._pushed and self._violation() is not None:
                 continue  # the polish at rest left a bond beyond its strength: that first
+            before = (self.changes, self.s.copy(), frozenset(self._stopped))
             self._flow()
+            if (before[0] == self.changes and np.array_equal(before[1], self.s)
+                    and before[2] == self._stopped):
+                idle += 1
+                if idle >= VISITS:
+                    raise NumericalError(
+                        "coupled slip-weakening: a burst's flow makes no progress at "
+                        f"{'D_x' if self.drive == 'x' else 'D_z'} = {self.D!r}, yet the state "
+                        "is not at rest")
+            else:
+                idle = 0
         raise NumericalError("coupled slip-weakening: a burst did not come to rest")
 
     def _cycle(self, kind: str, j: int, where: str) -> EventCycle:
@@ -960,7 +972,7 @@ class _Events:
         state is stable (else pushed along its unstable mode)."""
         fs = self.fscale()
         R = self.residual(self.s, self.D)
-        if self._pushed or R.max(initial=0.0) > REST * fs:
+        if self._pushed or R.max(initial=0.0) > FLOW_EPS * fs:
             return False
         arrested = (R < -REST * fs) & self._reversible()
         for j in self.lin.sites[arrested]:
