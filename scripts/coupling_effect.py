@@ -18,10 +18,10 @@ runs both models with the Coulomb law; under ``--slip-law slip-weakening``, with
 history (``coupling.history``), one row each; the friction ratio is the mean over samples of
 each sample's mean ratio over depths, with the bootstrap standard deviation of that mean over
 resamples of the samples (1000 resamples, seed 0); a depth whose coupled or decoupled pull did
-not converge is left out of its sample's mean, and the seconds column counts them. Prints Markdown (docs/results.md holds the
-output of a run). ``--resume`` continues the run files an interrupted invocation with the same
-options left in ``--out`` (their completed samples are kept; the seconds column then counts this
-invocation's work only).
+not converge is left out of its sample's mean, and the seconds column counts them. Prints
+Markdown (docs/results.md holds the output of a run). ``--resume`` continues the run files an
+interrupted invocation with the same options left in ``--out`` (their completed samples are
+kept; the seconds column then counts this invocation's work only).
 """
 
 from __future__ import annotations
@@ -125,8 +125,9 @@ def main() -> None:
                 ratios = (rc.scalars["friction_force"][done]
                           / rd.scalars["friction_force"][done])
                 out = _unconverged(rc, done) | _unconverged(rd, done)
-                per_sample = np.nanmean(np.where(out, np.nan, ratios), axis=1)
-                per_sample = per_sample[np.isfinite(per_sample)]
+                kept = (~out).sum(axis=1)  # a sample with every depth left out drops out
+                per_sample = (np.where(out, 0.0, ratios).sum(axis=1)[kept > 0]
+                              / kept[kept > 0])
                 ratio, err = per_sample.mean(), bootstrap_std(per_sample)
                 left = f" ({int(out.sum())} unconverged left out)" if out.any() else ""
                 print(f"| {scene.rstrip('0123456789')} | {round(n ** 0.5)} | {nu} | {history} "

@@ -583,7 +583,8 @@ def histories_weakening(out: Path) -> None:
         data.setdefault((float(row[1]), row[2], row[3]), []).append((int(row[0]), ratio, err))
     order = ("bonded", "simultaneous", "indent", "frictionless")
     laws = sorted({law for _, _, law in data}, key=lambda s: (s != "break", s))
-    styles = {law: (":", "white") if law == "break" else ("-", None) if k == 1 else ("--", None)
+    # the break law dotted with open markers; the slip distances dashed (the shorter) and solid
+    styles = {law: (":", "white") if law == "break" else ("--", None) if k == 1 else ("-", None)
               for k, law in enumerate(laws)}
     nus = sorted({nu for nu, _, _ in data})
     sizes = sorted({n for pts in data.values() for n, _, _ in pts})

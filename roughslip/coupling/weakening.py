@@ -67,14 +67,17 @@ STICK, WEAK, RESID = 0, 1, 2
 
 
 class EventCycle(NumericalError):
-    """The sets came back to a state they left at the same drive: no quasi-static
-    continuation. The pull ends there, not converged; anywhere else, an error."""
+    """The sets came back to a state they left at the same drive (no quasi-static
+    continuation): the pull ends there, not converged; anywhere else, an error."""
+
 
 #: Newton's iterations on a curve point before a step is refused
 NEWTON = 30
-#: the excess, relative to the largest normal force, below which a bond is at rest
+#: the excess, relative to the largest normal force, beyond which a stick bond fails, and
+#: below which one arrested in a burst sticks
 REST = 1e-10
 #: the excess, relative to the largest normal force, at which a bond stops or moves again
+#: inside a burst's flow, and above which no state is at rest
 #: inside a burst's flow
 FLOW_EPS = 1e-9
 #: a burst's push along its unstable mode, in d_c: the first that makes the mode grow at
@@ -825,8 +828,14 @@ class _Events:
         return _abscissa(self.jacobian(self.s, self.D)[:, :-1]) < 0
 
     def _violation(self) -> tuple[str, int] | None:
-        """At the current point: a contact in tension, a gap closed, a stick bond beyond its
-        strength (by more than the rest tolerance); the worst of the first kind found."""
+        """At the current point: a weakening bond slipped past d_c (a burst's push can carry
+        it there), a contact in tension, a gap closed, a stick bond beyond its strength (by
+        more than the rest tolerance); the worst of the first kind found."""
+        P = self.lin.sites
+        if P.size:
+            past = (self.law.dc - self.delta[P] - self.s) * (self.phase[P] == WEAK)
+            if past.min() < -TIE * self.law.dc:
+                return EventKind.RESIDUAL, int(P[np.argmin(past)])
         fz, fx, dep = self.fields(self.s, self.D)
         fs = self.fscale()
         C = np.flatnonzero(self.C)
@@ -878,6 +887,7 @@ class _Events:
                 if v[0] in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
                     failed.append((v[0], v[1], self.totals()[0]))
                 self.apply(*v)
+                idle = 0
                 continue
             if not self.lin.sites.size:
                 return failed
@@ -900,6 +910,7 @@ class _Events:
         raise NumericalError("coupled slip-weakening: a burst did not come to rest")
 
     def _cycle(self, kind: str, j: int, where: str) -> EventCycle:
+        """The error of a state met again (:data:`VISITS`), naming the drive and the site."""
         return EventCycle(f"the events cycle {where} at "
                           f"{'D_x' if self.drive == 'x' else 'D_z'} = {self.D!r}: {str(kind)!r} at "
                           f"site {j} came back {VISITS - 1} times (no quasi-static continuation)")
@@ -922,6 +933,7 @@ class _Events:
 
     @staticmethod
     def _rate_scale(JA: np.ndarray) -> float:
+        """The unit of a mode's rate: one over the largest diagonal entry of dR/ds."""
         return 1.0 / max(float(np.abs(np.diag(JA[:, :-1])).max(initial=0.0)),
                          np.finfo(float).tiny)
 
