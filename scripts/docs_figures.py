@@ -582,10 +582,13 @@ def histories_weakening(out: Path) -> None:
         ratio, err = _plus_minus(row[5])
         data.setdefault((float(row[1]), row[2], row[3]), []).append((int(row[0]), ratio, err))
     order = ("bonded", "simultaneous", "indent", "frictionless")
-    laws = sorted({law for _, _, law in data}, key=lambda s: (s != "break", s))
-    # the break law dotted with open markers; the slip distances dashed (the shorter) and solid
-    styles = {law: (":", "white") if law == "break" else ("--", None) if k == 1 else ("-", None)
-              for k, law in enumerate(laws)}
+    # the break law dotted with open markers, then the slip distances from the longest
+    # (solid) down (dashed, dash-dotted)
+    weak = sorted({law for _, _, law in data} - {"break"}, reverse=True)
+    laws = ["break", *weak] if any(law == "break" for _, _, law in data) else weak
+    styles = {law: (":", "white") if law == "break" else ("-", "--", "-.")[weak.index(law)]
+              for law in laws}
+    styles = {law: s if isinstance(s, tuple) else (s, None) for law, s in styles.items()}
     nus = sorted({nu for nu, _, _ in data})
     sizes = sorted({n for pts in data.values() for n, _, _ in pts})
     plt = pyplot()
