@@ -133,7 +133,8 @@ def test_the_generated_guide_output_is_what_the_script_writes():
                | {"hurst_loop.txt", "hurst_fit.png", "hertz_resolution.png",
                   "hertz_resolution.txt", "weakening_resolution.png",
                   "weakening_resolution.txt", "index_pull.png", "coupled_events.png",
-                  "coupled_events.txt", "histories.png", "bench_scaling.png",
+                  "coupled_events.txt", "histories.png", "histories_weakening.png",
+                  "bench_scaling.png",
                   "hertz_exponents.png", "rough_exponents.png", "coupled_finite_size.png",
                   "indentation.png", "weakening_rough.png", "burst_exponents.png",
                   "python_friction_coefficient.png", "python_sample0_fz.png"}
