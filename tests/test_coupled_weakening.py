@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import linalg
 
 from roughslip.contact.problem import Problem
 from roughslip.contact.squeeze import squeeze
@@ -330,3 +331,77 @@ def test_a_burst_whose_flow_stands_still_is_refused(monkeypatch):
     pb = Problem.from_arrays(rough(16, 1), nu=0.25)
     with pytest.raises(NumericalError, match=r"flow makes no progress at D_x = "):
         _weak(pb, 0.1, 0.05, depth=1.5, history="frictionless")
+
+
+def _viscous_slip(wc, j: int, sign: float, eta: float, span: float) -> float:
+    """The slip of bond ``j``, in d_c, after the drive moves by ``span`` from the current
+    point under the viscous law :math:`\\eta\\,\\dot s_i = \\max(e_i, 0)` on every bond (each
+    slipping in the direction of its force, ``j`` in ``sign``'s), integrated by BDF: the
+    regularisation whose limit the bursts follow, independent of the path-follower."""
+    from scipy.integrate import solve_ivp
+
+    from roughslip.coupling import weakening as wk
+
+    law, lin = wc.law, wc.lin
+    wc.rebase()
+    fz, fx, _ = wc.fields(wc.s, wc.D)
+    Q = np.flatnonzero(wc.Q)
+    sg = np.where(wc.phase[Q] == wk.STICK, np.sign(fx[Q]), wc.sigma[Q])
+    sg[Q == j] = sign
+    Uz, Ux = wc.solver.unit_responses(Q)
+    Az, Ax = -(sg[:, None] * Uz[:, Q]).T, -(sg[:, None] * Ux[:, Q]).T
+    dl = wc.delta[Q]
+
+    def excess(s, t):
+        lam = law.lam_s - law.k * np.minimum(dl + s, law.dc)
+        return (sg * (fx[Q] + t * lin.fx1[Q] + Ax @ s)
+                - lam * (fz[Q] + t * lin.fz1[Q] + Az @ s))
+
+    def jac(t, s):
+        lam = law.lam_s - law.k * np.minimum(dl + s, law.dc)
+        J = sg[:, None] * Ax - lam[:, None] * Az
+        J[np.diag_indices(Q.size)] += np.where(dl + s < law.dc, law.k, 0.0) * (
+            fz[Q] + t * lin.fz1[Q] + Az @ s)
+        return (excess(s, t) > 0)[:, None] * J / eta
+
+    sol = solve_ivp(lambda t, s: np.maximum(excess(s, t), 0.0) / eta, (0.0, span),
+                    np.zeros(Q.size), method="BDF", jac=jac, rtol=1e-8,
+                    atol=1e-14 * law.dc)
+    assert sol.status == 0, sol.message
+    return float(sol.y[np.flatnonzero(Q == j)[0], -1]) / law.dc
+
+
+@pytest.mark.timeout(600)  # the old rule chattered to the event limit
+def test_a_failure_into_an_unstable_mode_bursts_the_way_the_viscous_law_does(monkeypatch):
+    """A 32^2 indentation (seed 8, sample 0, nu = 0.25, 2 rms, d_c = 0.01) where a fresh
+    bond's failure makes the state unstable, and the drive alone (dR/dD at held slips)
+    forces the mode backward while the path that led there loads the bond forward. The
+    first sign held the bond and pushed the rest of the mode: it stuck again, its
+    neighbours re-slipped one by one and it failed again, 12k events for 1e-4 of depth.
+    The viscous law, integrated independently at eta = 1e-8 from the event, runs the bond
+    forward through d_c at once: the burst's sign is the path's, and the indentation
+    ends."""
+    from roughslip.coupling import weakening as wk
+
+    h = self_affine((32, 32), hurst=0.8, rms_height=1.0, rng=sample_rng(8, 0), oversample=2)
+    pb = Problem.from_arrays(h, nu=0.25)
+    mode, checked = wk.WeakeningContact.unstable_mode, []
+
+    def logged(self, forcing=None):
+        v, rate = mode(self, forcing)
+        if forcing is not None and not checked and self.drive == "z":
+            JA = self.jacobian(self.s, self.D)
+            w, vl = linalg.eig(JA[:, :-1], left=True, right=False)
+            u = vl[:, int(np.argmax(w.real))].real
+            if float(u @ forcing) * float(u @ JA[:, -1]) < 0:
+                r = int(np.argmax(np.abs(forcing)))
+                j = int(self.lin.sites[r])
+                assert v[r] > 0, "the failed bond is held"
+                checked.append(_viscous_slip(self, j, self.sigma[j], 1e-8, 2e-6))
+        return v, rate
+
+    monkeypatch.setattr(wk.WeakeningContact, "unstable_mode", logged)
+    w = _weak(pb, 0.1, 0.01, depth=2.0 * float(h.std()), history="indent")
+    assert checked, "no failure of the scene loads a mode the drive alone would reverse"
+    assert checked[0] >= 1.0  # the viscous law weakens the bond through d_c
+    assert w.converged, w.message

@@ -170,6 +170,7 @@ class _Core:
         self.bursts = 0
         self.changes = 0  # set changes (events), to tell a flow that came back from one that moved
         self._origin: tuple[int, np.ndarray, int] | None = None  # the last push: changes, s, level
+        self._approach: tuple[np.ndarray, np.ndarray] | None = None  # the path's last tangent
         self.stopped = ""
 
     # -- the linear response --------------------------------------------------------------------
@@ -535,6 +536,7 @@ class _Core:
             x0 = np.append(s, D)
             R0 = self.residual(s, D)
             t0, Ainv = self._tangent(s, D, prev)
+            self._approach = (self.lin.sites.copy(), t0)
             tn = float(np.abs(t0).max())
             if t0[-1] <= TIE * tn:
                 return "fold", -1
@@ -860,12 +862,13 @@ class _Events:
                 return EventKind.slip(fx[j]), j
         return None
 
-    def burst(self, push: tuple[np.ndarray, float] | None = None
-              ) -> list[tuple[str, int, float]]:
+    def burst(self, push: tuple[np.ndarray, float] | None = None,
+              forcing: np.ndarray | None = None) -> list[tuple[str, int, float]]:
         r"""Relax at the held drive to the rest of the overdamped law
         :math:`\dot s_i = \max(e_i, 0)` (module docstring), from ``push`` (a mode of
-        :meth:`unstable_mode`, at a fold) or from the unstable mode; returns the failures
-        on the way (kind, site, F_x)."""
+        :meth:`unstable_mode`, at a fold) or from the unstable mode, signed by ``forcing``
+        (:meth:`approach_forcing`, after an event); returns the failures on the way
+        (kind, site, F_x)."""
         failed: list[tuple[str, int, float]] = []
         self.bursts += 1
         self._origin = None
@@ -874,7 +877,7 @@ class _Events:
         if push is not None:
             self._push(push)
         elif self._violation() is None and not self.stable():
-            self._push(self.unstable_mode())
+            self._push(self.unstable_mode(forcing))
         seen: dict[tuple, int] = {}
         idle = 0  # flows in a row that changed nothing
         for _ in range(100_000):
@@ -915,21 +918,44 @@ class _Events:
                           f"{'D_x' if self.drive == 'x' else 'D_z'} = {self.D!r}: {str(kind)!r} at "
                           f"site {j} came back {VISITS - 1} times (no quasi-static continuation)")
 
-    def unstable_mode(self) -> tuple[np.ndarray, float]:
+    def unstable_mode(self, forcing: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """The direction a burst leaves in: the mode of dR/ds of the largest real part, with
-        the sign in which the drive forces it (its left eigenvector against dR/dD), the
-        bonds it would take back held (the decoupled law's rule at a fold); and that real
-        part relative to the stiffest bond's (the diagonal of dR/ds), the mode's rate."""
+        the sign in which it is forced (its left eigenvector against ``forcing``, the rate of
+        R along the path that led here, :meth:`approach_forcing`; where that is None or
+        vanishes to rounding, as at a fold, against dR/dD), the bonds it would take back
+        held (the decoupled law's rule at a fold); and that real part relative to the
+        stiffest bond's (the diagonal of dR/ds), the mode's rate."""
         JA = self.jacobian(self.s, self.D)
         w, vl, vr = linalg.eig(JA[:, :-1], left=True, right=True)
         i = int(np.argmax(w.real))
         v, u = np.real(vr[:, i]), np.real(vl[:, i])
         if float(u @ v) < 0:
             u = -u
-        if float(u @ JA[:, -1]) < 0:
+        f = JA[:, -1]
+        if forcing is not None:
+            # the forcing is J_A t on rows whose own rate vanishes on the old curve: to
+            # rounding of the rows' size there
+            floor = 1e-12 * float(np.abs(JA).sum(axis=1).max(initial=0.0)) * float(
+                np.abs(u).sum())
+            if abs(float(u @ forcing)) > floor:
+                f = forcing
+        if float(u @ f) < 0:
             v = -v
         vp = np.maximum(v, 0.0)
         return vp if vp.any() else np.abs(v), float(w[i].real) * self._rate_scale(JA)
+
+    def approach_forcing(self) -> np.ndarray | None:
+        r"""The rate of R, in the current sets, along the tangent of the path that led to the
+        current point (a bond that joined since moves at the rate 0): :math:`J_A t`. After a
+        bond fails, it is that bond's rate of loading on its own row and vanishes to rounding
+        on the others (they were on the curve). None when no path led here."""
+        if self._approach is None:
+            return None
+        sites, t = self._approach
+        P = self.lin.sites
+        rate = dict(zip(sites.tolist(), t[:-1].tolist(), strict=True))
+        tt = np.array([rate.get(int(p), 0.0) for p in P] + [float(t[-1])])
+        return self.jacobian(self.s, self.D) @ tt
 
     @staticmethod
     def _rate_scale(JA: np.ndarray) -> float:
@@ -1163,10 +1189,10 @@ class WeakeningContact(_Events, _Core):
                 path.peak = self.snapshot()
                 path.peak_event = len(path.events)
 
-        def relax(push=None) -> None:
+        def relax(push=None, forcing=None) -> None:
             if push is None and self._violation() is None and self.stable():
                 return
-            for k_in, j_in, F_in in self.burst(push):
+            for k_in, j_in, F_in in self.burst(push, forcing):
                 record(k_in, j_in, F_in)
             self.certify()
             record(EventKind.JUMP, -1)
@@ -1204,7 +1230,7 @@ class WeakeningContact(_Events, _Core):
                 record(kind, j)
                 self.apply(kind, j)
                 self.certify()
-                relax()
+                relax(forcing=self.approach_forcing())
         except EventCycle as exc:
             if self.drive != "x":
                 raise
