@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from scipy import linalg
@@ -405,3 +407,33 @@ def test_a_failure_into_an_unstable_mode_bursts_the_way_the_viscous_law_does(mon
     assert checked, "no failure of the scene loads a mode the drive alone would reverse"
     assert checked[0] >= 1.0  # the viscous law weakens the bond through d_c
     assert w.converged, w.message
+
+
+@pytest.mark.timeout(600)
+def test_a_violation_that_returns_shrinking_is_an_approach_not_a_cycle(monkeypatch):
+    """A 32^2 indentation (seed 8, sample 3, nu = 0.25, 0.94 rms, d_c = 0.01): inside a
+    burst, a site slips, pulls itself into tension through the coupling, is lost, closes its
+    gap and is gained again, each time with a hundredth of the forces (a Zeno sequence onto
+    a contact with no force). Its third loss was taken for a cycle, an error that killed the
+    run. A return at a tenth of the last one's size or less does not count, and the
+    indentation ends with the site out of contact."""
+    from roughslip.coupling import weakening as wk
+
+    h = self_affine((32, 32), hurst=0.8, rms_height=1.0, rng=sample_rng(8, 3), oversample=2)
+    pb = Problem.from_arrays(h, nu=0.25)
+    size, sizes = wk.WeakeningContact._size, {}
+
+    def logged(self, kind, j):
+        out = size(self, kind, j)
+        if self.drive == "z":
+            sizes.setdefault((str(kind), j, self.D), []).append(out)
+        return out
+
+    monkeypatch.setattr(wk.WeakeningContact, "_size", logged)
+    depth = 0.3 * (2.0 / 0.3) ** 0.6  # the fourth of six depths 0.3-2 rms, log-spaced
+    w = _weak(pb, 0.1, 0.01, depth=depth * float(h.std()), history="indent")
+    assert w.converged, w.message
+    shrinking = [v for (kind, _, _), v in sizes.items() if kind == "lost" and len(v) >= 3]
+    assert shrinking, "no loss of the scene returns three times"
+    v = shrinking[0]
+    assert all(b < wk.APPROACH * a for a, b in itertools.pairwise(v))

@@ -78,7 +78,6 @@ NEWTON = 30
 REST = 1e-10
 #: the excess, relative to the largest normal force, at which a bond stops or moves again
 #: inside a burst's flow, and above which no state is at rest
-#: inside a burst's flow
 FLOW_EPS = 1e-9
 #: a burst's push along its unstable mode, in d_c: the first that makes the mode grow at
 #: :data:`ESCAPE` (a fold's mode is neutral until pushed)
@@ -88,6 +87,11 @@ ESCAPE = 1e-6
 #: the rate evaluations a burst's flow may take to its next event or rest before it is
 #: refused as stalled (a flow at the residual's rounding floor takes bounded steps for ever)
 FLOW_EVALS = 100_000
+#: a violation that comes back inside a burst at most this fraction of its last size is an
+#: approach to a tie (a site tending to a contact with no force), not a cycle
+APPROACH = 0.1
+#: the returns of one violation inside a burst beyond which it is a cycle whatever its size
+RETURNS = 30
 
 
 @dataclass(frozen=True)
@@ -878,15 +882,19 @@ class _Events:
             self._push(push)
         elif self._violation() is None and not self.stable():
             self._push(self.unstable_mode(forcing))
-        seen: dict[tuple, int] = {}
+        seen: dict[tuple, tuple[int, int, float]] = {}  # visits, returns, size
         idle = 0  # flows in a row that changed nothing
         for _ in range(100_000):
             v = self._violation()
             if v is not None:
                 key = (str(v[0]), v[1], self.signature())
-                seen[key] = seen.get(key, 0) + 1
-                if seen[key] >= VISITS:
-                    raise self._cycle(*v, "inside a burst")
+                size = self._size(*v)
+                visits, returns, last = seen.get(key, (0, 0, math.nan))
+                if not abs(size) < APPROACH * abs(last):  # a first visit counts
+                    visits += 1
+                seen[key] = (visits, returns + 1, size)
+                if visits >= VISITS or returns + 1 >= RETURNS:
+                    raise self._cycle(*v, "inside a burst", returns)
                 if v[0] in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
                     failed.append((v[0], v[1], self.totals()[0]))
                 self.apply(*v)
@@ -912,11 +920,28 @@ class _Events:
                 idle = 0
         raise NumericalError("coupled slip-weakening: a burst did not come to rest")
 
-    def _cycle(self, kind: str, j: int, where: str) -> EventCycle:
+    def _size(self, kind: str, j: int) -> float:
+        """How far the violation ``kind`` at site ``j`` is past its tie: a contact's tension
+        and the tangential force it carries, a gap's penetration, a stick bond's excess over
+        its strength, a weakening bond's slip past d_c. A violation that returns shrinking
+        by :data:`APPROACH` each time converges on the tie (a Zeno sequence), so it is not
+        counted as a cycle: in a 32^2 indentation a site's tangential force at its loss
+        went 3e-4, 4e-6, 4e-8 before it stayed out."""
+        fz, fx, dep = self.fields(self.s, self.D)
+        if kind == EventKind.LOST:
+            return abs(float(fz[j])) + abs(float(fx[j]))
+        if kind == EventKind.GAINED:
+            return -float(self.gaps(fz, fx, dep)[j])
+        if kind == EventKind.RESIDUAL:
+            r = int(np.flatnonzero(self.lin.sites == j)[0])
+            return float(self.delta[j] + self.s[r] - self.law.dc)
+        return abs(float(fx[j])) - float(self.law.lam(self.delta[j:j + 1])[0] * fz[j])
+
+    def _cycle(self, kind: str, j: int, where: str, times: int = VISITS - 1) -> EventCycle:
         """The error of a state met again (:data:`VISITS`), naming the drive and the site."""
         return EventCycle(f"the events cycle {where} at "
                           f"{'D_x' if self.drive == 'x' else 'D_z'} = {self.D!r}: {str(kind)!r} at "
-                          f"site {j} came back {VISITS - 1} times (no quasi-static continuation)")
+                          f"site {j} came back {times} times (no quasi-static continuation)")
 
     def unstable_mode(self, forcing: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """The direction a burst leaves in: the mode of dR/ds of the largest real part, with
