@@ -87,10 +87,10 @@ ESCAPE = 1e-6
 #: the rate evaluations a burst's flow may take to its next event or rest before it is
 #: refused as stalled (a flow at the residual's rounding floor takes bounded steps for ever)
 FLOW_EVALS = 100_000
-#: a violation that comes back inside a burst at most this fraction of its last size is an
-#: approach to a tie (a site tending to a contact with no force), not a cycle
+#: a violation that comes back inside a burst at less than this fraction of its last size
+#: is an approach to a tie (a site tending to a contact with no force), not a cycle
 APPROACH = 0.1
-#: the returns of one violation inside a burst beyond which it is a cycle whatever its size
+#: the returns of one violation inside a burst at which it is a cycle whatever its sizes
 RETURNS = 30
 
 
@@ -591,6 +591,11 @@ class _Core:
                                 xe, fall_row=e):
                             self._accept(xe)
                             on_point(xe[:-1], float(xe[-1]))
+                            # the tangent at the landing, not the step's start (one chord
+                            # correction: J(xe) z = 0 to second order in the step)
+                            z = t0 - Ainv @ np.append(self.jacobian(xe[:-1], float(xe[-1]))
+                                                      @ t0, 0.0)
+                            self._approach = (self.lin.sites.copy(), z / np.linalg.norm(z))
                             return names[kinds[e]], int(sites[e])
                         h = 0.5 * te
                     else:
@@ -867,12 +872,12 @@ class _Events:
         return None
 
     def burst(self, push: tuple[np.ndarray, float] | None = None,
-              forcing: np.ndarray | None = None) -> list[tuple[str, int, float]]:
+              forcing=None) -> list[tuple[str, int, float]]:
         r"""Relax at the held drive to the rest of the overdamped law
         :math:`\dot s_i = \max(e_i, 0)` (module docstring), from ``push`` (a mode of
-        :meth:`unstable_mode`, at a fold) or from the unstable mode, signed by ``forcing``
-        (:meth:`approach_forcing`, after an event); returns the failures on the way
-        (kind, site, F_x)."""
+        :meth:`unstable_mode`, at a fold) or from the unstable mode, signed by what
+        ``forcing`` returns (:meth:`approach_forcing`, after an event; called only when the
+        mode is needed); returns the failures on the way (kind, site, F_x)."""
         failed: list[tuple[str, int, float]] = []
         self.bursts += 1
         self._origin = None
@@ -881,19 +886,23 @@ class _Events:
         if push is not None:
             self._push(push)
         elif self._violation() is None and not self.stable():
-            self._push(self.unstable_mode(forcing))
-        seen: dict[tuple, tuple[int, int, float]] = {}  # visits, returns, size
+            self._push(self.unstable_mode(None if forcing is None else forcing()))
+        seen: dict[tuple, tuple[int, int, float]] = {}  # visits, returns, last size
         idle = 0  # flows in a row that changed nothing
         for _ in range(100_000):
             v = self._violation()
             if v is not None:
                 key = (str(v[0]), v[1], self.signature())
                 size = self._size(*v)
-                visits, returns, last = seen.get(key, (0, 0, math.nan))
-                if not abs(size) < APPROACH * abs(last):  # a first visit counts
-                    visits += 1
-                seen[key] = (visits, returns + 1, size)
-                if visits >= VISITS or returns + 1 >= RETURNS:
+                if key in seen:
+                    visits, returns, last = seen[key]
+                    returns += 1
+                    if not abs(size) < APPROACH * abs(last):
+                        visits += 1
+                else:
+                    visits, returns = 1, 0
+                seen[key] = (visits, returns, size)
+                if visits >= VISITS or returns >= RETURNS:
                     raise self._cycle(*v, "inside a burst", returns)
                 if v[0] in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
                     failed.append((v[0], v[1], self.totals()[0]))
@@ -921,15 +930,15 @@ class _Events:
         raise NumericalError("coupled slip-weakening: a burst did not come to rest")
 
     def _size(self, kind: str, j: int) -> float:
-        """How far the violation ``kind`` at site ``j`` is past its tie: a contact's tension
-        and the tangential force it carries, a gap's penetration, a stick bond's excess over
-        its strength, a weakening bond's slip past d_c. A violation that returns shrinking
-        by :data:`APPROACH` each time converges on the tie (a Zeno sequence), so it is not
-        counted as a cycle: in a 32^2 indentation a site's tangential force at its loss
-        went 3e-4, 4e-6, 4e-8 before it stayed out."""
+        """How far the violation ``kind`` at site ``j`` is past its tie: a contact's
+        tangential force and its tension beyond the flow's loss threshold, a gap's
+        penetration, a stick bond's excess over its strength, a weakening bond's slip past
+        d_c. A violation that returns shrinking by :data:`APPROACH` each time converges on
+        the tie (a Zeno sequence), so it is not counted as a cycle: in a 32^2 indentation a
+        site's tangential force at its loss went 3e-4, 4e-6, 4e-8 before it stayed out."""
         fz, fx, dep = self.fields(self.s, self.D)
-        if kind == EventKind.LOST:
-            return abs(float(fz[j])) + abs(float(fx[j]))
+        if kind == EventKind.LOST:  # the flow finds a loss at a tension of 2 TIE fs
+            return abs(float(fx[j])) + max(-float(fz[j]) - 2 * TIE * self.fscale(), 0.0)
         if kind == EventKind.GAINED:
             return -float(self.gaps(fz, fx, dep)[j])
         if kind == EventKind.RESIDUAL:
@@ -947,9 +956,9 @@ class _Events:
         """The direction a burst leaves in: the mode of dR/ds of the largest real part, with
         the sign in which it is forced (its left eigenvector against ``forcing``, the rate of
         R along the path that led here, :meth:`approach_forcing`; where that is None or
-        vanishes to rounding, as at a fold, against dR/dD), the bonds it would take back
-        held (the decoupled law's rule at a fold); and that real part relative to the
-        stiffest bond's (the diagonal of dR/ds), the mode's rate."""
+        within the path's ties of zero, as at a fold, against dR/dD), the bonds it would
+        take back held (the decoupled law's rule at a fold); and that real part relative to
+        the stiffest bond's (the diagonal of dR/ds), the mode's rate."""
         JA = self.jacobian(self.s, self.D)
         w, vl, vr = linalg.eig(JA[:, :-1], left=True, right=True)
         i = int(np.argmax(w.real))
@@ -958,9 +967,10 @@ class _Events:
             u = -u
         f = JA[:, -1]
         if forcing is not None:
-            # the forcing is J_A t on rows whose own rate vanishes on the old curve: to
-            # rounding of the rows' size there
-            floor = 1e-12 * float(np.abs(JA).sum(axis=1).max(initial=0.0)) * float(
+            # the tangent's components are decided to TIE of its norm (the path's ties): a
+            # forcing within that of zero on u does not sign the mode
+            tn = float(np.abs(self._approach[1]).max()) if self._approach else 1.0
+            floor = TIE * tn * float(np.abs(JA).sum(axis=1).max(initial=0.0)) * float(
                 np.abs(u).sum())
             if abs(float(u @ forcing)) > floor:
                 f = forcing
@@ -971,9 +981,17 @@ class _Events:
 
     def approach_forcing(self) -> np.ndarray | None:
         r"""The rate of R, in the current sets, along the tangent of the path that led to the
-        current point (a bond that joined since moves at the rate 0): :math:`J_A t`. After a
-        bond fails, it is that bond's rate of loading on its own row and vanishes to rounding
-        on the others (they were on the curve). None when no path led here."""
+        current point (a bond that joined since moves at the rate 0): :math:`J_A t`, None
+        when no path led here.
+
+        It signs the unstable mode as the viscous law :math:`\eta\dot s = \max(e, 0)` does
+        as :math:`\eta \to 0`. Linearised at the event, the bonds that moved before it lag
+        behind the curve by :math:`\eta` times their rates :math:`\tau_s` (:math:`\tau =
+        t/t_D`), and the drive adds :math:`\partial R/\partial D`; on the mode (rate
+        :math:`\mu`, left eigenvector :math:`u`) the two give the amplitude
+        :math:`(\eta/\mu^2)(\mu\,u\cdot\tau_s + u\cdot\partial R/\partial D) =
+        (\eta/\mu^2)\,u\cdot J_A\tau`, for any event. After a failure, :math:`J_A t` is
+        the failed bond's rate of loading on its own row and vanishes on the others."""
         if self._approach is None:
             return None
         sites, t = self._approach
@@ -1196,6 +1214,7 @@ class WeakeningContact(_Events, _Core):
         peak is the largest F_x of the stable path (its interior maxima located) and the
         landings."""
         self.relinearize()
+        self._approach = None  # a tangent of an earlier run or drive signs nothing here
         path = EventPath([], None, self.snapshot())
 
         def record(kind: str, site: int, F: float | None = None) -> None:
@@ -1255,7 +1274,7 @@ class WeakeningContact(_Events, _Core):
                 record(kind, j)
                 self.apply(kind, j)
                 self.certify()
-                relax(forcing=self.approach_forcing())
+                relax(forcing=self.approach_forcing)
         except EventCycle as exc:
             if self.drive != "x":
                 raise
