@@ -293,24 +293,31 @@ def test_a_push_the_flow_brings_back_grows(monkeypatch):
     assert levels == list(range(levels[0], len(wk.PUSHES)))
 
 
-def test_a_contact_cycle_inside_a_burst_ends_the_pull_unconverged(monkeypatch):
-    """A site that closes its gap out of contact and pulls in contact, inside a burst, has
-    no quasi-static continuation: the burst stops on the site's second return (not after
-    its iteration limit) and the pull ends there, reported as not converged, with the
-    message naming the drive and the site. The site's two violations are injected into the
-    first burst of the pull."""
+def _inject_contact_cycle(monkeypatch, limit: int) -> list[int]:
+    """Make the bursts of a pull see, ``limit`` times, one site out of contact closing its
+    gap and in contact pulling (its loss and its gain in turn); the sites seen."""
     from roughslip.coupling import weakening as wk
 
     violation, flips = wk.WeakeningContact._violation, []
 
     def flip(self):
-        if self.drive == "x" and self.bursts and len(flips) < 20:
+        if self.drive == "x" and self.bursts and len(flips) < limit:
             j = flips[0] if flips else int(np.flatnonzero(~self.C)[0])
             flips.append(j)
             return (EventKind.LOST, j) if self.C[j] else (EventKind.GAINED, j)
         return violation(self)
 
     monkeypatch.setattr(wk.WeakeningContact, "_violation", flip)
+    return flips
+
+
+def test_a_contact_cycle_inside_a_burst_ends_the_pull_unconverged(monkeypatch):
+    """A site that closes its gap out of contact and pulls in contact, inside a burst, has
+    no quasi-static continuation: the burst stops on the site's second return (not after
+    its iteration limit) and the pull ends there, reported as not converged, with the
+    message naming the drive and the site. The site's two violations are injected into the
+    first burst of the pull."""
+    flips = _inject_contact_cycle(monkeypatch, 20)
     pb = Problem.from_arrays(rough(16, 1), nu=0.25)
     w = _weak(pb, 0.1, 0.05, depth=1.5, history="frictionless")
     assert flips, "the pull has no burst"
@@ -452,20 +459,12 @@ def test_a_violation_that_keeps_shrinking_is_a_cycle_after_thirty_returns(monkey
     return."""
     from roughslip.coupling import weakening as wk
 
-    violation, flips, sizes = wk.WeakeningContact._violation, [], []
-
-    def flip(self):
-        if self.drive == "x" and self.bursts and len(flips) < 200:
-            j = flips[0] if flips else int(np.flatnonzero(~self.C)[0])
-            flips.append(j)
-            return (EventKind.LOST, j) if self.C[j] else (EventKind.GAINED, j)
-        return violation(self)
+    flips, sizes = _inject_contact_cycle(monkeypatch, 200), []
 
     def shrinking(self, kind, j):
         sizes.append(0.01 ** len(sizes))
         return sizes[-1]
 
-    monkeypatch.setattr(wk.WeakeningContact, "_violation", flip)
     monkeypatch.setattr(wk.WeakeningContact, "_size", shrinking)
     pb = Problem.from_arrays(rough(16, 1), nu=0.25)
     w = _weak(pb, 0.1, 0.05, depth=1.5, history="frictionless")
