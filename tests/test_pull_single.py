@@ -18,6 +18,7 @@ from roughslip.friction.pull import (
     pull,
 )
 from roughslip.linalg import lapack64, memory
+from roughslip.linalg.hierarchical import HierarchicalInverse
 from roughslip.linalg.inverse import LOWER_RESERVE, UpdatableInverse
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
 
@@ -189,20 +190,27 @@ def pairs():
     out = {}
     for name, h, depth, nu, boundary in SCENES:
         normal = squeeze(h, depth=depth, nu=nu, boundary=boundary, tol=1e-13)
-        out[name] = tuple(pull(normal, method="inverse", precision=p, tol=1e-10)
-                          for p in ("double", "single"))
+        out[name] = (*(pull(normal, method="inverse", precision=p, tol=1e-10)
+                       for p in ("double", "single")),
+                     pull(normal, method="hierarchical", tol=1e-10))
     return out
 
 
 def test_at_least_twenty_scenes_with_ties_and_near_ties(pairs):
     assert len(pairs) >= 20
-    assert min(d.details.n_bonds for d, _ in pairs.values()) >= 20
+    assert min(d.details.n_bonds for d, *_ in pairs.values()) >= 20
 
 
+@pytest.mark.parametrize("inexact", ["single", "hierarchical"])
 @pytest.mark.parametrize("name", [s[0] for s in SCENES])
-def test_single_precision_gives_the_double_break_sequence(pairs, name):
-    d, s = pairs[name]
-    assert (d.details.precision, s.details.precision) == ("double", "single")
+def test_an_inexact_inverse_gives_the_double_break_sequence(pairs, name, inexact):
+    """The float32 inverse and the compressed one, each with certified decisions: the
+    double-precision method's bonds in its order, its peak and its friction force."""
+    d, single, compressed = pairs[name]
+    s = single if inexact == "single" else compressed
+    assert (d.details.precision, s.details.precision) == ("double", "double" if s is compressed
+                                                          else "single")
+    assert s.method == ("hierarchical" if s is compressed else "inverse")
     np.testing.assert_array_equal(s.curve.site[1:], d.curve.site[1:])
     assert s.peak_event == d.peak_event
     assert abs(s.friction_force - d.friction_force) <= 1e-10 * abs(d.friction_force)
@@ -219,7 +227,7 @@ def test_single_precision_gives_the_double_break_sequence(pairs, name):
 def test_near_ties_are_sharpened(pairs):
     """The broken symmetry leaves gaps below the single-precision error: those decisions
     were sharpened, and still came out as in double precision (previous test)."""
-    sharpened = [int(s.message.split(" of ")[0].split()[-1]) for name, (_, s) in pairs.items()
+    sharpened = [int(s.message.split(" of ")[0].split()[-1]) for name, (_, s, _) in pairs.items()
                  if name.startswith("near-tie")]
     assert sum(sharpened) > 0
 
@@ -232,8 +240,12 @@ def test_auto_chooses_double_when_it_fits_and_single_when_only_that_fits():
     assert choose_precision(n, memory=(single + double) // 2) == "single"
     assert choose_precision(n, memory=(single + double) // 2, slip_law="coulomb") == "double"
     assert choose_method(n, memory=(single + double) // 2) == "inverse"
-    assert choose_method(n, memory=(single + double) // 2, precision="double") == "cg"
-    assert choose_method(n, memory=single // 2) == "cg"
+    # no dense inverse fits: the compressed one while its estimate fits, then matrix-free
+    compressed = HierarchicalInverse.memory_bytes(n)
+    assert compressed < single // 2
+    assert choose_method(n, memory=(single + double) // 2, precision="double") == "hierarchical"
+    assert choose_method(n, memory=single // 2) == "hierarchical"
+    assert choose_method(n, memory=compressed // 2) == "cg"
     assert choose_method(5, precision="single") == "inverse"  # not the literal algorithm
 
 
@@ -253,6 +265,12 @@ def test_memory_guard_knows_both_precisions():
     with memory.limited(single / 2 / 2**30):
         with pytest.raises(MemoryLimitError, match="single precision"):
             pull(normal, method="inverse", precision="single")
+        res = pull(normal)
+        assert res.method == "hierarchical"
+        assert res.friction_force == pytest.approx(ref.friction_force, rel=1e-10)
+    with memory.limited(HierarchicalInverse.memory_bytes(n, block=128) / 2 / 2**30):
+        with pytest.raises(MemoryLimitError, match="hierarchical"):
+            pull(normal, method="hierarchical")
         assert pull(normal).method == "cg"
 
 

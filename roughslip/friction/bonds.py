@@ -30,7 +30,7 @@ from roughslip.friction.result import (
     renamed,
     start_curve,
 )
-from roughslip.linalg.inverse import Tracked, UpdatableInverse, inverse_bytes
+from roughslip.linalg.inverse import Tracked, UpdatableInverse
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.restricted import Restricted
 from roughslip.linalg.stick import SolverFactory, StickSolver
@@ -272,22 +272,26 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
     """
     n = b.n
     dtype = np.dtype(dtype)
-    need = inverse_bytes(n, lower=True, block=block, itemsize=dtype.itemsize)
+    need = solver.memory_bytes(n, block=block, itemsize=dtype.itemsize)
 
     def room(m: int) -> bool:
         if need > available_bytes():
-            half = inverse_bytes(n, lower=True, block=block, itemsize=4)
+            half = solver.memory_bytes(n, block=block, itemsize=4)
             other = ("pull precision 'single' (half the memory), "
-                     if dtype.itemsize == 8 and half <= available_bytes() else "")
+                     if dtype.itemsize == 8 and half < need and half <= available_bytes()
+                     else "")
+            if solver.kind == "dense":
+                other += "pull method 'hierarchical' (compressed, exact), "
             raise MemoryLimitError(
-                f"the inverse of G_xx on {n} bonds in {PRECISION_NAMES[dtype]} precision "
-                f"needs ~{need / 2**30:.2f} GiB but {available_bytes() / 2**30:.2f} GiB are "
-                f"available; use {other}pull method 'cg' (exact, matrix-free) or 'batch' "
-                "(approximate)")
+                f"the inverse of G_xx on {n} bonds ({solver.kind}, "
+                f"{PRECISION_NAMES[dtype]} precision) needs ~{need / 2**30:.2f} GiB but "
+                f"{available_bytes() / 2**30:.2f} GiB are available; use {other}pull method "
+                "'cg' (exact, matrix-free) or 'batch' (approximate)")
         return True
 
+    iy, ix = np.divmod(b.sites, b.shape[1])
     inv = solver(b.entries, n, room=room, threads=threads, block=block, lower=True,
-                 dtype=dtype)
+                 dtype=dtype, points=np.column_stack([iy, ix]).astype(float))
     try:
         inv.factor(np.arange(n))
     except NumericalError as exc:

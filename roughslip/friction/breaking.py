@@ -76,10 +76,12 @@ def break_sequence(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     path (:class:`~roughslip.friction.sliding.BreakSequence`): :math:`O(n)` per break plus the
     solver's blocked updates, :math:`\varphi` certified against the FFT operator after each
     fold, and the exact early stop once :math:`\lambda\sum_S f_z` falls below the best.
-    ``opt.precision == "single"``: a float32 inverse with certified decisions
+    ``opt.precision == "single"``, or a method whose inverse is inexact (a compressed one,
+    :attr:`~roughslip.friction.pull.PullMethod.inexact`): certified decisions
     (:class:`~roughslip.friction.breaking_single.SingleSequence`).
     """
-    strategy = SingleSequence() if opt.precision == "single" else BreakSequence()
+    inexact = opt.method is not None and opt.method.inexact
+    strategy = SingleSequence() if opt.precision == "single" or inexact else BreakSequence()
     return TangentialState(b, opt).run(strategy, t0)
 
 

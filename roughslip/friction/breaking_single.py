@@ -1,5 +1,8 @@
-r"""The break law's exact pull on a single-precision inverse, with certified decisions
-(``pull(..., precision="single")``; docs/theory/pull.rst#single-precision).
+r"""The break law's exact pull on an inexact inverse, with certified decisions: a
+single-precision one (``pull(..., precision="single")``; docs/theory/pull.rst#single-precision)
+or a compressed one (``pull(..., method="hierarchical")``, whose error
+:math:`\delta \ge \|G_{SS} - \tilde A\|_2` is measured once, :func:`_compression_error`,
+and bounds the column ratio and the growth rate below; docs/theory/pull.rst#hierarchical-inverse).
 
 The inverse of :math:`G_{xx}` on the bonds is stored in float32
 (:func:`~roughslip.friction.bonds.bond_inverse`): half the memory of the double-precision
@@ -83,6 +86,7 @@ from roughslip.friction.sliding import TangentialState
 from roughslip.linalg import jit
 from roughslip.linalg.cg import cg
 from roughslip.linalg.inverse import UpdatableInverse
+from roughslip.linalg.stick import StickSolver
 
 #: safety factor on the Lanczos estimate of :math:`\lambda_{\max}(G_0^{-1})` (a Ritz value,
 #: never above it; ARPACK's tolerance 1e-2)
@@ -114,7 +118,9 @@ def _largest_eigenvalue(inv: UpdatableInverse, sites: np.ndarray, nx: int) -> fl
     fewer products than from the vector of ones (measured on four scenes: 21 against 31-41,
     the Ritz value within 0.12 % below the eigenvalue, against 0.8 %)."""
     if inv.m <= 500:
-        low = inv.buf[: inv.m, : inv.m].astype(np.float64)  # eigvalsh reads the lower part
+        buf = getattr(inv, "buf", None)  # the dense inverse: its stored lower part
+        low = (inv.apply(np.eye(inv.m)) if buf is None
+               else buf[: inv.m, : inv.m].astype(np.float64))
         return float(np.linalg.eigvalsh(low, UPLO="L")[-1])
     op = LinearOperator((inv.m, inv.m), matvec=lambda v: inv.apply(np.ravel(v)),
                         dtype=np.float64)
@@ -122,6 +128,38 @@ def _largest_eigenvalue(inv: UpdatableInverse, sites: np.ndarray, nx: int) -> fl
     start = np.where((iy + ix) % 2 == 0, 1.0, -1.0)
     return float(eigsh(op, k=1, which="LA", v0=start, tol=1e-2,
                        return_eigenvectors=False)[0])
+
+
+def _compression_error(b: Bonds, inv: StickSolver) -> float:
+    r"""A bound on the 2-norm of :math:`G_{SS} - \tilde A`, the exact matrix less the one a
+    compressed inverse holds
+    (:meth:`~roughslip.linalg.hierarchical.HierarchicalInverse.compressed_product`), with the
+    rounding of its products, :math:`m\,\epsilon\,\|G_{SS}\|_2`, added; times
+    :data:`NU_SAFETY`. Dense for small orders, else Lanczos on the difference and on
+    :math:`G_{SS}` by the FFT operator (ARPACK's tolerance 1e-2, deterministic starts)."""
+    live = inv.live
+    pos = inv.ids[live]
+    A = b.restricted(pos)
+    m = int(live.sum())
+    eps = float(np.finfo(float).eps)
+    if m <= 500:
+        G = b.dense(pos)
+        E = G - inv.compressed_product(np.eye(inv.m)[:, live])[live]
+        err = float(np.abs(np.linalg.eigvalsh((E + E.T) / 2)).max())
+        return NU_SAFETY * (err + m * eps * float(np.linalg.eigvalsh(G)[-1]))
+
+    def diff(v: np.ndarray) -> np.ndarray:
+        v = np.ravel(v)
+        full = np.zeros(inv.m)
+        full[live] = v
+        return A.matvec(v) - inv.compressed_product(full)[live]
+
+    start = np.random.default_rng(0).standard_normal(m)
+    norms = [float(abs(eigsh(LinearOperator((m, m), matvec=f, dtype=np.float64), k=1,
+                             which="LM", v0=start, tol=1e-2,
+                             return_eigenvectors=False)[0]))
+             for f in (diff, lambda v: A.matvec(np.ravel(v)))]
+    return NU_SAFETY * (norms[0] + m * eps * norms[1])
 
 
 class _Bound:
@@ -140,19 +178,26 @@ class _Bound:
         self.sharpened = self.full = self.exceeded = self.states = 0
         #: the smallest lambda f_z of a live row, or below it (rows only leave)
         self.cap_min = float(b.cap.min())
+        #: a compressed inverse's error, ||G_SS - A~||_2 (zero for a float32 inverse, whose
+        #: stored matrix is the inverse of the exact one, rounded)
+        self.delta = (_compression_error(b, inv) if hasattr(inv, "compressed_product")
+                      else 0.0)
 
     @property
     def gamma_hat(self) -> float:
         r""":math:`\hat\gamma`: :data:`GAMMA_SAFETY` times the largest measured column
-        ratio :math:`\|\rho\|/\|\tilde c\|`."""
-        return GAMMA_SAFETY * self.gamma
+        ratio :math:`\|\rho\|/\|\tilde c\|`, and at least a compressed inverse's
+        :math:`\delta` (which bounds that ratio, :func:`_compression_error`)."""
+        return max(GAMMA_SAFETY * self.gamma, self.delta)
 
     @property
     def g_hat(self) -> float:
         r""":math:`\hat g`, the growth rate of the residual per unit of
         :math:`\sum|\alpha|\,\|\tilde c\|`: :data:`GROWTH_SAFETY` times the largest
-        realised rate once one is measured, :math:`\hat\gamma` before that."""
-        return GROWTH_SAFETY * self.growth if self.growth else self.gamma_hat
+        realised rate once one is measured, :math:`\hat\gamma` before that; at least
+        :math:`\delta`."""
+        learned = GROWTH_SAFETY * self.growth if self.growth else self.gamma_hat
+        return max(learned, self.delta)
 
     def residual_bound(self) -> float:
         """The bound on the 2-norm of the tracked solution's residual now."""
@@ -449,7 +494,7 @@ class SingleSequence:
 
     def run(self, st: TangentialState, t0: float) -> PullResult:
         b, opt, inv, rows = st.b, st.opt, st.inv, st.rows
-        tol, block = opt.tol, opt.block
+        tol = opt.tol
         curve = BreakCurve(b, opt.early_stop)
         bound = _Bound(b, inv, tol)
         bound.certify(rows.cap)
@@ -481,14 +526,16 @@ class SingleSequence:
             peaks.solve()
         worst = max(bound.worst, peaks.worst)
         ok = worst <= tol
-        msg = (f"{b.n} bonds, block {block}, single precision: {bound.refinements} "
+        what = ("single precision" if opt.precision == "single"
+                else f"{inv.kind} inverse")
+        msg = (f"{b.n} bonds, block {inv.block}, {what}: {bound.refinements} "
                f"refinements, {bound.sharpened} of {bound.states} decisions sharpened, "
                f"{bound.full} refined in full, bound exceeded {bound.exceeded} times, "
                f"{peaks.solved} peak candidates solved; curve points within "
                f"{peaks.curve_error:.1e} relative, the peak exact")
         return curve.result(t0, opt.method_name, converged=bool(ok), residual=worst,
                             solves=bound.refinements + peaks.solved, message=msg,
-                            precision="single")
+                            precision=opt.precision)
 
 
 def break_inverse_single(b: Bonds, opt: PullOptions, t0: float) -> PullResult:

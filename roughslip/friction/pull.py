@@ -64,6 +64,7 @@ from roughslip.friction.pull_estimates import (  # noqa: F401  (public here too)
 )
 from roughslip.friction.result import PullResult
 from roughslip.linalg import lapack64
+from roughslip.linalg.hierarchical import HierarchicalInverse
 from roughslip.linalg.inverse import UpdatableInverse, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.stick import SolverFactory
@@ -146,6 +147,10 @@ class PullMethod:
     chooses
         It is no method of its own but the choice among the others (``auto``,
         :func:`choose_method`).
+    inexact
+        Its stick solver's inverse carries an error beyond rounding (a compressed one): it runs
+        only the laws whose engines certify their decisions against the exact operator
+        (:attr:`~roughslip.friction.laws.SlipLaw.single`).
     """
 
     name: str
@@ -160,14 +165,16 @@ class PullMethod:
     early_stop: bool = True
     estimate: bool = True
     chooses: bool = False
+    inexact: bool = False
 
     def runs(self, law: SlipLaw) -> bool:
         r"""Whether it runs ``law``: on a stick solver, a law with an engine that needs
         nothing the solver does not offer; matrix-free, a law that needs nothing (a break
-        sequence on :math:`\varphi` alone). A method that :attr:`chooses` runs nothing
-        itself."""
+        sequence on :math:`\varphi` alone). An :attr:`inexact` solver runs only the laws with
+        certified decisions. A method that :attr:`chooses` runs nothing itself."""
         if self.solver is not None:
-            return law.engine is not None and law.needs <= self.offers
+            return (law.engine is not None and law.needs <= self.offers
+                    and (law.single or not self.inexact))
         return self.run is not None and not law.needs
 
 
@@ -271,7 +278,8 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
     algorithm); then a dense method whenever its matrix fits in memory (in double or, where
     the law and the method have it, single precision) and the LAPACK can index it (for
     3 271 bonds the inverse was about 100 times faster than one warm-started CG solve per
-    break, docs/benchmarks.md); otherwise the first matrix-free exact method.
+    break, docs/benchmarks.md); otherwise the first other exact method whose memory fits (a
+    compressed inverse, by its estimate), else the first matrix-free one.
     """
     law = _law(slip_law)
     cands = [METHODS.get(m) for m in METHODS.names()]
@@ -298,7 +306,8 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
         if any(inverse_memory_bytes(n, precision=p) <= memory for p in allowed) and (
                 limit is None or n <= limit):
             return m.name
-    return (free or dense)[0].name
+    fits = [m for m in free if m.solver is None or m.solver.memory_bytes(n) <= memory]
+    return (fits or free or dense)[0].name
 
 
 def pull(
@@ -451,6 +460,10 @@ METHODS.register("literal", "the report's algorithm, one CG solve from zero per 
 METHODS.register("inverse", "exact, an updated inverse of G_xx on the bonds (O(n^2) memory)")(
     PullMethod("inverse", exact=True, dense=True, solver=UpdatableInverse,
                offers=frozenset(CAPABILITIES), precisions=("double", "single")))
+METHODS.register("hierarchical", "exact with certified decisions, a compressed (HODLR) inverse "
+                 "of G_xx on the bonds (break law; a fraction of the dense memory)")(
+    PullMethod("hierarchical", exact=True, dense=False, solver=HierarchicalInverse,
+               offers=frozenset({"tracked"}), inexact=True))
 METHODS.register("cg", "exact and matrix-free, a warm-started CG solve per break")(
     PullMethod("cg", exact=True, dense=False, run=break_cg))
 METHODS.register("batch", "approximate, several bonds broken per solve")(

@@ -250,14 +250,21 @@ class UpdatableInverse:
         Keep the lower triangle only, for a set that only shrinks (module docstring):
         :meth:`add` is refused, and every product runs on ``threads``. Positive definite
         matrices only (every pending term then has the sign -1).
+    points
+        The point of each unknown: not used (the dense inverse needs no geometry; a
+        compressed one clusters by it).
     """
+
+    #: what it is, in messages
+    kind = "dense"
 
     threaded_min = 8192  # order from which products with the inverse use the threads
     symv_min = 1024  # order from which products with few columns use the symmetric kernel
 
     def __init__(self, entries: Entries, size: int, *, room: Callable[[int], bool],
                  threads: int = 1, block: int = 512, definite: bool = True,
-                 lower: bool = False, dtype: type = np.float64) -> None:
+                 lower: bool = False, dtype: type = np.float64,
+                 points: np.ndarray | None = None) -> None:
         if lower and not definite:
             raise ValueError("the lower-triangle layout holds a positive definite matrix")
         self.dtype = np.dtype(dtype)
@@ -294,6 +301,12 @@ class UpdatableInverse:
         #: counts the changes of the inverse that keep its rows (:meth:`shift`): with
         #: :attr:`version`, what a product derived from the inverse must be kept against
         self.shifts = 0
+
+    @staticmethod
+    def memory_bytes(m: int, *, block: int = 512, itemsize: int = 8) -> int:
+        """The peak memory of an inverse of order ``m`` on a set that only shrinks (the
+        lower-triangle layout, :func:`inverse_bytes`)."""
+        return inverse_bytes(m, lower=True, block=block, itemsize=itemsize)
 
     # -- state ---------------------------------------------------------------------------------
     @property

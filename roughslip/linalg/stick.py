@@ -5,8 +5,9 @@ matrix :math:`A` (:math:`G_{xx}` on the bonds, shifted on the diagonal of weaken
 under slip-weakening) and the solutions of a few right-hand sides, and changes :math:`S` one
 unknown at a time as bonds fail, weaken or stick again. Every pull method that works on such
 a set implements :class:`StickSolver`: the dense updated inverse
-(:class:`~roughslip.linalg.inverse.UpdatableInverse`, in double or single precision), and any
-other representation of :math:`A_{SS}^{-1}` (a compressed or a recomputed one). The event
+(:class:`~roughslip.linalg.inverse.UpdatableInverse`, in double or single precision), the
+compressed one (:class:`~roughslip.linalg.hierarchical.HierarchicalInverse`), and any other
+representation of :math:`A_{SS}^{-1}`. The event
 logic is written once against the protocol (:mod:`roughslip.friction.sliding`,
 :mod:`roughslip.friction.weakening`, :mod:`roughslip.friction.breaking`), and a method is one
 class plus one entry of :data:`roughslip.friction.pull.METHODS`.
@@ -60,6 +61,8 @@ class StickSolver(Protocol):
     tracked: dict[str, Tracked]
     #: seconds in dense linear algebra
     blas_seconds: float
+    #: what it is, in messages ("dense", "hierarchical", ...)
+    kind: str
 
     def factor(self, ids: np.ndarray, positive: bool | None = None) -> bool:
         """Hold the inverse on the unknowns ``ids`` afresh (tracked solutions dropped); False
@@ -117,9 +120,12 @@ class StickSolver(Protocol):
 
 
 #: how a pull method builds its stick solver: ``solver(entries, size, room=..., threads=...,
-#: block=..., definite=..., lower=..., dtype=...)`` (the signature of
+#: block=..., definite=..., lower=..., dtype=..., points=...)`` (the signature of
 #: :class:`~roughslip.linalg.inverse.UpdatableInverse`). ``lower``: the set only shrinks and
-#: the matrix is definite (a layout may use it); ``dtype``: the precision of what is stored.
+#: the matrix is definite (a layout may use it); ``dtype``: the precision of what is stored;
+#: ``points``: the point of each unknown (a compressed solver clusters by it). The factory
+#: also says what it is (``kind``, in messages) and what it takes before it is built
+#: (``memory_bytes(m, block=..., itemsize=...)``).
 SolverFactory = Callable[..., StickSolver]
 
 __all__ = ["Entries", "SolverFactory", "StickSolver", "Tracked"]

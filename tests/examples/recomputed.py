@@ -19,9 +19,13 @@ class RecomputedInverse:
     right-hand side; tracked solutions recomputed from their right-hand sides. Nothing is
     pending (``k = 0``), so the event logic never folds."""
 
+    #: what it is, in messages
+    kind = "recomputed"
+
     def __init__(self, entries: Entries, size: int, *, room: Callable[[int], bool],
                  threads: int = 1, block: int = 512, definite: bool = True,
-                 lower: bool = False, dtype: type = np.float64) -> None:
+                 lower: bool = False, dtype: type = np.float64,
+                 points: np.ndarray | None = None) -> None:
         self.entries, self.room, self.definite, self.block = entries, room, definite, block
         self.row = np.full(int(size), -1, dtype=np.int64)
         self.ids = np.empty(0, dtype=np.int64)
@@ -32,6 +36,11 @@ class RecomputedInverse:
         self.blas_seconds = 0.0
         self.inv = np.zeros((0, 0))
         self._shift: tuple[int, float] | None = None  # a shift the assembler gives only later
+
+    @staticmethod
+    def memory_bytes(m: int, *, block: int = 512, itemsize: int = 8) -> int:
+        """One dense inverse and the matrix it is computed from."""
+        return 2 * 8 * m * m
 
     def _matrix(self, rows: np.ndarray) -> np.ndarray:
         A = np.array(self.entries(self.ids[rows], self.ids[rows], "F"), dtype=float)

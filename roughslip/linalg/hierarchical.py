@@ -1,0 +1,599 @@
+r"""A compressed inverse of a symmetric matrix on a shrinking index set: a HODLR factorisation
+with pending rank-one removals.
+
+The matrix :math:`A` is known through its assembler ``entries(i, j, order)`` (as for
+:class:`~roughslip.linalg.inverse.UpdatableInverse`) and each unknown has a point in the plane.
+The unknowns are ordered by a *cluster tree*: each cluster is halved at the median of its
+wider coordinate until a leaf holds at most ``leaf`` unknowns. In that order the matrix is
+*hierarchically off-diagonal low-rank* (HODLR; Ambikasaran & Darve, *J. Sci. Comput.* 57,
+2013): on every cluster :math:`\tau` with halves :math:`\tau_1, \tau_2`,
+
+.. math:: A_\tau = \begin{pmatrix} A_{\tau_1} & U V^T \\ V U^T & A_{\tau_2} \end{pmatrix}
+          = D_\tau + Z K Z^T, \qquad Z = \begin{pmatrix} U & 0 \\ 0 & V\end{pmatrix}, \quad
+          K = \begin{pmatrix} 0 & I \\ I & 0 \end{pmatrix},
+
+with dense blocks on the leaves. The off-diagonal blocks are compressed once, from entries, by
+adaptive cross approximation with partial pivoting (Bebendorf, *Numer. Math.* 86, 2000)
+followed by a truncated SVD: :math:`\|A_{\tau_1\tau_2} - UV^T\|_F \le` ``tol``
+:math:`\|A_{\tau_1\tau_2}\|_F` as far as the cross approximation's estimate of the remainder
+tells (it is an estimate: the callers certify what they compute against the exact operator).
+
+The factorisation is Woodbury's identity applied from the leaves up,
+
+.. math:: A_\tau^{-1} = D_\tau^{-1} - Y_\tau\, S_\tau^{-1} Y_\tau^T, \qquad
+          Y_\tau = D_\tau^{-1} Z, \qquad S_\tau = K + Z^T Y_\tau,
+
+so a solve costs :math:`O(n k \log n)` and a column of the inverse :math:`O(n k)` (one cluster
+per level holds the unit vector's support), :math:`k` the ranks. The diagonal of the inverse
+follows the same recursion: :math:`\mathrm{diag}(A_\tau^{-1}) = \mathrm{diag}(D_\tau^{-1}) -
+\mathrm{rowsum}((Y_\tau S_\tau^{-1}) \circ Y_\tau)`.
+
+Removing unknown :math:`r` subtracts :math:`c\,c^T/c_r` (Sherman & Morrison), kept pending as
+in the dense inverse. Folding them (:meth:`HierarchicalInverse.flush`) does not touch the
+compression: the compressed matrix restricted to the remaining unknowns is the same blocks
+with rows deleted, so the fold deletes them and factorises again, which is exactly the pending
+update's result up to rounding. The only approximation is the compression itself, fixed when
+the set is factorised.
+
+Its memory is estimated before it is built (:func:`hierarchical_bytes`, from a rank model
+measured on rough contacts): the leaves, and per cluster level the bases :math:`U, V` and
+:math:`Y`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from roughslip.errors import NumericalError
+from roughslip.linalg.inverse import Entries, Tracked, _rank_one, refine
+from roughslip.linalg.threads import blas_threads
+
+#: relative truncation of the off-diagonal blocks (cross approximation and SVD)
+TOL = 1e-8
+#: the most pending terms held before a fold, whatever the cost balance asks
+FOLD_MAX = 1024
+#: what reading one word of a pending term costs, in flops of the factorisation (its GEMMs run
+#: near the machine's flop rate, a column's pending terms at its memory bandwidth); it moves
+#: the fold point only, never a result
+WORD_FLOPS = 20.0
+#: the cross approximation runs to this fraction of ``tol`` before the SVD truncates to ``tol``
+#: (its stopping rule estimates the remainder from the last cross only)
+ACA_MARGIN = 0.1
+#: the most unknowns of a leaf
+LEAF = 64
+#: the largest rank of an off-diagonal block
+MAX_RANK = 1024
+
+
+def cluster_tree(points: np.ndarray, leaf: int) -> tuple[np.ndarray, list[tuple[int, int]],
+                                                           np.ndarray, np.ndarray]:
+    """The cluster tree of ``points`` (``m x 2``): the order of the points (``perm``: the
+    point at each tree position), and the clusters in breadth-first order as ``(start, stop)``
+    ranges of tree positions with their children (``left[c]``, ``-1`` for a leaf; the right
+    child is ``left[c] + 1``). A cluster of more than ``leaf`` points is halved at the median of
+    its wider coordinate (ties kept in their order: the tree is deterministic)."""
+    m = points.shape[0]
+    perm = np.arange(m)
+    ranges: list[tuple[int, int]] = [(0, m)]
+    left: list[int] = [-1]
+    level: list[int] = [0]
+    c = 0
+    while c < len(ranges):
+        a, b = ranges[c]
+        if b - a > leaf:
+            p = points[perm[a:b]]
+            axis = int(np.argmax(p.max(axis=0) - p.min(axis=0)))
+            order = np.argsort(p[:, axis], kind="stable")
+            perm[a:b] = perm[a:b][order]
+            h = a + (b - a) // 2
+            left[c] = len(ranges)
+            ranges += [(a, h), (h, b)]
+            left += [-1, -1]
+            level += [level[c] + 1] * 2
+        c += 1
+    return perm, ranges, np.array(left, dtype=np.int64), np.array(level, dtype=np.int64)
+
+
+def aca(row: Callable[[int], np.ndarray], col: Callable[[int], np.ndarray], shape: tuple[int, int],
+        tol: float, max_rank: int) -> tuple[np.ndarray, np.ndarray]:
+    r"""Adaptive cross approximation with partial pivoting of a block known by its rows and
+    columns (Bebendorf 2000): :math:`A \approx U V^T`, stopped when the last cross
+    :math:`\|u_k\|\|v_k\|` falls below ``tol`` times the estimate of :math:`\|UV^T\|_F`, or at
+    ``max_rank``. The next row is the largest entry of the last column among the rows not yet
+    used; a zero row moves to the next unused one."""
+    m, n = shape
+    U = np.zeros((m, min(max_rank, m, n)))
+    V = np.zeros((n, U.shape[1]))
+    used = np.zeros(m, dtype=bool)
+    i, k, norm2 = 0, 0, 0.0
+    while k < U.shape[1]:
+        used[i] = True
+        r = row(i) - U[i, :k] @ V[:, :k].T
+        j = int(np.argmax(np.abs(r)))
+        if r[j] == 0.0:
+            free = np.flatnonzero(~used)
+            if free.size == 0:
+                break
+            i = int(free[0])
+            continue
+        v = r / r[j]
+        u = col(j) - U[:, :k] @ V[j, :k]
+        nu, nv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
+        norm2 += (nu * nv) ** 2 + 2.0 * float((U[:, :k].T @ u) @ (V[:, :k].T @ v))
+        U[:, k], V[:, k] = u, v
+        k += 1
+        if nu * nv <= tol * math.sqrt(max(norm2, 0.0)):
+            break
+        au = np.abs(u)
+        au[used] = -1.0
+        i = int(np.argmax(au))
+        if au[i] < 0:
+            break
+    return U[:, :k], V[:, :k]
+
+
+def recompress(U: np.ndarray, V: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    r""":math:`UV^T` at its numerical rank: QR of both factors and an SVD of the small core,
+    truncated where the singular values' tail falls below ``tol`` of their norm (Frobenius)."""
+    if U.shape[1] == 0:
+        return U, V
+    Qu, Ru = np.linalg.qr(U)
+    Qv, Rv = np.linalg.qr(V)
+    W, s, Zt = np.linalg.svd(Ru @ Rv.T)
+    tail = np.sqrt(np.cumsum((s * s)[::-1]))[::-1]  # tail[k]: norm of s[k:]
+    keep = int(np.count_nonzero(tail > tol * tail[0])) if tail[0] > 0 else 0
+    return Qu @ (W[:, :keep] * s[:keep]), Qv @ Zt[:keep].T
+
+
+#: the rank model of the memory estimate: an off-diagonal block between the halves of a
+#: cluster of ``s`` unknowns has rank at most ``RANK_MODEL[0] + RANK_MODEL[1] sqrt(s)``
+#: (measured at the default tolerance: 232 for 13 074 open-boundary bonds, 483 for 6 249
+#: periodic ones, whose halves touch twice)
+RANK_MODEL = (16.0, 3.0)
+
+
+def model_rank(s: float, max_rank: int = MAX_RANK) -> int:
+    """The rank the memory estimate assumes for the halves of a cluster of ``s`` unknowns."""
+    return int(min(max_rank, s / 2, RANK_MODEL[0] + RANK_MODEL[1] * math.sqrt(s)))
+
+
+def hierarchical_bytes(m: int, *, leaf: int = LEAF, max_rank: int = MAX_RANK,
+                       block: int = 512) -> int:
+    """The memory a :class:`HierarchicalInverse` of order ``m`` is estimated to take (bytes):
+    the dense leaves and their inverses; on each level of the cluster tree the bases ``U, V``
+    and their solves ``Y`` (every unknown has one row of each, of the level's rank,
+    :func:`model_rank`) and the Woodbury matrices; the pending terms; and the factorisation's
+    work arrays (one level's bases again). The ranks are a model, not a bound; the held memory
+    is :meth:`HierarchicalInverse.nbytes`."""
+    if m == 0:
+        return 0
+    words = 2 * m * leaf + m * max(block, FOLD_MAX)
+    s, count, top = float(m), 1, 0
+    while s > leaf:
+        r = model_rank(s, max_rank)
+        top = max(top, r)
+        words += 2 * m * r + count * (2 * r) ** 2
+        s, count = s / 2, count * 2
+    return 8 * int(words + 2 * m * top)
+
+
+@dataclass
+class _Cluster:
+    """One cluster of the tree: its range of tree positions, its children, its parent and
+    what the factorisation keeps (module docstring)."""
+
+    start: int
+    stop: int
+    left: int  # first child (-1: leaf); the second is left + 1
+    parent: int
+    U: np.ndarray | None = None  # A[first half, second half] = U V^T
+    V: np.ndarray | None = None
+    YL: np.ndarray | None = None  # A_first^{-1} U
+    YR: np.ndarray | None = None  # A_second^{-1} V
+    T: np.ndarray | None = None  # S^{-1}
+    dense: np.ndarray | None = None  # a leaf's block
+    inverse: np.ndarray | None = None  # a leaf's inverse
+
+
+class HierarchicalInverse:
+    """The inverse of a symmetric positive definite matrix on a shrinking set of unknowns, as a
+    HODLR factorisation with pending removals (module docstring); a
+    :class:`~roughslip.linalg.stick.StickSolver` for sets that only shrink.
+
+    Parameters
+    ----------
+    entries
+        The assembler ``entries(i, j, order)`` of the matrix.
+    size
+        The number of unknowns (indices ``0 .. size - 1``).
+    room
+        ``room(m)``: whether an inverse of order ``m`` may be held (:func:`hierarchical_bytes`
+        is what it takes).
+    points
+        The point of each unknown (``size x 2``), from which the cluster tree is built.
+    threads
+        BLAS threads of the factorisation.
+    block
+        Pending rank-one terms kept before they are folded in.
+    tol, leaf, max_rank
+        The compression (module docstring).
+    definite, lower, dtype
+        The dense inverse's options: only a positive definite matrix on a shrinking set in
+        double precision is held (anything else raises :class:`ValueError`).
+    """
+
+    #: what it is, in messages
+    kind = "hierarchical"
+
+    def __init__(self, entries: Entries, size: int, *, room: Callable[[int], bool],
+                 points: np.ndarray, threads: int = 1, block: int = 512,
+                 definite: bool = True, lower: bool = True, dtype: type = np.float64,
+                 tol: float = TOL, leaf: int = LEAF, max_rank: int = MAX_RANK) -> None:
+        if not definite or np.dtype(dtype) != np.float64:
+            raise ValueError("the hierarchical inverse holds a positive definite matrix in "
+                             "double precision")
+        self.entries, self.room, self.threads = entries, room, threads
+        #: pending terms the buffer holds, and the fold point callers read (set after each
+        #: factorisation by the cost balance, :meth:`_balance`)
+        self.capacity = max(int(block), FOLD_MAX)
+        self.block = int(block)
+        self.flops = 0.0  # counted in the last factorisation
+        self.points = np.asarray(points, dtype=float)
+        self.tol, self.leaf, self.max_rank = tol, leaf, max_rank
+        self.definite = True
+        self.blas_seconds = 0.0
+        self.compress_seconds = 0.0
+        self.factorisations = 0
+        self.row = np.full(int(size), -1, dtype=np.int64)
+        self.ids = np.empty(0, dtype=np.int64)
+        self.live = np.empty(0, dtype=bool)
+        self.m = 0
+        self.V = np.empty((0, block), order="F")
+        self.k = 0
+        self.pivot = math.nan
+        self.tracked: dict[str, Tracked] = {}
+        self.version = 0
+        self.shifts = 0
+        self.clusters: list[_Cluster] = []
+        self.perm = np.empty(0, dtype=np.int64)  # the row at each tree position
+        self.where = np.empty(0, dtype=np.int64)  # the tree position of each row (-1: none)
+        self.leaf_of = np.empty(0, dtype=np.int64)  # the leaf cluster of each tree position
+
+    @staticmethod
+    def memory_bytes(m: int, *, block: int = 512, itemsize: int = 8) -> int:
+        """The most memory an inverse of order ``m`` takes (:func:`hierarchical_bytes` with
+        the default compression; ``itemsize``: double precision only)."""
+        return hierarchical_bytes(m, block=block)
+
+    # -- state ---------------------------------------------------------------------------------
+    @property
+    def ready(self) -> bool:
+        """Whether an inverse is held."""
+        return bool(self.clusters)
+
+    def unknowns(self) -> np.ndarray:
+        """The unknowns in the set, in row order."""
+        return self.ids[self.live]
+
+    def ranks(self) -> np.ndarray:
+        """The rank of each cluster's off-diagonal block (leaves: 0)."""
+        return np.array([0 if c.U is None else c.U.shape[1] for c in self.clusters])
+
+    def nbytes(self) -> int:
+        """The memory held now (bytes)."""
+        total = self.V.nbytes
+        for c in self.clusters:
+            for a in (c.U, c.V, c.YL, c.YR, c.T, c.dense, c.inverse):
+                total += 0 if a is None else a.nbytes
+        return total
+
+    # -- building ------------------------------------------------------------------------------
+    def factor(self, ids: np.ndarray, positive: bool | None = None) -> bool:
+        """Compress and factorise the matrix on the unknowns ``ids`` afresh (tracked solutions
+        dropped); False when ``room`` refuses it. Raises :class:`NumericalError` when the
+        compressed matrix is not positive definite on a leaf or singular above one."""
+        if positive is False:
+            raise ValueError("the hierarchical inverse holds a positive definite matrix")
+        ids = np.asarray(ids, dtype=np.int64)
+        if not self.room(ids.size):
+            return False
+        self.row[self.ids] = -1
+        self.ids, self.m = ids, ids.size
+        self.row[ids] = np.arange(ids.size)
+        self.live = np.ones(ids.size, dtype=bool)
+        self.V = np.zeros((ids.size, self.capacity), order="F")
+        self.k = 0
+        self.tracked = {}
+        self.version += 1
+        t0 = time.perf_counter()
+        perm, ranges, left, _ = cluster_tree(self.points[ids], self.leaf)
+        parent = np.full(len(ranges), -1, dtype=np.int64)
+        for c in np.flatnonzero(left >= 0):
+            parent[left[c]] = parent[left[c] + 1] = c
+        self.perm = perm
+        self.clusters = [_Cluster(a, b, int(left[c]), int(parent[c]))
+                         for c, (a, b) in enumerate(ranges)]
+        unk = ids[perm]  # the unknown at each tree position
+        for c in self.clusters:
+            if c.left < 0:
+                c.dense = np.ascontiguousarray(self.entries(unk[c.start:c.stop],
+                                                            unk[c.start:c.stop], "C"))
+                continue
+            one, two = self.clusters[c.left], self.clusters[c.left + 1]
+            I, J = unk[one.start:one.stop], unk[two.start:two.stop]
+            U, V = aca(lambda i, I=I, J=J: self.entries(I[i:i + 1], J, "C")[0],
+                       lambda j, I=I, J=J: self.entries(I, J[j:j + 1], "F")[:, 0],
+                       (I.size, J.size), self.tol * ACA_MARGIN, self.max_rank)
+            c.U, c.V = recompress(U, V, self.tol)
+        self.compress_seconds += time.perf_counter() - t0
+        self._factorise()
+        return True
+
+    def _index(self) -> None:
+        """The tree position of each row and the leaf of each position."""
+        self.where = np.full(self.m, -1, dtype=np.int64)
+        self.where[self.perm] = np.arange(self.perm.size)
+        self.leaf_of = np.empty(self.perm.size, dtype=np.int64)
+        for n, c in enumerate(self.clusters):
+            if c.left < 0:
+                self.leaf_of[c.start:c.stop] = n
+
+    def _balance(self) -> None:
+        r"""The fold point: a fold costs the factorisation's counted flops :math:`F`, and the
+        :math:`j`-th pending term adds :math:`m` words to every later column, so :math:`k`
+        removals between folds cost :math:`F/k + W m k/2` per removal, least at
+        :math:`k = \sqrt{2F/(Wm)}` (:data:`WORD_FLOPS` is :math:`W`), within
+        ``[block, capacity]``. Counted, not timed: the same folds on every run."""
+        live = max(int(self.live.sum()), 1)
+        best = math.sqrt(2.0 * self.flops / (WORD_FLOPS * live))
+        self.block = int(min(self.capacity, max(self.block, round(best))))
+
+    def _factorise(self) -> None:
+        """Woodbury's identity from the leaves up (module docstring)."""
+        t0 = time.perf_counter()
+        self.flops = 0.0
+        with blas_threads(self.threads):
+            for c in reversed(self.clusters):  # children come after their parent
+                if c.left < 0:
+                    if c.stop == c.start:
+                        c.inverse = np.zeros((0, 0))
+                        continue
+                    try:
+                        L = np.linalg.cholesky(c.dense)
+                    except np.linalg.LinAlgError:
+                        raise NumericalError(f"the matrix on {c.stop - c.start} unknowns of a "
+                                             "leaf is not positive definite") from None
+                    Li = np.linalg.inv(L)
+                    c.inverse = Li.T @ Li
+                    self.flops += (c.stop - c.start) ** 3
+                    continue
+                k = c.U.shape[1]
+                c.YL = self._solve(c.left, c.U)
+                c.YR = self._solve(c.left + 1, c.V)
+                S = np.block([[c.U.T @ c.YL, np.eye(k)], [np.eye(k), c.V.T @ c.YR]])
+                try:
+                    c.T = np.linalg.inv(S)
+                    self.flops += 2 * (2 * k) ** 3
+                except np.linalg.LinAlgError:
+                    raise NumericalError("a compressed block's Woodbury matrix is "
+                                         "singular") from None
+        self._index()
+        self.factorisations += 1
+        self._balance()
+        self.blas_seconds += time.perf_counter() - t0
+
+    # -- products ------------------------------------------------------------------------------
+    def _solve(self, n: int, B: np.ndarray) -> np.ndarray:
+        """:math:`A_\\tau^{-1} B` for cluster ``n`` (``B`` in tree order on its range)."""
+        c = self.clusters[n]
+        cols = 1 if B.ndim == 1 else B.shape[1]
+        if c.left < 0:
+            self.flops += 2.0 * B.shape[0] ** 2 * cols
+            return c.inverse @ B
+        h = self.clusters[c.left].stop - c.start
+        yL = self._solve(c.left, B[:h])
+        yR = self._solve(c.left + 1, B[h:])
+        k = c.U.shape[1]
+        if k == 0:
+            return np.concatenate([yL, yR])
+        self.flops += (8.0 * k * B.shape[0] + 8.0 * k * k) * cols
+        t = c.T @ np.concatenate([c.U.T @ yL, c.V.T @ yR])
+        return np.concatenate([yL - c.YL @ t[:k], yR - c.YR @ t[k:]])
+
+    def apply(self, B: np.ndarray) -> np.ndarray:
+        """The current inverse times ``B`` (on the rows; rows removed since the last fold must
+        be zero, and are zero in the result up to rounding)."""
+        t0 = time.perf_counter()
+        x = np.zeros(B.shape)
+        x[self.perm] = self._solve(0, B[self.perm])
+        if self.k:
+            V = self.V[:, : self.k]
+            x -= V @ (V.T @ B)
+        self.blas_seconds += time.perf_counter() - t0
+        return x
+
+    def _product(self, n: int, x: np.ndarray) -> np.ndarray:
+        c = self.clusters[n]
+        if c.left < 0:
+            return c.dense @ x
+        h = self.clusters[c.left].stop - c.start
+        y = np.concatenate([self._product(c.left, x[:h]), self._product(c.left + 1, x[h:])])
+        if c.U.shape[1]:
+            y[:h] += c.U @ (c.V.T @ x[h:])
+            y[h:] += c.V @ (c.U.T @ x[:h])
+        return y
+
+    def compressed_product(self, x: np.ndarray) -> np.ndarray:
+        """The compressed matrix times ``x`` on the rows factorised at the last fold (other
+        entries of ``x`` must be zero; they are zero in the result): what the inverse held
+        inverts, so that its error against the exact matrix can be measured."""
+        y = np.zeros(x.shape)
+        y[self.perm] = self._product(0, x[self.perm])
+        return y
+
+    def _unit_solve(self, p: int) -> np.ndarray:
+        """:math:`A^{-1} e_p` in tree order for tree position ``p``: one cluster per level
+        holds the support until the root (module docstring)."""
+        n = int(self.leaf_of[p])
+        c = self.clusters[n]
+        x = c.inverse[:, p - c.start].copy()
+        while c.parent >= 0:
+            up = self.clusters[c.parent]
+            k = up.U.shape[1]
+            first = up.left == n
+            out = np.zeros(up.stop - up.start)
+            if k == 0:
+                out[c.start - up.start:c.stop - up.start] = x
+            elif first:
+                t = up.T[:, :k] @ (up.U.T @ x)
+                h = x.size
+                out[:h] = x - up.YL @ t[:k]
+                out[h:] = -(up.YR @ t[k:])
+            else:
+                t = up.T[:, k:] @ (up.V.T @ x)
+                h = out.size - x.size
+                out[:h] = -(up.YL @ t[:k])
+                out[h:] = x - up.YR @ t[k:]
+            x, n, c = out, c.parent, up
+        return x
+
+    def column(self, r: int) -> np.ndarray:
+        """Column ``r`` (a row) of the current inverse."""
+        t0 = time.perf_counter()
+        col = np.zeros(self.m)
+        p = int(self.where[r])
+        if p >= 0:
+            col[self.perm] = self._unit_solve(p)
+        if self.k:
+            V = self.V[:, : self.k]
+            col -= V @ V[r]
+        self.blas_seconds += time.perf_counter() - t0
+        return col
+
+    def _diag(self, n: int) -> np.ndarray:
+        c = self.clusters[n]
+        if c.left < 0:
+            return np.diagonal(c.inverse).copy()
+        d = np.concatenate([self._diag(c.left), self._diag(c.left + 1)])
+        k = c.U.shape[1]
+        if k:
+            h = self.clusters[c.left].stop - c.start
+            d[:h] -= np.einsum("ij,ij->i", c.YL @ c.T[:k, :k], c.YL)
+            d[h:] -= np.einsum("ij,ij->i", c.YR @ c.T[k:, k:], c.YR)
+        return d
+
+    def diagonal(self) -> np.ndarray:
+        """The diagonal of the current inverse on the rows (removed rows hold stale
+        values)."""
+        d = np.zeros(self.m)
+        d[self.perm] = self._diag(0)
+        if self.k:
+            V = self.V[:, : self.k]
+            d -= np.einsum("ij,ij->i", V, V)
+        return d
+
+    def refine(self, x: np.ndarray, residual: Callable[[np.ndarray], tuple[np.ndarray, float]],
+               tol: float, refinements: int) -> tuple[np.ndarray, float, int]:
+        """Certify ``x`` against an exact operator, correcting with the current inverse (as
+        :meth:`~roughslip.linalg.inverse.UpdatableInverse.refine`)."""
+        def correct(x: np.ndarray, r: np.ndarray) -> np.ndarray:
+            step = self.apply(r)
+            step[~self.live] = 0.0
+            return x + step
+
+        return refine(x, residual, correct, tol, refinements)
+
+    # -- updates -------------------------------------------------------------------------------
+    def remove(self, unknown: int, column: np.ndarray | None = None,
+               held: dict[str, float] | None = None) -> bool:
+        """Remove ``unknown`` from the set (as
+        :meth:`~roughslip.linalg.inverse.UpdatableInverse.remove`); False when its pivot is
+        not positive."""
+        r = int(self.row[unknown])
+        c = self.column(r) if column is None else column
+        cr = float(c[r])
+        if not cr > 0:
+            return False
+        self.pivot = cr
+        for name, h in (held or {}).items():
+            self.tracked[name].x[r] -= h
+        for t in self.tracked.values():
+            _rank_one(t.x, c, t.x[r] / cr)
+            t.x[r] = 0.0
+            if t.b is not None:
+                t.b[r] = 0.0
+        self.live[r] = False
+        self.version += 1
+        self.row[self.ids[r]] = -1
+        if self.k == self.capacity:
+            self.flush()
+        self.V[:, self.k] = c * (1.0 / math.sqrt(cr))
+        self.k += 1
+        return True
+
+    def flush(self) -> None:
+        """Fold the pending removals: delete the removed rows from the compressed blocks and
+        factorise again (module docstring)."""
+        if not self.k:
+            return
+        keep = self.live[self.perm]
+        if not keep.all():
+            pos = np.concatenate([[0], np.cumsum(keep)])
+            for c in self.clusters:
+                a, b = c.start, c.stop
+                if c.left < 0:
+                    on = keep[a:b]
+                    c.dense = np.ascontiguousarray(c.dense[np.ix_(on, on)])
+                else:
+                    h = self.clusters[c.left].stop
+                    c.U, c.V = c.U[keep[a:h]], c.V[keep[h:b]]
+                c.start, c.stop = int(pos[a]), int(pos[b])
+            self.perm = self.perm[keep]
+        self.V[:, : self.k] = 0.0
+        self.k = 0
+        self._factorise()
+
+    def compact(self, extra: int = 0) -> bool:
+        """Drop the removed rows (tracked solutions follow); no row can be added."""
+        if extra:
+            raise ValueError("the hierarchical inverse holds a set that only shrinks")
+        self.flush()
+        keep = np.flatnonzero(self.live)
+        new = np.full(self.m, -1, dtype=np.int64)
+        new[keep] = np.arange(keep.size)
+        self.perm = new[self.perm]
+        self.tracked = {key: Tracked(None if t.b is None else t.b[keep], t.x[keep], t.values)
+                        for key, t in self.tracked.items()}
+        self.ids = self.ids[keep]
+        self.m = keep.size
+        self.row[self.ids] = np.arange(self.m)
+        self.live = np.ones(self.m, dtype=bool)
+        self.V = np.zeros((self.m, self.capacity), order="F")
+        self.version += 1
+        self._index()
+        return True
+
+    def shift(self, unknown: int, delta: float, column: np.ndarray | None = None
+              ) -> np.ndarray | None:
+        """Not held: a shifted diagonal is the slip-weakening law's, which this inverse does
+        not run."""
+        raise ValueError("the hierarchical inverse holds no shifted diagonal")
+
+    def add(self, new: np.ndarray) -> bool | None:
+        """Not held: the set only shrinks."""
+        raise ValueError("the hierarchical inverse holds a set that only shrinks")
+
+    def change_rhs(self, name: str, unknown: int, delta: float,
+                   column: np.ndarray | None = None) -> None:
+        """Add ``delta`` to a right-hand side entry of a tracked solution."""
+        r = int(self.row[unknown])
+        c = self.column(r) if column is None else column
+        t = self.tracked[name]
+        t.x += delta * c
+        if t.b is not None:
+            t.b[r] += delta

@@ -1,0 +1,177 @@
+"""The compressed (HODLR) inverse against dense linear algebra: its cluster tree, its cross
+approximation, its factorisation, its removals and folds, its error measure and its memory
+estimate; and the pull method on it where no other test reaches."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roughslip.contact.squeeze import squeeze
+from roughslip.errors import InputError
+from roughslip.friction.bonds import Bonds
+from roughslip.friction.breaking_single import _compression_error
+from roughslip.friction.pull import pull
+from roughslip.linalg.hierarchical import (
+    HierarchicalInverse,
+    aca,
+    cluster_tree,
+    hierarchical_bytes,
+    recompress,
+)
+from roughslip.linalg.inverse import Tracked
+from roughslip.surfaces.synthetic import sample_rng, self_affine
+
+EPS = float(np.finfo(float).eps)
+
+
+def _kernel(points: np.ndarray, shift: float = 1.0):
+    """A smooth positive definite kernel (inverse multiquadric) plus ``shift`` on the
+    diagonal: well conditioned, with off-diagonal blocks of low numerical rank."""
+    def entries(i, j, order="F", dtype=float):
+        d2 = ((points[i][:, None, :] - points[j][None, :, :]) ** 2).sum(-1)
+        out = 1.0 / np.sqrt(d2 + 4.0) + shift * (np.asarray(i)[:, None] == np.asarray(j)[None])
+        return np.asarray(out, order=order, dtype=dtype)
+    return entries
+
+
+@pytest.fixture(scope="module")
+def scene():
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(0, 40, (900, 2))
+    entries = _kernel(pts)
+    A = entries(np.arange(900), np.arange(900))
+    return pts, entries, A
+
+
+def _held(pts, entries, **kw) -> HierarchicalInverse:
+    h = HierarchicalInverse(entries, pts.shape[0], room=lambda m: True, points=pts, **kw)
+    h.factor(np.arange(pts.shape[0]))
+    return h
+
+
+def test_cluster_tree_halves_by_the_wider_coordinate():
+    pts = np.random.default_rng(1).uniform(0, 1, (300, 2)) * [10.0, 1.0]
+    perm, ranges, left, level = cluster_tree(pts, 20)
+    assert np.array_equal(np.sort(perm), np.arange(300))
+    leaves = [ranges[c] for c in np.flatnonzero(left < 0)]
+    assert all(0 < b - a <= 20 for a, b in leaves)
+    assert sum(b - a for a, b in leaves) == 300
+    inner = np.flatnonzero(left >= 0)
+    assert np.array_equal(level[left[inner]], level[inner] + 1)
+    a, b = ranges[left[0]]  # the first split is along x, the wider extent
+    assert pts[perm[a:b], 0].max() <= pts[perm[b:], 0].min()
+    again = cluster_tree(pts, 20)
+    assert np.array_equal(again[0], perm)  # deterministic
+
+
+def test_cross_approximation_reaches_the_svd_rank(scene):
+    pts, entries, _ = scene
+    I, J = np.flatnonzero(pts[:, 0] < 15), np.flatnonzero(pts[:, 0] > 25)
+    B = entries(I, J)
+    U, V = aca(lambda i: entries(I[i:i + 1], J)[0], lambda j: entries(I, J[j:j + 1])[:, 0],
+               B.shape, 1e-12, 200)
+    U, V = recompress(U, V, 1e-10)
+    s = np.linalg.svd(B, compute_uv=False)
+    tail = np.sqrt(np.cumsum((s * s)[::-1]))[::-1]
+    assert U.shape[1] <= int(np.count_nonzero(tail > 1e-10 * tail[0])) + 2
+    assert np.linalg.norm(B - U @ V.T) <= 1e-9 * np.linalg.norm(B)
+
+
+def test_columns_diagonal_and_products_match_the_dense_inverse(scene):
+    pts, entries, A = scene
+    h = _held(pts, entries, leaf=32, tol=1e-10)
+    assert h.ranks().max() > 0  # really compressed
+    Ai = np.linalg.inv(A)
+    # the compressed matrix is within tol of A, so its inverse within about kappa tol
+    bound = 10 * np.linalg.cond(A) * 1e-10 * np.abs(Ai).max()
+    for r in (0, 17, 899):
+        np.testing.assert_allclose(h.column(r), Ai[:, r], rtol=0, atol=bound)
+    np.testing.assert_allclose(h.diagonal(), np.diag(Ai), rtol=0, atol=bound)
+    B = np.random.default_rng(2).standard_normal((900, 3))
+    np.testing.assert_allclose(h.apply(B), Ai @ B, rtol=0, atol=bound * np.abs(B).sum(0).max())
+    # the compressed product inverts the held inverse to rounding
+    x = B[:, 0]
+    np.testing.assert_allclose(h.apply(h.compressed_product(x)), x, rtol=0,
+                               atol=1e3 * EPS * np.abs(x).max() * np.linalg.cond(A))
+
+
+def test_removals_folds_and_compaction_follow_the_dense_inverse(scene):
+    pts, entries, A = scene
+    h = _held(pts, entries, leaf=32, tol=1e-10, block=16)
+    h.tracked["phi"] = Tracked(np.ones(900), h.apply(np.ones(900)), lambda ids: np.ones(ids.size))
+    order = np.random.default_rng(3).permutation(900)[:120]
+    for step, u in enumerate(order):
+        assert h.remove(int(u))
+        if h.k == h.block:
+            h.flush()
+        if step == 70:
+            h.compact()
+            assert h.live.all() and h.m == 900 - 71
+    keep = np.setdiff1d(np.arange(900), order)
+    Ai = np.linalg.inv(A[np.ix_(keep, keep)])
+    live = np.flatnonzero(h.live)
+    assert np.array_equal(h.ids[live], keep)  # the rows keep the unknowns' order
+    bound = 10 * np.linalg.cond(A) * 1e-10 * np.abs(Ai).max()
+    np.testing.assert_allclose(h.tracked["phi"].x[live], Ai.sum(1), rtol=0,
+                               atol=bound * 900)
+    np.testing.assert_allclose(h.column(int(live[5]))[live], Ai[:, 5], rtol=0, atol=bound)
+    np.testing.assert_allclose(h.diagonal()[live], np.diag(Ai), rtol=0, atol=bound)
+
+
+def test_what_it_does_not_hold_is_refused(scene):
+    pts, entries, _ = scene
+    with pytest.raises(ValueError, match="positive definite"):
+        HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, definite=False)
+    with pytest.raises(ValueError, match="double precision"):
+        HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, dtype=np.float32)
+    h = _held(pts, entries)
+    for call in (lambda: h.add(np.array([1])), lambda: h.shift(0, 1.0),
+                 lambda: h.compact(extra=3)):
+        with pytest.raises(ValueError):
+            call()
+    assert not HierarchicalInverse(entries, 900, room=lambda m: False,
+                                   points=pts).factor(np.arange(900))
+
+
+@pytest.fixture(scope="module")
+def rough():
+    normal = squeeze(self_affine((96, 96), hurst=0.8, rms_height=1.0, rng=sample_rng(4, 0)),
+                     depth=2.4, nu=0.3, tol=1e-13)
+    b = Bonds(normal, 0.2)
+    iy, ix = np.divmod(b.sites, b.shape[1])
+    h = HierarchicalInverse(b.entries, b.n, room=lambda m: True,
+                            points=np.column_stack([iy, ix]).astype(float))
+    h.factor(np.arange(b.n))
+    return normal, b, h
+
+
+def test_error_measure_bounds_the_compression_on_the_bond_matrix(rough):
+    """The measured delta (Lanczos on G - A~ by the FFT operator) bounds the dense norm of
+    the difference, and bounds each column's residual: ||e_k - G c~|| <= delta ||c~||."""
+    _, b, h = rough
+    assert b.n > 500  # the Lanczos path
+    G = b.dense()
+    E = G - h.compressed_product(np.eye(b.n))
+    delta = _compression_error(b, h)
+    assert np.linalg.norm(E, 2) <= delta <= 2 * np.linalg.norm(E, 2) + 1e-12 * np.abs(G).max()
+    for r in range(0, b.n, 97):
+        c = h.column(r)
+        rho = -G @ c
+        rho[r] += 1.0
+        assert np.linalg.norm(rho) <= delta * np.linalg.norm(c)
+
+
+def test_memory_estimate_covers_what_is_held(rough):
+    _, b, h = rough
+    assert h.nbytes() <= hierarchical_bytes(b.n, block=h.block)
+    assert HierarchicalInverse.memory_bytes(b.n, block=h.block) == hierarchical_bytes(
+        b.n, block=h.block)
+
+
+def test_laws_without_certified_decisions_refuse_the_compressed_inverse(rough):
+    normal, _, _ = rough
+    for law, extra in (("coulomb", {}),
+                       ("slip-weakening", {"lam_dynamic": 0.1, "slip_distance": 0.05})):
+        with pytest.raises(InputError, match="not 'hierarchical'"):
+            pull(normal, slip_law=law, method="hierarchical", **extra)
