@@ -1,14 +1,18 @@
-"""The exact pull's inverse in double and in single precision, side by side.
+"""The exact pull's inverse in double and in single precision, and compressed, side by side.
 
     python scripts/bench_precision.py [--size 256] [--area 0.2] [--repeat 3] [--threads 2]
+                                      [--variants double single hierarchical]
 
 The scene is bench_pull.py's (rough, H = 0.8, open, nu = 0.3, lambda = 0.2, tol = 1e-10).
-Each run is a fresh process, alternating the precisions, so that its peak resident memory
-is its own: ``peak`` is the process's, ``pull`` the rise of the peak over the resident set
-just before the pull. Prints the medians, whether the break sequences are identical, the
-friction forces' relative difference and the single-precision path's counters, then every
-run's seconds and the time ratio of each alternating pair (single over the double run just
-before it), whose spread shows how far the machine's scatter moves the ratio.
+A variant is ``double`` or ``single`` (the ``inverse`` method in that precision) or
+``hierarchical`` (the compressed inverse); the first is the reference (default: double and
+single). Each run is a fresh process, alternating the variants, so that its peak resident
+memory is its own: ``peak`` is the process's, ``pull`` the rise of the peak over the resident
+set just before the pull. Prints the medians, whether the break sequences are identical to
+the reference's, the friction forces' relative difference and each certified path's counters,
+then every run's seconds and the time ratio of each alternating pair (a variant over the
+reference run just before it), whose spread shows how far the machine's scatter moves the
+ratio.
 """
 
 from __future__ import annotations
@@ -30,7 +34,12 @@ def _rss() -> int:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
-def child(size: int, area: float, precision: str, threads: int, out: str) -> None:
+#: variant -> (pull method, precision)
+VARIANTS = {"double": ("inverse", "double"), "single": ("inverse", "single"),
+            "hierarchical": ("hierarchical", "double")}
+
+
+def child(size: int, area: float, variant: str, threads: int, out: str) -> None:
     sys.path.insert(0, os.path.dirname(__file__))
     from bench_pull import contact
 
@@ -39,7 +48,8 @@ def child(size: int, area: float, precision: str, threads: int, out: str) -> Non
     normal = contact(size, area)
     before = _rss()
     t0 = time.perf_counter()
-    res = pull(normal, lam=0.2, method="inverse", tol=1e-10, threads=threads,
+    method, precision = VARIANTS[variant]
+    res = pull(normal, lam=0.2, method=method, tol=1e-10, threads=threads,
                precision=precision)
     sec = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
@@ -57,12 +67,14 @@ def main() -> None:
     ap.add_argument("--area", type=float, default=0.2)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--child", nargs=2, metavar=("PRECISION", "OUT"), help=argparse.SUPPRESS)
+    ap.add_argument("--variants", nargs="+", choices=list(VARIANTS),
+                    default=["double", "single"])
+    ap.add_argument("--child", nargs=2, metavar=("VARIANT", "OUT"), help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
         child(a.size, a.area, a.child[0], a.threads, a.child[1])
         return
-    runs: dict[str, list[dict]] = {"double": [], "single": []}
+    runs: dict[str, list[dict]] = {v: [] for v in a.variants}
     seqs: dict[str, np.ndarray] = {}
     tmp = f"/tmp/bench_precision_{os.getpid()}"
     for _ in range(a.repeat):
@@ -75,27 +87,30 @@ def main() -> None:
             seqs[p] = np.load(tmp + ".npy")
     med = {p: {k: statistics.median(r[k] for r in rs) for k in ("sec", "peak", "pull")}
            for p, rs in runs.items()}
-    d, s = runs["double"][0], runs["single"][0]
+    ref = a.variants[0]
+    d = runs[ref][0]
     print(f"# cores: {os.cpu_count()}, threads {a.threads}; N = {a.size}, area {a.area}, "
           f"{d['bonds']} bonds, medians of {a.repeat}")
-    print(f"{'precision':>9} {'sec':>8} {'peak GiB':>9} {'pull GiB':>9} {'steps':>6} "
+    print(f"{'variant':>12} {'sec':>8} {'peak GiB':>9} {'pull GiB':>9} {'steps':>6} "
           f"{'F_friction':>20}")
     for p, rs in runs.items():
-        print(f"{p:>9} {med[p]['sec']:8.2f} {med[p]['peak'] / 2**30:9.3f} "
+        print(f"{p:>12} {med[p]['sec']:8.2f} {med[p]['peak'] / 2**30:9.3f} "
               f"{med[p]['pull'] / 2**30:9.3f} {rs[0]['steps']:>6} {rs[0]['friction']:20.15f}")
-    same = np.array_equal(seqs["double"], seqs["single"])
-    print(f"ratios single/double: time {med['single']['sec'] / med['double']['sec']:.3f}, "
-          f"peak {med['single']['peak'] / med['double']['peak']:.3f}, "
-          f"pull {med['single']['pull'] / med['double']['pull']:.3f}")
     secs = {p: [r["sec"] for r in rs] for p, rs in runs.items()}
-    paired = [t / u for t, u in zip(secs["single"], secs["double"], strict=True)]
     print("seconds (each run): " + "; ".join(f"{p} " + " ".join(f"{t:.2f}" for t in ts)
                                              for p, ts in secs.items()))
-    print("time ratios of the alternating pairs: " + " ".join(f"{r:.3f}" for r in paired))
-    print(f"same break sequence: {same}; friction relative difference "
-          f"{(s['friction'] - d['friction']) / d['friction']:.1e}; converged "
-          f"{d['converged']} / {s['converged']}")
-    print(f"single: {s['message']}")
+    for p in a.variants[1:]:
+        s = runs[p][0]
+        paired = [t / u for t, u in zip(secs[p], secs[ref], strict=True)]
+        print(f"ratios {p}/{ref}: time {med[p]['sec'] / med[ref]['sec']:.3f}, "
+              f"peak {med[p]['peak'] / med[ref]['peak']:.3f}, "
+              f"pull {med[p]['pull'] / med[ref]['pull']:.3f}; alternating pairs "
+              + " ".join(f"{r:.3f}" for r in paired))
+        rel = (s["friction"] - d["friction"]) / d["friction"]
+        print(f"{p}: same break sequence as {ref}: {np.array_equal(seqs[ref], seqs[p])}; "
+              f"friction relative difference {rel:.1e}; "
+              f"converged {d['converged']} / {s['converged']}")
+        print(f"{p}: {s['message']}")
     for ext in (".npy", ".json"):
         os.remove(tmp + ext)
 
