@@ -30,6 +30,7 @@ from roughslip.friction.result import (
     renamed,
     start_curve,
 )
+from roughslip.linalg.hierarchical import HierarchicalInverse
 from roughslip.linalg.inverse import Tracked, UpdatableInverse
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.restricted import Restricted
@@ -280,7 +281,8 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
             other = ("pull precision 'single' (half the memory), "
                      if dtype.itemsize == 8 and half < need and half <= available_bytes()
                      else "")
-            if solver.kind == "dense":
+            if (solver is not HierarchicalInverse
+                    and HierarchicalInverse.memory_bytes(n, block=block) <= available_bytes()):
                 other += "pull method 'hierarchical' (compressed, exact), "
             raise MemoryLimitError(
                 f"the inverse of G_xx on {n} bonds ({solver.kind}, "
