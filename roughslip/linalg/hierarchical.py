@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from roughslip.errors import NumericalError
-from roughslip.linalg.inverse import Entries, Tracked, _rank_one, refine
+from roughslip.linalg.inverse import Entries, Tracked, refine, take_out
 from roughslip.linalg.threads import blas_threads
 
 #: relative truncation of the off-diagonal blocks (cross approximation and SVD)
@@ -520,16 +520,7 @@ class HierarchicalInverse:
         if not cr > 0:
             return False
         self.pivot = cr
-        for name, h in (held or {}).items():
-            self.tracked[name].x[r] -= h
-        for t in self.tracked.values():
-            _rank_one(t.x, c, t.x[r] / cr)
-            t.x[r] = 0.0
-            if t.b is not None:
-                t.b[r] = 0.0
-        self.live[r] = False
-        self.version += 1
-        self.row[self.ids[r]] = -1
+        take_out(self, r, c, held)
         if self.k == self.capacity:
             self.flush()
         self.V[:, self.k] = c * (1.0 / math.sqrt(cr))

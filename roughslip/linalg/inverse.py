@@ -200,6 +200,24 @@ def _rank_one(x: np.ndarray, c: np.ndarray, a: np.ndarray | float) -> None:
         x -= np.multiply.outer(c, a)
 
 
+def take_out(inv: object, r: int, c: np.ndarray, held: dict[str, float] | None) -> None:
+    r"""Take row ``r`` out of the set of ``inv`` (an inverse with ``tracked``, ``live``,
+    ``row``, ``ids`` and ``version``): each tracked solution becomes
+    :math:`x - c\,(x_r - h)/c_r` with ``held[name] = h`` (else :math:`h = 0`), for ``c`` the
+    current column of the row; the row's entries are zeroed and it is marked removed."""
+    for name, h in (held or {}).items():
+        inv.tracked[name].x[r] -= h
+    cr = float(c[r])
+    for t in inv.tracked.values():
+        _rank_one(t.x, c, t.x[r] / cr)
+        t.x[r] = 0.0
+        if t.b is not None:
+            t.b[r] = 0.0
+    inv.live[r] = False
+    inv.version += 1
+    inv.row[inv.ids[r]] = -1
+
+
 def _keep_order(old: np.ndarray, new: np.ndarray) -> np.ndarray:
     """``new`` in the memory order of ``old`` (a tracked block stays Fortran-ordered)."""
     return np.asfortranarray(new) if old.ndim == 2 and old.flags.f_contiguous else new
@@ -495,16 +513,7 @@ class UpdatableInverse:
         if not (cr > 0 if self.definite else _nonsingular(np.array([cr]), c)):
             return False
         self.pivot = cr
-        for name, h in (held or {}).items():
-            self.tracked[name].x[r] -= h
-        for t in self.tracked.values():
-            _rank_one(t.x, c, t.x[r] / cr)
-            t.x[r] = 0.0
-            if t.b is not None:
-                t.b[r] = 0.0
-        self.live[r] = False
-        self.version += 1
-        self.row[self.ids[r]] = -1
+        take_out(self, r, c, held)
         self._push((c * (1.0 / math.sqrt(abs(cr))))[:, None], -1.0 if cr > 0 else 1.0)
         return True
 
