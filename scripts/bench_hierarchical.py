@@ -10,7 +10,8 @@ the bonds, the root's rank and the median and 90th percentile of all blocks' ran
 held and the estimate the guard checks (MiB), the seconds of the compression and of the
 factorisation, of a fold that deletes 1 % of the rows and factorises again, the milliseconds of
 one column of the inverse (median of 100), the measured error delta = ||G_SS - A~||_2 relative
-to ||G_SS||_2 (Lanczos, as the pull measures it), and, up to ``--dense`` bonds, the largest
+to ||G_SS||_2 (Lanczos, as the pull measures it, with its rounding floor, without its safety
+factor), and, up to ``--dense`` bonds, the largest
 relative error of 40 columns against the dense inverse. Then the growth exponents of the
 memory and of the column's time against the bonds (least squares in log-log).
 """
@@ -30,7 +31,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 from bench_pull import contact
 
 from roughslip.friction.bonds import Bonds
-from roughslip.friction.breaking_single import _compression_error
+from roughslip.friction.breaking_single import NU_SAFETY, _compression_error
 from roughslip.linalg.hierarchical import HierarchicalInverse, hierarchical_bytes
 
 
@@ -57,7 +58,7 @@ def measure(size: int, area: float, dense: int) -> dict:
     norm = float(eigsh(LinearOperator((b.n, b.n), matvec=lambda v: A.matvec(np.ravel(v)),
                                       dtype=np.float64), k=1, which="LM", tol=1e-2,
                        v0=np.ones(b.n), return_eigenvectors=False)[0])
-    out["delta"] = _compression_error(b, h) / 1.25 / norm
+    out["delta"] = _compression_error(b, h) / NU_SAFETY / norm
     out["column_error"] = float("nan")
     if b.n <= dense:
         Gi = np.linalg.inv(b.dense())

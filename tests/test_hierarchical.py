@@ -125,6 +125,8 @@ def test_what_it_does_not_hold_is_refused(scene):
         HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, definite=False)
     with pytest.raises(ValueError, match="double precision"):
         HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, dtype=np.float32)
+    with pytest.raises(ValueError, match="positive definite"):
+        HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, lower=False)
     h = _held(pts, entries)
     for call in (lambda: h.add(np.array([1])), lambda: h.shift(0, 1.0),
                  lambda: h.compact(extra=3)):
@@ -160,6 +162,32 @@ def test_error_measure_bounds_the_compression_on_the_bond_matrix(rough):
         rho = -G @ c
         rho[r] += 1.0
         assert np.linalg.norm(rho) <= delta * np.linalg.norm(c)
+    # with removals pending, a column of the current inverse on the set before its row leaves
+    gone = np.random.default_rng(5).permutation(b.n)[:30]
+    for u in gone:
+        assert h.remove(int(u))
+    assert h.k == 30
+    live = np.flatnonzero(h.live)
+    for r in live[::151]:
+        c = h.column(int(r))[live]
+        rho = -G[np.ix_(live, live)] @ c
+        rho[np.searchsorted(live, r)] += 1.0
+        assert np.linalg.norm(rho) <= delta * np.linalg.norm(c)
+
+
+def test_a_removal_that_fills_the_buffer_is_folded_once(scene):
+    pts, entries, A = scene
+    h = _held(pts, entries, leaf=32, tol=1e-10, block=4)
+    h.capacity = 4
+    h.V = np.zeros((h.m, 4), order="F")
+    gone = [3, 100, 250, 400, 777, 5]
+    for u in gone:  # no caller folds: the buffer does
+        assert h.remove(u)
+    keep = np.setdiff1d(np.arange(900), gone)
+    Ai = np.linalg.inv(A[np.ix_(keep, keep)])
+    live = np.flatnonzero(h.live)
+    bound = 10 * np.linalg.cond(A) * 1e-10 * np.abs(Ai).max()
+    np.testing.assert_allclose(h.column(int(live[9]))[live], Ai[:, 9], rtol=0, atol=bound)
 
 
 def test_memory_estimate_covers_what_is_held(rough):

@@ -85,7 +85,6 @@ from roughslip.friction.result import PullResult
 from roughslip.friction.sliding import TangentialState
 from roughslip.linalg import jit
 from roughslip.linalg.cg import cg
-from roughslip.linalg.inverse import UpdatableInverse
 from roughslip.linalg.stick import StickSolver
 
 #: safety factor on the Lanczos estimate of :math:`\lambda_{\max}(G_0^{-1})` (a Ritz value,
@@ -110,7 +109,7 @@ DIAG_PAD = 1e-3
 PEAK_FRACTION = 1e-4
 
 
-def _largest_eigenvalue(inv: UpdatableInverse, sites: np.ndarray, nx: int) -> float:
+def _largest_eigenvalue(inv: StickSolver, sites: np.ndarray, nx: int) -> float:
     """The largest eigenvalue of the stored inverse: dense for small orders, else Lanczos
     (ARPACK's tolerance 1e-2) from the checkerboard over the rows' ``sites`` (flat indices on
     a grid ``nx`` wide; deterministic). The largest eigenvalue of the inverse is the smallest
@@ -131,8 +130,8 @@ def _largest_eigenvalue(inv: UpdatableInverse, sites: np.ndarray, nx: int) -> fl
 
 
 def _compression_error(b: Bonds, inv: StickSolver) -> float:
-    r"""A bound on the 2-norm of :math:`G_{SS} - \tilde A`, the exact matrix less the one a
-    compressed inverse holds
+    r"""An estimate of a bound on the 2-norm of :math:`G_{SS} - \tilde A`, the exact matrix
+    less the one a compressed inverse holds
     (:meth:`~roughslip.linalg.hierarchical.HierarchicalInverse.compressed_product`), with the
     rounding of its products, :math:`m\,\epsilon\,\|G_{SS}\|_2`, added; times
     :data:`NU_SAFETY`. Dense for small orders, else Lanczos on the difference and on
@@ -166,7 +165,7 @@ class _Bound:
     r"""The running bound :math:`\nu(R_c + \hat g A)` on :math:`|\tilde\varphi_i -
     \varphi_i|` (module docstring) and the counters of the certified decisions."""
 
-    def __init__(self, b: Bonds, inv: UpdatableInverse, tol: float) -> None:
+    def __init__(self, b: Bonds, inv: StickSolver, tol: float) -> None:
         self.b, self.inv, self.tol = b, inv, tol
         self.nu = NU_SAFETY * _largest_eigenvalue(inv, b.sites[inv.ids[: inv.m]],
                                                   b.shape[1])
@@ -178,10 +177,20 @@ class _Bound:
         self.sharpened = self.full = self.exceeded = self.states = 0
         #: the smallest lambda f_z of a live row, or below it (rows only leave)
         self.cap_min = float(b.cap.min())
-        #: a compressed inverse's error, ||G_SS - A~||_2 (zero for a float32 inverse, whose
-        #: stored matrix is the inverse of the exact one, rounded)
+        #: a compressed inverse's error, the estimate of ||G_SS - A~||_2 with its rounding
+        #: floor and safety factor (:func:`_compression_error`; zero for a float32 inverse,
+        #: whose stored matrix is the inverse of the exact one, rounded)
         self.delta = (_compression_error(b, inv) if hasattr(inv, "compressed_product")
                       else 0.0)
+        if self.delta:
+            # nu and the diagonal are the held inverse's; the exact matrix's smallest
+            # eigenvalue is at least the held one's less delta (Weyl), and its inverse's
+            # entries within nu_G nu delta of the held one's
+            if self.nu * self.delta >= 0.5:
+                raise NumericalError(
+                    f"pull: the compressed inverse is too coarse for certified decisions "
+                    f"(nu delta = {self.nu * self.delta:.2g} >= 0.5)")
+            self.nu = self.nu / (1.0 - self.nu * self.delta)
 
     @property
     def gamma_hat(self) -> float:
@@ -215,7 +224,8 @@ class _Bound:
     def refresh(self) -> None:
         r"""Take the diagonal :math:`d_i = (G_{SS}^{-1})_{ii}` from the stored inverse (after a
         fold, when no removal is pending)."""
-        self.d = np.maximum(self.inv.diagonal().astype(np.float64), 0.0) * (1 + DIAG_PAD)
+        self.d = (np.maximum(self.inv.diagonal().astype(np.float64), 0.0) * (1 + DIAG_PAD)
+                  + self.nu * self.nu * self.delta)
         self.d_max = float(self.d[self.inv.live].max()) if self.inv.live.any() else 0.0
 
     def beta(self, rows: np.ndarray | int) -> np.ndarray | float:
