@@ -50,7 +50,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from roughslip.errors import NumericalError
-from roughslip.linalg.inverse import Entries, Tracked, _keep_order, refine, take_out
+from roughslip.linalg.inverse import (
+    Entries,
+    Tracked,
+    UpdatableInverse,
+    _keep_order,
+    take_out,
+)
 from roughslip.linalg.threads import blas_threads
 
 #: relative truncation of the off-diagonal blocks (cross approximation and SVD)
@@ -499,16 +505,9 @@ class HierarchicalInverse:
             d -= np.einsum("ij,ij->i", V, V)
         return d
 
-    def refine(self, x: np.ndarray, residual: Callable[[np.ndarray], tuple[np.ndarray, float]],
-               tol: float, refinements: int) -> tuple[np.ndarray, float, int]:
-        """Certify ``x`` against an exact operator, correcting with the current inverse (as
-        :meth:`~roughslip.linalg.inverse.UpdatableInverse.refine`)."""
-        def correct(x: np.ndarray, r: np.ndarray) -> np.ndarray:
-            step = self.apply(r)
-            step[~self.live] = 0.0
-            return x + step
-
-        return refine(x, residual, correct, tol, refinements)
+    #: certify against an exact operator, correcting with the current inverse (the dense
+    #: inverse's method: it reads only :meth:`apply` and ``live``)
+    refine = UpdatableInverse.refine
 
     # -- updates -------------------------------------------------------------------------------
     def remove(self, unknown: int, column: np.ndarray | None = None,
@@ -583,12 +582,6 @@ class HierarchicalInverse:
         """Not held: the set only shrinks."""
         raise ValueError("the hierarchical inverse holds a set that only shrinks")
 
-    def change_rhs(self, name: str, unknown: int, delta: float,
-                   column: np.ndarray | None = None) -> None:
-        """Add ``delta`` to a right-hand side entry of a tracked solution."""
-        r = int(self.row[unknown])
-        c = self.column(r) if column is None else column
-        t = self.tracked[name]
-        t.x += delta * c
-        if t.b is not None:
-            t.b[r] += delta
+    #: add to a right-hand side entry of a tracked solution (the dense inverse's method: it
+    #: reads only ``row``, :meth:`column` and ``tracked``)
+    change_rhs = UpdatableInverse.change_rhs
