@@ -471,3 +471,57 @@ def test_a_violation_that_keeps_shrinking_is_a_cycle_after_thirty_returns(monkey
     assert not w.converged
     assert f"'gained' at site {flips[0]} came back {wk.RETURNS} times" in w.message
     assert len(flips) < 200  # stopped by the cap, not by the injection running out
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_a_burst_leaves_a_flat_valley(monkeypatch):
+    """A 64^2 bonded pull (the rough configuration's sample 11 at 2 rms, d_c = 0.01) has a
+    fold whose mode grows (4e-6 of the stiffest bond's rate) but whose residual stays below
+    the flow's threshold for every push of the ladder: it was refused. The push past the
+    ladder is the root of the residual's exact quadratic along the mode; at that push the
+    largest excess is FLAT flow thresholds (unless an event ends the push first), and the
+    landing does not depend on it: at four times the excess, the same events and the same
+    friction."""
+    from pathlib import Path
+
+    from roughslip.coupling import weakening as wk
+    from roughslip.run.config import load_config
+    from roughslip.run.sample import run_sample
+
+    cfg = load_config(Path(__file__).parents[1] / "configs" / "rough_h08.toml", [
+        "grid.n=64", "ensemble.samples=20", "squeeze.depths=[2.0]", "material.nu=0.25",
+        "coupling.enabled=true", "pull.slip_law='slip-weakening'", "pull.lam_dynamic=0.1",
+        "pull.slip_distance=0.01", "coupling.history='bonded'"])
+    flat, pushes = wk.WeakeningContact._flat_push, []
+
+    def logged(self, s0, v):
+        x = flat(self, s0, v)
+        if x is not None:
+            R = self.residual(s0 + x * self.law.dc * v, self.D)
+            below = self.residual(s0 + 0.999 * x * self.law.dc * v, self.D)
+            self.s = s0 + x * self.law.dc * v
+            event = self._violation() is not None
+            self.s = s0
+            unit = wk.FLOW_EPS * self.fscale()
+            pushes.append((x, float(R.max()) / unit, float(below.max()) / unit, event))
+        return x
+
+    monkeypatch.setattr(wk.WeakeningContact, "_flat_push", logged)
+    runs = []
+    for excess in (wk.FLAT, 4 * wk.FLAT):
+        monkeypatch.setattr(wk, "FLAT", excess)
+        pushes.clear()
+        res = run_sample(cfg, 11)
+        assert res.scalars["pull_converged"][0] == 1.0
+        assert pushes, "no burst of the scene left a flat valley"
+        for x, at, before, event in pushes:
+            assert x > wk.PUSHES[-1]
+            assert before < excess
+            if not event:  # else an event ended the push before the excess was reached
+                assert at == pytest.approx(excess, rel=1e-6)
+        runs.append(res.scalars)
+    for key in ("pull_steps", "released_bonds"):
+        assert runs[1][key][0] == runs[0][key][0]
+    assert runs[1]["friction_force"][0] == pytest.approx(runs[0]["friction_force"][0],
+                                                         rel=1e-12)

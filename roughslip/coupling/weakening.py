@@ -82,6 +82,8 @@ FLOW_EPS = 1e-9
 #: a burst's push along its unstable mode, in d_c: the first that makes the mode grow at
 #: :data:`ESCAPE` (a fold's mode is neutral until pushed)
 PUSHES = (1e-9, 1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
+#: the excess, in FLOW_EPS, that a push past the last of PUSHES gives a mode in a flat valley
+FLAT = 2.0
 #: the least growth rate of a burst's mode, relative to the stiffest bond's rate
 ESCAPE = 1e-6
 #: the rate evaluations a burst's flow may take to its next event or rest before it is
@@ -172,6 +174,7 @@ class _Core:
         self.worst = 0.0
         self.steps = 0
         self.bursts = 0
+        self.flat_pushes = 0  # bursts that left a flat valley (:meth:`_flat_push`)
         self.changes = 0  # set changes (events), to tell a flow that came back from one that moved
         self._origin: tuple[int, np.ndarray, int] | None = None  # the last push: changes, s, level
         self._approach: tuple[np.ndarray, np.ndarray] | None = None  # the path's last tangent
@@ -1033,20 +1036,78 @@ class _Events:
         for level in range(first, len(PUSHES)):
             self.s = s0 + PUSHES[level] * self.law.dc * v
             if level != 0 and rate < ESCAPE:
-                JA = self.jacobian(self.s, self.D)
-                rate = float(linalg.eigvals(JA[:, :-1]).real.max()) * self._rate_scale(JA)
+                rate = self._mode_rate()
             if rate >= ESCAPE and (float(np.abs(self.residual(self.s, self.D)).max())
                                    >= FLOW_EPS * self.fscale()):
                 break
         else:
-            self.s = s0
-            raise NumericalError(
-                f"coupled slip-weakening: a burst cannot leave the state at "
-                f"{'D_x' if self.drive == 'x' else 'D_z'} = {self.D!r}: its mode grows at "
-                f"{rate:.2e} of the stiffest bond's rate, or the flow came back, after a push "
-                f"of {PUSHES[-1]:g} d_c")
+            level = len(PUSHES) - 1
+            x = self._flat_push(s0, v) if first < len(PUSHES) and rate >= ESCAPE else None
+            if x is None:
+                self.s = s0
+                raise NumericalError(
+                    f"coupled slip-weakening: a burst cannot leave the state at "
+                    f"{'D_x' if self.drive == 'x' else 'D_z'} = {self.D!r}: its mode grows "
+                    f"at {rate:.2e} of the stiffest bond's rate, or the flow came back, after "
+                    f"a push of {PUSHES[-1]:g} d_c")
+            self.s = s0 + x * self.law.dc * v
+            self.flat_pushes += 1
         self._origin = (self.changes, s0, level)
         self._pushed = True
+
+    def _mode_rate(self) -> float:
+        """The largest real part of the eigenvalues of dR/ds at the current slips, in the
+        stiffest bond's rate (:meth:`_rate_scale`)."""
+        JA = self.jacobian(self.s, self.D)
+        return float(linalg.eigvals(JA[:, :-1]).real.max()) * self._rate_scale(JA)
+
+    def _flat_push(self, s0: np.ndarray, v: np.ndarray) -> float | None:
+        r"""The push, in d_c, that takes a growing mode out of a flat valley, or None.
+
+        Past the largest of :data:`PUSHES` the mode may still grow (its rate at least
+        :data:`ESCAPE`) while the excess stays below the flow's threshold :data:`FLOW_EPS`:
+        the residual's quadratic term along the mode is small. On the ray
+        :math:`s_0 + x\,d_c v` the residual is exactly quadratic in :math:`x` (module
+        docstring), :math:`R(x) = R_0 + x\,r_1 + x^2 r_2`, so the least :math:`x` at which
+        :math:`\max_i R_i` reaches :data:`FLAT` times FLOW_EPS of the largest normal force is solved
+        for, not searched. Every state on the ray before it has an excess below the flow's own
+        resolution, so the flow could not tell moving along it from resting; an event on the
+        way (a constraint :meth:`_violation` finds) ends the push just past its root, located
+        by bisection to ``TIE`` of the push, and the burst applies it there. None when no
+        excess grows along the ray, or the mode does not grow at the push."""
+        dc = self.law.dc
+        R0 = self.residual(s0, self.D)
+        Rp = self.residual(s0 + dc * v, self.D)
+        Rm = self.residual(s0 - dc * v, self.D)
+        r1, r2 = 0.5 * (Rp - Rm), 0.5 * (Rp + Rm) - R0
+        target = FLAT * FLOW_EPS * self.fscale()
+        # the least positive x with R0_i + x r1_i + x^2 r2_i = target, per bond
+        a, b, c = r2, r1, R0 - target
+        disc = b * b - 4 * a * c
+        with np.errstate(divide="ignore", invalid="ignore"):
+            root = np.where(a > 0, (-b + np.sqrt(np.maximum(disc, 0.0))) / (2 * a),
+                            np.where(b > 0, -c / b, np.inf))
+            root = np.where((a < 0) & (disc >= 0), (-b + np.sqrt(np.maximum(disc, 0.0)))
+                            / (2 * a), root)
+        root = root[np.isfinite(root) & (root > 0)]
+        if not root.size:
+            return None
+        x = float(root.min()) * (1 + 1e-9)
+        self.s = s0 + x * dc * v
+        if self._violation() is not None:
+            lo, hi = 0.0, x
+            while hi - lo > TIE * hi:
+                mid = 0.5 * (lo + hi)
+                self.s = s0 + mid * dc * v
+                if self._violation() is None:
+                    lo = mid
+                else:
+                    hi = mid
+            x = hi
+            self.s = s0 + x * dc * v
+        rate = self._mode_rate()
+        self.s = s0
+        return x if rate >= ESCAPE else None
 
     def _rest(self) -> bool:
         """At rest: arrested bonds stick, the others are polished to R = 0 by Newton, and the
