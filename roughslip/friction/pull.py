@@ -124,8 +124,11 @@ class PullMethod:
     exact
         Gives the exact pull curve (up to the solver tolerance).
     dense
-        Works on an n x n matrix: BLAS gets the threads, and the FFTs one thread; ``auto``
-        takes it while its matrix fits in memory (:func:`inverse_memory_bytes`).
+        Works on an n x n matrix: ``auto`` takes it while its matrix fits in memory
+        (:func:`inverse_memory_bytes`).
+    blas
+        Its time goes to BLAS: BLAS gets the threads, and the FFTs of its certification one
+        thread (two thread pools spinning on the same cores slow each other down).
     solver
         The stick solver's factory (the signature of
         :class:`~roughslip.linalg.inverse.UpdatableInverse`), or None.
@@ -156,6 +159,7 @@ class PullMethod:
     name: str
     exact: bool
     dense: bool
+    blas: bool = False
     solver: SolverFactory | None = None
     run: Callable[..., PullResult] | None = None
     offers: frozenset[str] = frozenset()
@@ -425,11 +429,11 @@ def pull(
                          f"slip_law = {law.name!r} with method {impl.name!r}")
     opt = replace(opt, precision=precision, method=impl)
     run = impl.run if impl.solver is None else law.engine
-    # Dense linear algebra gets the threads, and the certification's FFTs run on one thread
-    # beside it; FFT-bound CG loops keep BLAS single-threaded (competing FFTW and OpenBLAS
-    # thread pools made CG iterations 60x slower).
-    b = Bonds(normal, float(lam), threads=1 if impl.dense else None)
-    with blas_threads(threads if impl.dense else 1):
+    # Dense and compressed linear algebra gets the threads, and the certification's FFTs run
+    # on one thread beside it; FFT-bound CG loops keep BLAS single-threaded (competing FFTW
+    # and OpenBLAS thread pools made CG iterations 60x slower).
+    b = Bonds(normal, float(lam), threads=1 if impl.blas else None)
+    with blas_threads(threads if impl.blas else 1):
         res = run(b, opt, t0)
     if impl is not asked:
         res = replace(res, message=f"auto chose {impl.name} for {n} bonds; " + res.message)
@@ -458,11 +462,12 @@ METHODS.register("literal", "the report's algorithm, one CG solve from zero per 
     PullMethod("literal", exact=True, dense=False, run=break_literal, tiny=12,
                early_stop=False))
 METHODS.register("inverse", "exact, an updated inverse of G_xx on the bonds (O(n^2) memory)")(
-    PullMethod("inverse", exact=True, dense=True, solver=UpdatableInverse,
+    PullMethod("inverse", exact=True, dense=True, blas=True, solver=UpdatableInverse,
                offers=frozenset(CAPABILITIES), precisions=("double", "single")))
 METHODS.register("hierarchical", "exact with certified decisions, a compressed (HODLR) inverse "
                  "of G_xx on the bonds (break law; a fraction of the dense memory)")(
-    PullMethod("hierarchical", exact=True, dense=False, solver=HierarchicalInverse,
+    PullMethod("hierarchical", exact=True, dense=False, blas=True,
+               solver=HierarchicalInverse,
                offers=frozenset({"tracked"}), inexact=True))
 METHODS.register("cg", "exact and matrix-free, a warm-started CG solve per break")(
     PullMethod("cg", exact=True, dense=False, run=break_cg))

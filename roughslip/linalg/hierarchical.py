@@ -445,8 +445,11 @@ class HierarchicalInverse:
         return y
 
     def _unit_solve(self, p: int) -> np.ndarray:
-        """:math:`A^{-1} e_p` in tree order for tree position ``p``: one cluster per level
-        holds the support until the root (module docstring)."""
+        r""":math:`A^{-1} e_p` in tree order for tree position ``p``: one cluster per level
+        holds the support until the root (module docstring). On the way up, :math:`x =
+        A_{\tau_1}^{-1} e_p` on the half that holds :math:`p`, so :math:`U^T x = (A_{\tau_1}^{-1}
+        U)^T e_p` is a row of :math:`Y` (:math:`A` symmetric): two products with the bases
+        per level, not three."""
         n = int(self.leaf_of[p])
         c = self.clusters[n]
         x = c.inverse[:, p - c.start].copy()
@@ -458,12 +461,12 @@ class HierarchicalInverse:
             if k == 0:
                 out[c.start - up.start:c.stop - up.start] = x
             elif first:
-                t = up.T[:, :k] @ (up.U.T @ x)
+                t = up.T[:, :k] @ up.YL[p - c.start]
                 h = x.size
                 out[:h] = x - up.YL @ t[:k]
                 out[h:] = -(up.YR @ t[k:])
             else:
-                t = up.T[:, k:] @ (up.V.T @ x)
+                t = up.T[:, k:] @ up.YR[p - c.start]
                 h = out.size - x.size
                 out[:h] = -(up.YL @ t[:k])
                 out[h:] = x - up.YR @ t[k:]
