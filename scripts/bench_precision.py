@@ -1,11 +1,13 @@
 """The exact pull's inverse in double and in single precision, and compressed, side by side.
 
     python scripts/bench_precision.py [--size 256] [--area 0.2] [--repeat 3] [--threads 2]
-                                      [--variants double single hierarchical]
+                                      [--variants double single hierarchical
+                                                  hierarchical-single]
 
 The scene is bench_pull.py's (rough, H = 0.8, open, nu = 0.3, lambda = 0.2, tol = 1e-10).
 A variant is ``double`` or ``single`` (the ``inverse`` method in that precision) or
-``hierarchical`` (the compressed inverse); the first is the reference (default: double and
+``hierarchical`` or ``hierarchical-single`` (the compressed inverse, stored in double or in
+single precision); the first is the reference (default: double and
 single). Each run is a fresh process, alternating the variants, so that its peak resident
 memory is its own: ``peak`` is the process's, ``pull`` the rise of the peak over the resident
 set just before the pull. Prints the medians, whether the break sequences are identical to
@@ -36,7 +38,8 @@ def _rss() -> int:
 
 #: variant -> (pull method, precision)
 VARIANTS = {"double": ("inverse", "double"), "single": ("inverse", "single"),
-            "hierarchical": ("hierarchical", "double")}
+            "hierarchical": ("hierarchical", "double"),
+            "hierarchical-single": ("hierarchical", "single")}
 
 
 def child(size: int, area: float, variant: str, threads: int, out: str) -> None:

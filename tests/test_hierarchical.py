@@ -96,6 +96,41 @@ def test_columns_diagonal_and_products_match_the_dense_inverse(scene):
                                atol=1e3 * EPS * np.abs(x).max() * np.linalg.cond(A))
 
 
+def test_single_precision_storage_is_the_double_one_rounded(scene):
+    """In float32 the bases, leaves and solves are the double ones rounded: half the memory;
+    columns, diagonal, products, removals and folds within the float32 rounding of the
+    inverse (about kappa eps32), the compressed product within eps32 of the double one."""
+    pts, entries, A = scene
+    d = _held(pts, entries, leaf=32, tol=1e-10)
+    h = _held(pts, entries, leaf=32, tol=1e-10, dtype=np.float32)
+    assert h.V.dtype == np.float32 and h.clusters[0].YL.dtype == np.float32
+    assert 0.45 < h.nbytes() / d.nbytes() < 0.55
+    eps32 = float(np.finfo(np.float32).eps)
+    Ai = np.linalg.inv(A)
+    bound = 10 * np.linalg.cond(A) * (1e-10 + eps32) * np.abs(Ai).max()
+    for r in (0, 17, 899):
+        col = h.column(r)
+        assert col.dtype == np.float64
+        np.testing.assert_allclose(col, Ai[:, r], rtol=0, atol=bound)
+    np.testing.assert_allclose(h.diagonal(), np.diag(Ai), rtol=0, atol=bound)
+    B = np.random.default_rng(2).standard_normal((900, 2))
+    np.testing.assert_allclose(h.apply(B), Ai @ B, rtol=0, atol=bound * np.abs(B).sum(0).max())
+    x = B[:, 0]
+    np.testing.assert_allclose(h.compressed_product(x), d.compressed_product(x), rtol=0,
+                               atol=10 * eps32 * np.abs(A).sum(1).max() * np.abs(x).max())
+    order = np.random.default_rng(3).permutation(900)[:80]
+    for u in order:
+        assert h.remove(int(u))
+        if h.k == 16:
+            h.flush()
+    keep = np.setdiff1d(np.arange(900), order)
+    Ak = np.linalg.inv(A[np.ix_(keep, keep)])
+    live = np.flatnonzero(h.live)
+    np.testing.assert_allclose(h.column(int(live[5]))[live], Ak[:, 5], rtol=0, atol=bound)
+    assert HierarchicalInverse.memory_bytes(10_000, itemsize=4) * 2 == \
+        HierarchicalInverse.memory_bytes(10_000, itemsize=8)
+
+
 def test_removals_folds_and_compaction_follow_the_dense_inverse(scene):
     pts, entries, A = scene
     h = _held(pts, entries, leaf=32, tol=1e-10, block=16)
@@ -123,8 +158,8 @@ def test_what_it_does_not_hold_is_refused(scene):
     pts, entries, _ = scene
     with pytest.raises(ValueError, match="positive definite"):
         HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, definite=False)
-    with pytest.raises(ValueError, match="double precision"):
-        HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, dtype=np.float32)
+    with pytest.raises(ValueError, match="double or single precision"):
+        HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, dtype=np.float16)
     with pytest.raises(ValueError, match="positive definite"):
         HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, lower=False)
     h = _held(pts, entries)

@@ -192,7 +192,8 @@ def pairs():
         normal = squeeze(h, depth=depth, nu=nu, boundary=boundary, tol=1e-13)
         out[name] = (*(pull(normal, method="inverse", precision=p, tol=1e-10)
                        for p in ("double", "single")),
-                     pull(normal, method="hierarchical", tol=1e-10))
+                     *(pull(normal, method="hierarchical", precision=p, tol=1e-10)
+                       for p in ("double", "single")))
     return out
 
 
@@ -201,16 +202,18 @@ def test_at_least_twenty_scenes_with_ties_and_near_ties(pairs):
     assert min(d.details.n_bonds for d, *_ in pairs.values()) >= 20
 
 
-@pytest.mark.parametrize("inexact", ["single", "hierarchical"])
+@pytest.mark.parametrize(("inexact", "method", "precision"),
+                         [(1, "inverse", "single"), (2, "hierarchical", "double"),
+                          (3, "hierarchical", "single")])
 @pytest.mark.parametrize("name", [s[0] for s in SCENES])
-def test_an_inexact_inverse_gives_the_double_break_sequence(pairs, name, inexact):
-    """The float32 inverse and the compressed one, each with certified decisions: the
-    double-precision method's bonds in its order, its peak and its friction force."""
-    d, single, compressed = pairs[name]
-    s = single if inexact == "single" else compressed
-    assert (d.details.precision, s.details.precision) == ("double", "double" if s is compressed
-                                                          else "single")
-    assert s.method == ("hierarchical" if s is compressed else "inverse")
+def test_an_inexact_inverse_gives_the_double_break_sequence(pairs, name, inexact, method,
+                                                            precision):
+    """The float32 inverse and the compressed one in double and in single precision, each
+    with certified decisions: the double-precision method's bonds in its order, its peak and
+    its friction force."""
+    d, s = pairs[name][0], pairs[name][inexact]
+    assert (d.details.precision, s.details.precision) == ("double", precision)
+    assert s.method == method
     np.testing.assert_array_equal(s.curve.site[1:], d.curve.site[1:])
     assert s.peak_event == d.peak_event
     assert abs(s.friction_force - d.friction_force) <= 1e-10 * abs(d.friction_force)
@@ -227,8 +230,8 @@ def test_an_inexact_inverse_gives_the_double_break_sequence(pairs, name, inexact
 def test_near_ties_are_sharpened(pairs):
     """The broken symmetry leaves gaps below the single-precision error: those decisions
     were sharpened, and still came out as in double precision (previous test)."""
-    sharpened = [int(s.message.split(" of ")[0].split()[-1]) for name, (_, s, _) in pairs.items()
-                 if name.startswith("near-tie")]
+    sharpened = [int(s.message.split(" of ")[0].split()[-1])
+                 for name, (_, s, *_) in pairs.items() if name.startswith("near-tie")]
     assert sum(sharpened) > 0
 
 

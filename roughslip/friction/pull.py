@@ -186,7 +186,7 @@ class PullMethod:
 METHODS: Registry[PullMethod] = Registry("pull method")
 
 
-#: the precisions of the inverse method's stored matrix (``pull(..., precision=...)``)
+#: the precisions of a stored matrix (``pull(..., precision=...)``)
 PRECISIONS = ("auto", "double", "single")
 
 
@@ -378,12 +378,12 @@ def pull(
         :math:`d_c > 0` over which the strength falls to it; ``slip_law="slip-weakening"``
         only, and needed there.
     precision : {"auto", "double", "single"}
-        The precision of the ``"inverse"`` method's stored matrix. ``"single"`` (the break
-        law) stores it in float32, half the memory, and keeps the break sequence and the
-        friction force exact by certified decisions
-        (:mod:`roughslip.friction.breaking_single`). ``"auto"``: double when its matrix fits
-        in the memory available, else single (:func:`choose_precision`). The other methods
-        take ``"auto"`` only.
+        The precision of the stored matrix of the ``"inverse"`` and ``"hierarchical"``
+        methods. ``"single"`` (the break law) stores it in float32, half the memory, and
+        keeps the break sequence and the friction force exact by certified decisions
+        (:mod:`roughslip.friction.breaking_single`). ``"auto"``: for ``"inverse"``, double
+        when its matrix fits in the memory available, else single (:func:`choose_precision`);
+        for ``"hierarchical"``, double. The other methods take ``"auto"`` only.
 
     Returns
     -------
@@ -467,8 +467,8 @@ METHODS.register("inverse", "exact, an updated inverse of G_xx on the bonds (O(n
 METHODS.register("hierarchical", "exact with certified decisions, a compressed (HODLR) inverse "
                  "of G_xx on the bonds (break law; a fraction of the dense memory)")(
     PullMethod("hierarchical", exact=True, dense=False, blas=True,
-               solver=HierarchicalInverse,
-               offers=frozenset({"tracked"}), inexact=True))
+               solver=HierarchicalInverse, offers=frozenset({"tracked"}),
+               precisions=("double", "single"), inexact=True))
 METHODS.register("cg", "exact and matrix-free, a warm-started CG solve per break")(
     PullMethod("cg", exact=True, dense=False, run=break_cg))
 METHODS.register("batch", "approximate, several bonds broken per solve")(

@@ -170,13 +170,14 @@ def model_rank(s: float, max_rank: int = MAX_RANK) -> int:
 
 
 def hierarchical_bytes(m: int, *, leaf: int = LEAF, max_rank: int = MAX_RANK,
-                       block: int = 512) -> int:
+                       block: int = 512, itemsize: int = 8) -> int:
     """The memory a :class:`HierarchicalInverse` of order ``m`` is estimated to take (bytes):
     the dense leaves and their inverses; on each level of the cluster tree the bases ``U, V``
     and their solves ``Y`` (every unknown has one row of each, of the level's rank,
     :func:`model_rank`) and the Woodbury matrices; the pending terms; and the factorisation's
     work arrays (one level's bases again). The ranks are a model, not a bound; the held memory
-    is :meth:`HierarchicalInverse.nbytes`."""
+    is :meth:`HierarchicalInverse.nbytes`. ``itemsize``: 8 in double precision, 4 in
+    single."""
     if m == 0:
         return 0
     words = 2 * m * leaf + m * max(block, FOLD_MAX)
@@ -186,7 +187,7 @@ def hierarchical_bytes(m: int, *, leaf: int = LEAF, max_rank: int = MAX_RANK,
         top = max(top, r)
         words += 2 * m * r + count * (2 * r) ** 2
         s, count = s / 2, count * 2
-    return 8 * int(words + 2 * m * top)
+    return itemsize * int(words + 2 * m * top)
 
 
 @dataclass
@@ -229,9 +230,15 @@ class HierarchicalInverse:
         Pending rank-one terms kept before they are folded in.
     tol, leaf, max_rank
         The compression (module docstring).
-    definite, lower, dtype
-        The dense inverse's options: only a positive definite matrix on a shrinking set in
-        double precision is held (anything else raises :class:`ValueError`).
+    definite, lower
+        The dense inverse's options: only a positive definite matrix on a shrinking set is
+        held (anything else raises :class:`ValueError`).
+    dtype
+        What the bases, the leaves, their solves and the pending terms are stored and
+        multiplied in: float64, or float32 (half the memory and half the bytes a column
+        reads). The compression, the leaves' Cholesky factors and the Woodbury matrices'
+        inverses are computed in double precision and then rounded; the compressed matrix is
+        the rounded one (:meth:`compressed_product`).
     """
 
     #: what it is, in messages
@@ -241,9 +248,10 @@ class HierarchicalInverse:
                  points: np.ndarray, threads: int = 1, block: int = 512,
                  definite: bool = True, lower: bool = True, dtype: type = np.float64,
                  tol: float = TOL, leaf: int = LEAF, max_rank: int = MAX_RANK) -> None:
-        if not definite or not lower or np.dtype(dtype) != np.float64:
+        if not definite or not lower or np.dtype(dtype) not in (np.float64, np.float32):
             raise ValueError("the hierarchical inverse holds a positive definite matrix on a "
-                             "shrinking set in double precision")
+                             "shrinking set in double or single precision")
+        self.dtype = np.dtype(dtype)
         self.entries, self.room, self.threads = entries, room, threads
         #: pending terms the buffer holds, and the fold point callers read (set after each
         #: factorisation by the cost balance, :meth:`_balance`)
@@ -260,7 +268,7 @@ class HierarchicalInverse:
         self.ids = np.empty(0, dtype=np.int64)
         self.live = np.empty(0, dtype=bool)
         self.m = 0
-        self.V = np.empty((0, block), order="F")
+        self.V = np.empty((0, block), order="F", dtype=self.dtype)
         self.k = 0
         self.pivot = math.nan
         self.tracked: dict[str, Tracked] = {}
@@ -274,8 +282,8 @@ class HierarchicalInverse:
     @staticmethod
     def memory_bytes(m: int, *, block: int = 512, itemsize: int = 8) -> int:
         """The most memory an inverse of order ``m`` takes (:func:`hierarchical_bytes` with
-        the default compression; ``itemsize``: double precision only)."""
-        return hierarchical_bytes(m, block=block)
+        the default compression)."""
+        return hierarchical_bytes(m, block=block, itemsize=itemsize)
 
     # -- state ---------------------------------------------------------------------------------
     @property
@@ -313,7 +321,7 @@ class HierarchicalInverse:
         self.ids, self.m = ids, ids.size
         self.row[ids] = np.arange(ids.size)
         self.live = np.ones(ids.size, dtype=bool)
-        self.V = np.zeros((ids.size, self.capacity), order="F")
+        self.V = np.zeros((ids.size, self.capacity), order="F", dtype=self.dtype)
         self.k = 0
         self.tracked = {}
         self.version += 1
@@ -329,14 +337,16 @@ class HierarchicalInverse:
         for c in self.clusters:
             if c.left < 0:
                 c.dense = np.ascontiguousarray(self.entries(unk[c.start:c.stop],
-                                                            unk[c.start:c.stop], "C"))
+                                                            unk[c.start:c.stop], "C"),
+                                               dtype=self.dtype)
                 continue
             one, two = self.clusters[c.left], self.clusters[c.left + 1]
             I, J = unk[one.start:one.stop], unk[two.start:two.stop]
             U, V = aca(lambda i, I=I, J=J: self.entries(I[i:i + 1], J, "C")[0],
                        lambda j, I=I, J=J: self.entries(I, J[j:j + 1], "F")[:, 0],
                        (I.size, J.size), self.tol * ACA_MARGIN, self.max_rank)
-            c.U, c.V = recompress(U, V, self.tol)
+            U, V = recompress(U, V, self.tol)
+            c.U, c.V = U.astype(self.dtype), V.astype(self.dtype)
         self.compress_seconds += time.perf_counter() - t0
         self._factorise()
         return True
@@ -371,20 +381,21 @@ class HierarchicalInverse:
                         c.inverse = np.zeros((0, 0))
                         continue
                     try:
-                        L = np.linalg.cholesky(c.dense)
+                        L = np.linalg.cholesky(c.dense.astype(np.float64))
                     except np.linalg.LinAlgError:
                         raise NumericalError(f"the matrix on {c.stop - c.start} unknowns of a "
                                              "leaf is not positive definite") from None
                     Li = np.linalg.inv(L)
-                    c.inverse = Li.T @ Li
+                    c.inverse = (Li.T @ Li).astype(self.dtype)
                     self.flops += (c.stop - c.start) ** 3
                     continue
                 k = c.U.shape[1]
                 c.YL = self._solve(c.left, c.U)
                 c.YR = self._solve(c.left + 1, c.V)
-                S = np.block([[c.U.T @ c.YL, np.eye(k)], [np.eye(k), c.V.T @ c.YR]])
+                S = np.block([[(c.U.T @ c.YL).astype(np.float64), np.eye(k)],
+                              [np.eye(k), (c.V.T @ c.YR).astype(np.float64)]])
                 try:
-                    c.T = np.linalg.inv(S)
+                    c.T = np.linalg.inv(S).astype(self.dtype)
                     self.flops += 2 * (2 * k) ** 3
                 except np.linalg.LinAlgError:
                     raise NumericalError("a compressed block's Woodbury matrix is "
@@ -417,10 +428,11 @@ class HierarchicalInverse:
         be zero, and are zero in the result up to rounding)."""
         t0 = time.perf_counter()
         x = np.zeros(B.shape)
-        x[self.perm] = self._solve(0, B[self.perm])
+        Bs = B.astype(self.dtype, copy=False)
+        x[self.perm] = self._solve(0, Bs[self.perm])
         if self.k:
             V = self.V[:, : self.k]
-            x -= V @ (V.T @ B)
+            x -= V @ (V.T @ Bs)
         self.blas_seconds += time.perf_counter() - t0
         return x
 
@@ -428,18 +440,21 @@ class HierarchicalInverse:
         """The compressed matrix of cluster ``n`` times ``x`` (tree order on its range)."""
         c = self.clusters[n]
         if c.left < 0:
-            return c.dense @ x
+            return c.dense.astype(np.float64, copy=False) @ x
         h = self.clusters[c.left].stop - c.start
         y = np.concatenate([self._product(c.left, x[:h]), self._product(c.left + 1, x[h:])])
         if c.U.shape[1]:
-            y[:h] += c.U @ (c.V.T @ x[h:])
-            y[h:] += c.V @ (c.U.T @ x[:h])
+            U = c.U.astype(np.float64, copy=False)
+            V = c.V.astype(np.float64, copy=False)
+            y[:h] += U @ (V.T @ x[h:])
+            y[h:] += V @ (U.T @ x[:h])
         return y
 
     def compressed_product(self, x: np.ndarray) -> np.ndarray:
         """The compressed matrix times ``x`` on the rows factorised at the last fold (other
         entries of ``x`` must be zero; they are zero in the result): what the inverse held
-        inverts, so that its error against the exact matrix can be measured."""
+        inverts, so that its error against the exact matrix can be measured (in double
+        precision, whatever the storage)."""
         y = np.zeros(x.shape)
         y[self.perm] = self._product(0, x[self.perm])
         return y
@@ -457,7 +472,7 @@ class HierarchicalInverse:
             up = self.clusters[c.parent]
             k = up.U.shape[1]
             first = up.left == n
-            out = np.zeros(up.stop - up.start)
+            out = np.zeros(up.stop - up.start, dtype=self.dtype)
             if k == 0:
                 out[c.start - up.start:c.stop - up.start] = x
             elif first:
@@ -489,13 +504,13 @@ class HierarchicalInverse:
     def _diag(self, n: int) -> np.ndarray:
         c = self.clusters[n]
         if c.left < 0:
-            return np.diagonal(c.inverse).copy()
+            return np.diagonal(c.inverse).astype(np.float64)
         d = np.concatenate([self._diag(c.left), self._diag(c.left + 1)])
         k = c.U.shape[1]
         if k:
             h = self.clusters[c.left].stop - c.start
-            d[:h] -= np.einsum("ij,ij->i", c.YL @ c.T[:k, :k], c.YL)
-            d[h:] -= np.einsum("ij,ij->i", c.YR @ c.T[k:, k:], c.YR)
+            d[:h] -= np.einsum("ij,ij->i", c.YL @ c.T[:k, :k], c.YL, dtype=np.float64)
+            d[h:] -= np.einsum("ij,ij->i", c.YR @ c.T[k:, k:], c.YR, dtype=np.float64)
         return d
 
     def diagonal(self) -> np.ndarray:
@@ -505,7 +520,7 @@ class HierarchicalInverse:
         d[self.perm] = self._diag(0)
         if self.k:
             V = self.V[:, : self.k]
-            d -= np.einsum("ij,ij->i", V, V)
+            d -= np.einsum("ij,ij->i", V, V, dtype=np.float64)
         return d
 
     #: certify against an exact operator, correcting with the current inverse (the dense
@@ -570,7 +585,7 @@ class HierarchicalInverse:
         self.m = keep.size
         self.row[self.ids] = np.arange(self.m)
         self.live = np.ones(self.m, dtype=bool)
-        self.V = np.zeros((self.m, self.capacity), order="F")
+        self.V = np.zeros((self.m, self.capacity), order="F", dtype=self.dtype)
         self.version += 1
         self._index()
         return True
