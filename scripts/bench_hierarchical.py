@@ -2,10 +2,12 @@
 parts against the bond count.
 
     python scripts/bench_hierarchical.py [--sizes 128 256 384 512] [--area 0.2] [--dense 16000]
+                                         [--precision double] [--threads 2]
 
 The scene is bench_pull.py's (rough, H = 0.8, open, nu = 0.3, 20 % contact by default). For
 each grid it builds the compressed inverse of G_xx on all bonds
-(:class:`roughslip.linalg.hierarchical.HierarchicalInverse`, the pull's defaults) and prints:
+(:class:`roughslip.linalg.hierarchical.HierarchicalInverse`, the pull's defaults, stored in
+``--precision``, BLAS on ``--threads`` as in the pull) and prints:
 the bonds, the root's rank and the median and 90th percentile of all blocks' ranks, the memory
 held and the estimate the guard checks (MiB), the seconds of the compression and of the
 factorisation, of a fold that deletes 1 % of the rows and factorises again, the milliseconds of
@@ -33,20 +35,27 @@ from bench_pull import contact
 from roughslip.friction.bonds import Bonds
 from roughslip.friction.breaking_single import NU_SAFETY, _compression_error
 from roughslip.linalg.hierarchical import HierarchicalInverse, hierarchical_bytes
+from roughslip.linalg.threads import blas_threads
 
 
-def measure(size: int, area: float, dense: int) -> dict:
-    b = Bonds(contact(size, area), 0.2)
+def measure(size: int, area: float, dense: int, dtype: type, threads: int) -> dict:
+    b = Bonds(contact(size, area), 0.2, threads=1)
     iy, ix = np.divmod(b.sites, b.shape[1])
     h = HierarchicalInverse(b.entries, b.n, room=lambda m: True,
-                            points=np.column_stack([iy, ix]).astype(float), block=128)
+                            points=np.column_stack([iy, ix]).astype(float), block=128,
+                            dtype=dtype, threads=threads)
+    with blas_threads(threads):
+        return _measure(b, h, dense)
+
+
+def _measure(b: Bonds, h: HierarchicalInverse, dense: int) -> dict:
     t0 = time.perf_counter()
     h.factor(np.arange(b.n))
     build = time.perf_counter() - t0
     ranks = h.ranks()[h.ranks() > 0]
     out = {"bonds": b.n, "root": int(h.ranks()[0]), "median": float(np.median(ranks)),
            "p90": float(np.percentile(ranks, 90)), "held": h.nbytes() / 2**20,
-           "estimate": hierarchical_bytes(b.n, block=128) / 2**20,
+           "estimate": hierarchical_bytes(b.n, block=128, itemsize=h.dtype.itemsize) / 2**20,
            "compress": h.compress_seconds, "factor": build - h.compress_seconds}
     times = []
     for r in range(0, b.n, max(1, b.n // 100))[:100]:
@@ -79,14 +88,18 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[128, 256, 384, 512])
     ap.add_argument("--area", type=float, default=0.2)
     ap.add_argument("--dense", type=int, default=16000)
+    ap.add_argument("--precision", choices=["double", "single"], default="double")
+    ap.add_argument("--threads", type=int, default=2)
     a = ap.parse_args()
-    print(f"# cores: {os.cpu_count()}; area {a.area}")
+    dtype = np.float32 if a.precision == "single" else np.float64
+    print(f"# cores: {os.cpu_count()}; area {a.area}; {a.precision} precision; "
+          f"BLAS threads {a.threads}")
     print(f"{'N':>5} {'bonds':>6} {'root':>5} {'med':>4} {'p90':>5} {'MiB':>7} {'est':>7} "
           f"{'compress':>8} {'factor':>7} {'fold':>6} {'col ms':>7} {'delta':>8} "
           f"{'col err':>8}")
     rows = []
     for n in a.sizes:
-        r = measure(n, a.area, a.dense)
+        r = measure(n, a.area, a.dense, dtype, a.threads)
         rows.append(r)
         print(f"{n:>5} {r['bonds']:>6} {r['root']:>5} {r['median']:>4.0f} {r['p90']:>5.0f} "
               f"{r['held']:>7.0f} {r['estimate']:>7.0f} {r['compress']:>8.2f} "

@@ -96,7 +96,7 @@ def test_columns_diagonal_and_products_match_the_dense_inverse(scene):
                                atol=1e3 * EPS * np.abs(x).max() * np.linalg.cond(A))
 
 
-def test_single_precision_storage_is_the_double_one_rounded(scene):
+def test_single_precision_storage_is_the_double_one_rounded(scene, monkeypatch):
     """In float32 the bases, leaves and solves are the double ones rounded: half the memory;
     columns, diagonal, products, removals and folds within the float32 rounding of the
     inverse (about kappa eps32), the compressed product within eps32 of the double one."""
@@ -118,6 +118,12 @@ def test_single_precision_storage_is_the_double_one_rounded(scene):
     x = B[:, 0]
     np.testing.assert_allclose(h.compressed_product(x), d.compressed_product(x), rtol=0,
                                atol=10 * eps32 * np.abs(A).sum(1).max() * np.abs(x).max())
+    # widened a few rows at a time: the same product, for one vector and for several
+    from roughslip.linalg import hierarchical
+    whole = h.compressed_product(B)
+    monkeypatch.setattr(hierarchical, "ROWS", 7)
+    np.testing.assert_allclose(h.compressed_product(B), whole, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(h.compressed_product(x), whole[:, 0], rtol=1e-13, atol=1e-13)
     order = np.random.default_rng(3).permutation(900)[:80]
     for u in order:
         assert h.remove(int(u))

@@ -248,7 +248,16 @@ def test_auto_chooses_double_when_it_fits_and_single_when_only_that_fits():
     assert compressed < single // 2
     assert choose_method(n, memory=(single + double) // 2, precision="double") == "hierarchical"
     assert choose_method(n, memory=single // 2) == "hierarchical"
-    assert choose_method(n, memory=compressed // 2) == "cg"
+    # and in single precision when only that estimate fits
+    half = HierarchicalInverse.memory_bytes(n, itemsize=4)
+    assert half < compressed
+    between = (half + compressed) // 2
+    assert choose_method(n, memory=between) == "hierarchical"
+    assert choose_precision(n, memory=between, method="hierarchical") == "single"
+    assert choose_precision(n, memory=compressed, method="hierarchical") == "double"
+    assert choose_method(n, memory=between, precision="double") == "cg"
+    assert choose_method(n, memory=between, slip_law="coulomb") != "hierarchical"
+    assert choose_method(n, memory=half // 2) == "cg"
     assert choose_method(5, precision="single") == "inverse"  # not the literal algorithm
 
 
@@ -271,7 +280,14 @@ def test_memory_guard_knows_both_precisions():
         res = pull(normal)
         assert res.method == "hierarchical"
         assert res.friction_force == pytest.approx(ref.friction_force, rel=1e-10)
-    with memory.limited(HierarchicalInverse.memory_bytes(n, block=128) / 2 / 2**30):
+    compressed = HierarchicalInverse.memory_bytes(n, block=128)
+    with memory.limited(0.75 * compressed / 2**30):  # its single-precision estimate fits
+        res = pull(normal, method="hierarchical")
+        assert res.details.precision == "single"
+        assert res.friction_force == pytest.approx(ref.friction_force, rel=1e-10)
+        with pytest.raises(MemoryLimitError, match="hierarchical"):
+            pull(normal, method="hierarchical", precision="double")
+    with memory.limited(compressed / 4 / 2**30):
         with pytest.raises(MemoryLimitError, match="hierarchical"):
             pull(normal, method="hierarchical")
         assert pull(normal).method == "cg"

@@ -226,11 +226,20 @@ def choose_precision(n: int, memory: int | None = None, slip_law: str | SlipLaw 
                      block: int = 128, method: str | PullMethod = "inverse") -> str:
     """The precision ``"auto"`` picks for the matrix of ``n`` bonds given ``memory`` bytes:
     double when it fits, else single when that fits and the law and the method have it
-    (:func:`single_ok`), else double (whose memory check then says what would fit)."""
+    (:func:`single_ok`), else double (whose memory check then says what would fit). The
+    memory is :func:`inverse_memory_bytes` for a dense method, the stick solver's estimate
+    for another."""
     memory = available_bytes() if memory is None else memory
-    if inverse_memory_bytes(n, block) <= memory or not single_ok(slip_law, method):
+    m = _method(method)
+
+    def need(precision: str) -> int:
+        if m.dense or m.solver is None:
+            return inverse_memory_bytes(n, block, precision)
+        return m.solver.memory_bytes(n, itemsize=4 if precision == "single" else 8)
+
+    if need("double") <= memory or not single_ok(slip_law, method):
         return "double"
-    return "single" if inverse_memory_bytes(n, block, "single") <= memory else "double"
+    return "single" if need("single") <= memory else "double"
 
 
 def coulomb_force_at(result: PullResult, dx: float | np.ndarray) -> np.ndarray:
@@ -310,7 +319,10 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
         if any(inverse_memory_bytes(n, precision=p) <= memory for p in allowed) and (
                 limit is None or n <= limit):
             return m.name
-    fits = [m for m in free if m.solver is None or m.solver.memory_bytes(n) <= memory]
+    fits = [m for m in free if m.solver is None or min(
+        (m.solver.memory_bytes(n, itemsize=4 if p == "single" else 8)
+         for p in m.precisions if precision in ("auto", p)
+         and (p == "double" or single_ok(law, m))), default=memory + 1) <= memory]
     return (fits or free or dense)[0].name
 
 
@@ -381,9 +393,9 @@ def pull(
         The precision of the stored matrix of the ``"inverse"`` and ``"hierarchical"``
         methods. ``"single"`` (the break law) stores it in float32, half the memory, and
         keeps the break sequence and the friction force exact by certified decisions
-        (:mod:`roughslip.friction.breaking_single`). ``"auto"``: for ``"inverse"``, double
-        when its matrix fits in the memory available, else single (:func:`choose_precision`);
-        for ``"hierarchical"``, double. The other methods take ``"auto"`` only.
+        (:mod:`roughslip.friction.breaking_single`). ``"auto"``: double when the matrix
+        fits in the memory available, else single (:func:`choose_precision`; for
+        ``"hierarchical"`` by its estimate). The other methods take ``"auto"`` only.
 
     Returns
     -------
@@ -419,7 +431,7 @@ def pull(
                          f"{', '.join(methods_for(law))}, not {impl.name!r}")
     if precision == "auto":
         precision = (choose_precision(n, slip_law=law, block=int(block), method=impl)
-                     if impl.dense else "double")
+                     if impl.solver is not None else "double")
     if precision == "single" and not single_ok(law, impl):
         laws = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)
         methods = ", ".join(repr(n) for n in METHODS.names()

@@ -190,6 +190,27 @@ def hierarchical_bytes(m: int, *, leaf: int = LEAF, max_rank: int = MAX_RANK,
     return itemsize * int(words + 2 * m * top)
 
 
+#: rows of a single-precision basis widened to double precision at a time
+ROWS = 4096
+
+
+def _times(a: np.ndarray, x: np.ndarray, transpose: bool) -> np.ndarray:
+    """``a.T @ x`` (``transpose``) or ``a @ x`` in double precision; a single-precision ``a``
+    is widened :data:`ROWS` rows at a time, so the product takes the memory of a block of
+    rows, not of a copy of ``a``."""
+    if a.dtype == np.float64:
+        return a.T @ x if transpose else a @ x
+    if transpose:
+        out = np.zeros((a.shape[1], *x.shape[1:]))
+        for i in range(0, a.shape[0], ROWS):
+            out += a[i:i + ROWS].astype(np.float64).T @ x[i:i + ROWS]
+        return out
+    out = np.empty((a.shape[0], *x.shape[1:]))
+    for i in range(0, a.shape[0], ROWS):
+        out[i:i + ROWS] = a[i:i + ROWS].astype(np.float64) @ x
+    return out
+
+
 @dataclass
 class _Cluster:
     """One cluster of the tree: its range of tree positions, its children, its parent and
@@ -440,14 +461,12 @@ class HierarchicalInverse:
         """The compressed matrix of cluster ``n`` times ``x`` (tree order on its range)."""
         c = self.clusters[n]
         if c.left < 0:
-            return c.dense.astype(np.float64, copy=False) @ x
+            return _times(c.dense, x, False)
         h = self.clusters[c.left].stop - c.start
         y = np.concatenate([self._product(c.left, x[:h]), self._product(c.left + 1, x[h:])])
         if c.U.shape[1]:
-            U = c.U.astype(np.float64, copy=False)
-            V = c.V.astype(np.float64, copy=False)
-            y[:h] += U @ (V.T @ x[h:])
-            y[h:] += V @ (U.T @ x[:h])
+            y[:h] += _times(c.U, _times(c.V, x[h:], True), False)
+            y[h:] += _times(c.V, _times(c.U, x[:h], True), False)
         return y
 
     def compressed_product(self, x: np.ndarray) -> np.ndarray:
@@ -585,7 +604,7 @@ class HierarchicalInverse:
         self.m = keep.size
         self.row[self.ids] = np.arange(self.m)
         self.live = np.ones(self.m, dtype=bool)
-        self.V = np.zeros((self.m, self.capacity), order="F", dtype=self.dtype)
+        self.V = self.V[: self.m]  # zero after the fold: its first rows serve, with no copy
         self.version += 1
         self._index()
         return True
