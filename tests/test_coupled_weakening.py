@@ -516,7 +516,7 @@ def test_a_burst_leaves_a_flat_valley(monkeypatch):
         assert res.scalars["pull_converged"][0] == 1.0
         assert pushes, "no burst of the scene left a flat valley"
         for x, at, before, event in pushes:
-            assert x > wk.PUSHES[-1]
+            assert x > 0
             assert before < excess
             if not event:  # else an event ended the push before the excess was reached
                 assert at == pytest.approx(excess, rel=1e-6)
@@ -525,3 +525,29 @@ def test_a_burst_leaves_a_flat_valley(monkeypatch):
         assert runs[1][key][0] == runs[0][key][0]
     assert runs[1]["friction_force"][0] == pytest.approx(runs[0]["friction_force"][0],
                                                          rel=1e-12)
+
+
+@pytest.mark.parametrize(("c0", "c1", "c2", "x"), [
+    (0.0, 1e-8, 0.0, 1e8),  # linear
+    (0.0, 1e-8, 1e-25, 1e8 * (1 - 1e-9)),  # near-linear: no cancellation to zero
+    (0.0, 0.0, 4.0, 0.5),  # quadratic from rest
+    (0.0, -1.0, 2.0, 1.0),  # falls first, then convex: the larger root
+    (0.5, 1e-8, -1e-3, None),  # concave, never reaches it
+    (0.0, 3.0, -2.0, 0.5),  # concave, the smaller root
+    (0.0, -1.0, -1.0, None),  # falls for ever
+    (1.5, -1.0, 0.0, 0.0),  # there already
+])
+def test_least_crossing_of_a_quadratic(c0, c1, c2, x):
+    """The push that takes an excess quadratic along the mode to the target, in every sign
+    case of its coefficients, against the roots computed by numpy."""
+    from roughslip.coupling.weakening import _least_crossing
+
+    got = _least_crossing(np.array([c0, 0.0]), np.array([c1, 0.0]), np.array([c2, 0.0]))
+    if x is None:
+        assert got is None
+        return
+    assert got == pytest.approx(x, rel=1e-7)
+    if 0 < got:
+        roots = np.roots([c2, c1, c0 - 1.0]) if c2 else np.array([(1.0 - c0) / c1])
+        real = roots[np.isreal(roots)].real
+        assert got == pytest.approx(real[real > 0].min(), rel=1e-7)

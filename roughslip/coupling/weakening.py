@@ -174,7 +174,6 @@ class _Core:
         self.worst = 0.0
         self.steps = 0
         self.bursts = 0
-        self.flat_pushes = 0  # bursts that left a flat valley (:meth:`_flat_push`)
         self.changes = 0  # set changes (events), to tell a flow that came back from one that moved
         self._origin: tuple[int, np.ndarray, int] | None = None  # the last push: changes, s, level
         self._approach: tuple[np.ndarray, np.ndarray] | None = None  # the path's last tangent
@@ -732,6 +731,26 @@ def _growth_bound(J: np.ndarray) -> float:
                                  check_finite=False)[0])
 
 
+def _least_crossing(c0: np.ndarray, c1: np.ndarray, c2: np.ndarray) -> float | None:
+    r"""The least :math:`x \ge 0` at which some :math:`c_{0,i} + c_{1,i} x + c_{2,i} x^2`
+    reaches 1, or None. Per row, with :math:`c = c_0 - 1 < 0`: a rising row (:math:`c_1 > 0`)
+    crosses at the smaller positive root, :math:`2c/(-c_1 - \sqrt{c_1^2 - 4c_2c})`, when the
+    discriminant is not negative (this form does not cancel, and is the linear root when
+    :math:`c_2 = 0`); a row that first falls crosses only if convex, at
+    :math:`(-c_1 + \sqrt{\cdot})/(2c_2)`."""
+    c = c0 - 1.0
+    if (c >= 0).any():
+        return 0.0
+    disc = c1 * c1 - 4.0 * c2 * c
+    root = np.full(c.shape, np.inf)
+    rise = (c1 > 0) & (disc >= 0)
+    root[rise] = 2.0 * c[rise] / (-c1[rise] - np.sqrt(disc[rise]))
+    fall = (c1 <= 0) & (c2 > 0)
+    root[fall] = (-c1[fall] + np.sqrt(disc[fall])) / (2.0 * c2[fall])
+    best = float(root.min(initial=np.inf))
+    return best if math.isfinite(best) else None
+
+
 def _first(mask: np.ndarray, sites: np.ndarray, order: np.ndarray | None = None) -> int:
     """The row of ``mask`` with the lowest ``order`` then the lowest site (the package's tie
     rule)."""
@@ -1022,7 +1041,8 @@ class _Events:
         held) can decay below the rest tolerance before it grows; the polish then returns
         to the state pushed from, with no set changed. The landing does not depend on the
         push once the flow escapes (the polish finds the same rest); a state no push leaves
-        is refused."""
+        is refused. Past the ladder, a mode that grows but leaves the excess below the flow's
+        threshold is pushed by the root of its quadratic (:meth:`_flat_push`)."""
         v, rate = mode
         v = v / max(float(np.abs(v).max()), 1e-300)
         s0 = self.s.copy()
@@ -1049,9 +1069,8 @@ class _Events:
                     f"coupled slip-weakening: a burst cannot leave the state at "
                     f"{'D_x' if self.drive == 'x' else 'D_z'} = {self.D!r}: its mode grows "
                     f"at {rate:.2e} of the stiffest bond's rate, or the flow came back, after "
-                    f"a push of {PUSHES[-1]:g} d_c")
+                    f"a push of {PUSHES[-1]:g} d_c and the push its excess's quadratic gives")
             self.s = s0 + x * self.law.dc * v
-            self.flat_pushes += 1
         self._origin = (self.changes, s0, level)
         self._pushed = True
 
@@ -1070,33 +1089,28 @@ class _Events:
         :math:`s_0 + x\,d_c v` the residual is exactly quadratic in :math:`x` (module
         docstring), :math:`R(x) = R_0 + x\,r_1 + x^2 r_2`, so the least :math:`x` at which
         :math:`\max_i R_i` reaches :data:`FLAT` times FLOW_EPS of the largest normal force is solved
-        for, not searched. Every state on the ray before it has an excess below the flow's own
-        resolution, so the flow could not tell moving along it from resting; an event on the
-        way (a constraint :meth:`_violation` finds) ends the push just past its root, located
-        by bisection to ``TIE`` of the push, and the burst applies it there. None when no
-        excess grows along the ray, or the mode does not grow at the push."""
+        for, not searched (:func:`_least_crossing`). Every state on the ray before it has an
+        excess below FLAT flow thresholds, within a small factor of the flow's own
+        resolution, so the ray stands for the flow it cannot integrate; an event on the way
+        (a constraint :meth:`_violation` finds) ends the push just past its root, located by
+        bisection to ``TIE`` of the push, and the burst applies it there. None when no
+        excess reaches the target along the ray, or the mode does not grow at the push."""
         dc = self.law.dc
         R0 = self.residual(s0, self.D)
         Rp = self.residual(s0 + dc * v, self.D)
         Rm = self.residual(s0 - dc * v, self.D)
         r1, r2 = 0.5 * (Rp - Rm), 0.5 * (Rp + Rm) - R0
         target = FLAT * FLOW_EPS * self.fscale()
-        # the least positive x with R0_i + x r1_i + x^2 r2_i = target, per bond
-        a, b, c = r2, r1, R0 - target
-        disc = b * b - 4 * a * c
-        with np.errstate(divide="ignore", invalid="ignore"):
-            root = np.where(a > 0, (-b + np.sqrt(np.maximum(disc, 0.0))) / (2 * a),
-                            np.where(b > 0, -c / b, np.inf))
-            root = np.where((a < 0) & (disc >= 0), (-b + np.sqrt(np.maximum(disc, 0.0)))
-                            / (2 * a), root)
-        root = root[np.isfinite(root) & (root > 0)]
-        if not root.size:
+        x = _least_crossing(R0 / target, r1 / target, r2 / target)
+        if x is None:
             return None
-        x = float(root.min()) * (1 + 1e-9)
+        x *= 1 + 1e-9
         self.s = s0 + x * dc * v
         if self._violation() is not None:
             lo, hi = 0.0, x
-            while hi - lo > TIE * hi:
+            for _ in range(200):
+                if hi - lo <= TIE * hi:
+                    break
                 mid = 0.5 * (lo + hi)
                 self.s = s0 + mid * dc * v
                 if self._violation() is None:

@@ -282,7 +282,8 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
                      if dtype.itemsize == 8 and half < need and half <= available_bytes()
                      else "")
             if (solver is not HierarchicalInverse
-                    and HierarchicalInverse.memory_bytes(n, block=block) <= available_bytes()):
+                    and HierarchicalInverse.memory_bytes(n, block=block, itemsize=4)
+                    <= available_bytes()):
                 other += "pull method 'hierarchical' (compressed, exact), "
             raise MemoryLimitError(
                 f"the inverse of G_xx on {n} bonds ({solver.kind}, "

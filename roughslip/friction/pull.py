@@ -127,8 +127,9 @@ class PullMethod:
         Works on an n x n matrix: ``auto`` takes it while its matrix fits in memory
         (:func:`inverse_memory_bytes`).
     blas
-        Its time goes to BLAS: BLAS gets the threads, and the FFTs of its certification one
-        thread (two thread pools spinning on the same cores slow each other down).
+        Its time goes to BLAS, as a dense method's does: BLAS gets the threads, and the FFTs
+        of its certification one thread (two thread pools spinning on the same cores slow
+        each other down).
     solver
         The stick solver's factory (the signature of
         :class:`~roughslip.linalg.inverse.UpdatableInverse`), or None.
@@ -444,8 +445,9 @@ def pull(
     # Dense and compressed linear algebra gets the threads, and the certification's FFTs run
     # on one thread beside it; FFT-bound CG loops keep BLAS single-threaded (competing FFTW
     # and OpenBLAS thread pools made CG iterations 60x slower).
-    b = Bonds(normal, float(lam), threads=1 if impl.blas else None)
-    with blas_threads(threads if impl.blas else 1):
+    blas = impl.blas or impl.dense
+    b = Bonds(normal, float(lam), threads=1 if blas else None)
+    with blas_threads(threads if blas else 1):
         res = run(b, opt, t0)
     if impl is not asked:
         res = replace(res, message=f"auto chose {impl.name} for {n} bonds; " + res.message)
@@ -474,7 +476,7 @@ METHODS.register("literal", "the report's algorithm, one CG solve from zero per 
     PullMethod("literal", exact=True, dense=False, run=break_literal, tiny=12,
                early_stop=False))
 METHODS.register("inverse", "exact, an updated inverse of G_xx on the bonds (O(n^2) memory)")(
-    PullMethod("inverse", exact=True, dense=True, blas=True, solver=UpdatableInverse,
+    PullMethod("inverse", exact=True, dense=True, solver=UpdatableInverse,
                offers=frozenset(CAPABILITIES), precisions=("double", "single")))
 METHODS.register("hierarchical", "exact with certified decisions, a compressed (HODLR) inverse "
                  "of G_xx on the bonds (break law; a fraction of the dense memory)")(

@@ -187,7 +187,8 @@ def hierarchical_bytes(m: int, *, leaf: int = LEAF, max_rank: int = MAX_RANK,
         top = max(top, r)
         words += 2 * m * r + count * (2 * r) ** 2
         s, count = s / 2, count * 2
-    return itemsize * int(words + 2 * m * top)
+    # the compression's work arrays (two bases of the largest rank) stay in double precision
+    return itemsize * int(words) + 8 * int(2 * m * top)
 
 
 #: rows of a single-precision basis widened to double precision at a time
@@ -399,7 +400,7 @@ class HierarchicalInverse:
             for c in reversed(self.clusters):  # children come after their parent
                 if c.left < 0:
                     if c.stop == c.start:
-                        c.inverse = np.zeros((0, 0))
+                        c.inverse = np.zeros((0, 0), dtype=self.dtype)
                         continue
                     try:
                         L = np.linalg.cholesky(c.dense.astype(np.float64))
@@ -482,8 +483,8 @@ class HierarchicalInverse:
         r""":math:`A^{-1} e_p` in tree order for tree position ``p``: one cluster per level
         holds the support until the root (module docstring). On the way up, :math:`x =
         A_{\tau_1}^{-1} e_p` on the half that holds :math:`p`, so :math:`U^T x = (A_{\tau_1}^{-1}
-        U)^T e_p` is a row of :math:`Y` (:math:`A` symmetric): two products with the bases
-        per level, not three."""
+        U)^T e_p` is a row of :math:`Y` (:math:`A` symmetric): two products with the solves
+        :math:`Y` per level, and none with the bases."""
         n = int(self.leaf_of[p])
         c = self.clusters[n]
         x = c.inverse[:, p - c.start].copy()
@@ -604,7 +605,7 @@ class HierarchicalInverse:
         self.m = keep.size
         self.row[self.ids] = np.arange(self.m)
         self.live = np.ones(self.m, dtype=bool)
-        self.V = self.V[: self.m]  # zero after the fold: its first rows serve, with no copy
+        self.V = np.zeros((self.m, self.capacity), order="F", dtype=self.dtype)
         self.version += 1
         self._index()
         return True

@@ -214,7 +214,8 @@ class PullConfig:
                           "(the break law and slip-weakening; exact for the friction "
                           "force); false records every event, for the bursts after the "
                           "peak")
-    precision: str = option("auto", "the precision of the inverse method's stored matrix: "
+    precision: str = option("auto", "the precision of the stored matrix of the inverse and "
+                            "hierarchical methods: "
                             "double, single (the break law: half the memory, the same break "
                             "sequence and friction force by certified decisions, the other "
                             "curve points to ~1e-6) or auto (double when it fits in memory, "
