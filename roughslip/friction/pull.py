@@ -232,15 +232,25 @@ def choose_precision(n: int, memory: int | None = None, slip_law: str | SlipLaw 
     for another."""
     memory = available_bytes() if memory is None else memory
     m = _method(method)
-
-    def need(precision: str) -> int:
-        if m.dense or m.solver is None:
-            return inverse_memory_bytes(n, block, precision)
-        return m.solver.memory_bytes(n, itemsize=4 if precision == "single" else 8)
-
-    if need("double") <= memory or not single_ok(slip_law, method):
+    if _matrix_bytes(m, n, "double", block) <= memory or not single_ok(slip_law, method):
         return "double"
-    return "single" if need("single") <= memory else "double"
+    return "single" if _matrix_bytes(m, n, "single", block) <= memory else "double"
+
+
+def _matrix_bytes(m: PullMethod, n: int, precision: str, block: int = 128) -> int:
+    """The memory of ``m``'s matrix for ``n`` bonds in ``precision``:
+    :func:`inverse_memory_bytes` for a dense method, the stick solver's estimate for
+    another."""
+    if m.dense or m.solver is None:
+        return inverse_memory_bytes(n, block, precision)
+    return m.solver.memory_bytes(n, itemsize=4 if precision == "single" else 8)
+
+
+def _fits(m: PullMethod, n: int, law: SlipLaw, precision: str, memory: int) -> bool:
+    """Whether ``m``'s matrix for ``n`` bonds fits in ``memory`` in a precision that
+    ``precision`` (``"auto"``: any) and the law allow (single: :func:`single_ok`)."""
+    return any(_matrix_bytes(m, n, p) <= memory for p in m.precisions
+               if precision in ("auto", p) and (p == "double" or single_ok(law, m)))
 
 
 def coulomb_force_at(result: PullResult, dx: float | np.ndarray) -> np.ndarray:
@@ -315,15 +325,9 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
             return m.name
     limit = lapack64.max_n()
     for m in dense:
-        allowed = [p for p in ("double", "single") if precision in ("auto", p)
-                   and (p == "double" or single_ok(law, m))]
-        if any(inverse_memory_bytes(n, precision=p) <= memory for p in allowed) and (
-                limit is None or n <= limit):
+        if _fits(m, n, law, precision, memory) and (limit is None or n <= limit):
             return m.name
-    fits = [m for m in free if m.solver is None or min(
-        (m.solver.memory_bytes(n, itemsize=4 if p == "single" else 8)
-         for p in m.precisions if precision in ("auto", p)
-         and (p == "double" or single_ok(law, m))), default=memory + 1) <= memory]
+    fits = [m for m in free if m.solver is None or _fits(m, n, law, precision, memory)]
     return (fits or free or dense)[0].name
 
 
