@@ -412,8 +412,9 @@ class HierarchicalInverse:
                     self.flops += (c.stop - c.start) ** 3
                     continue
                 k = c.U.shape[1]
-                c.YL = self._solve(c.left, c.U)
-                c.YR = self._solve(c.left + 1, c.V)
+                c.YL = c.YR = c.T = None  # a fold's old solves go before the new are made
+                c.YL = self._solve(c.left, c.U.copy())
+                c.YR = self._solve(c.left + 1, c.V.copy())
                 S = np.block([[(c.U.T @ c.YL).astype(np.float64), np.eye(k)],
                               [np.eye(k), (c.V.T @ c.YR).astype(np.float64)]])
                 try:
@@ -429,21 +430,27 @@ class HierarchicalInverse:
 
     # -- products ------------------------------------------------------------------------------
     def _solve(self, n: int, B: np.ndarray) -> np.ndarray:
-        """:math:`A_\\tau^{-1} B` for cluster ``n`` (``B`` in tree order on its range)."""
+        """:math:`A_\\tau^{-1} B` for cluster ``n`` (``B`` in tree order on its range),
+        overwriting ``B`` and returning it: the solve holds one product of half of ``B`` at a
+        time besides it, where a solve into new arrays would hold several copies of ``B`` at
+        the root (a fold's peak memory)."""
         c = self.clusters[n]
         cols = 1 if B.ndim == 1 else B.shape[1]
         if c.left < 0:
             self.flops += 2.0 * B.shape[0] ** 2 * cols
-            return c.inverse @ B
+            B[...] = c.inverse @ B
+            return B
         h = self.clusters[c.left].stop - c.start
         yL = self._solve(c.left, B[:h])
         yR = self._solve(c.left + 1, B[h:])
         k = c.U.shape[1]
         if k == 0:
-            return np.concatenate([yL, yR])
+            return B
         self.flops += (8.0 * k * B.shape[0] + 8.0 * k * k) * cols
         t = c.T @ np.concatenate([c.U.T @ yL, c.V.T @ yR])
-        return np.concatenate([yL - c.YL @ t[:k], yR - c.YR @ t[k:]])
+        yL -= c.YL @ t[:k]
+        yR -= c.YR @ t[k:]
+        return B
 
     def apply(self, B: np.ndarray) -> np.ndarray:
         """The current inverse times ``B`` (on the rows; rows removed since the last fold must
