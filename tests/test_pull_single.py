@@ -12,6 +12,7 @@ from roughslip.contact.squeeze import squeeze
 from roughslip.errors import InputError, MemoryLimitError
 from roughslip.friction.bonds import Bonds
 from roughslip.friction.pull import (
+    HIERARCHICAL_ABOVE,
     choose_method,
     choose_precision,
     inverse_memory_bytes,
@@ -236,18 +237,20 @@ def test_near_ties_are_sharpened(pairs):
 
 
 def test_auto_chooses_double_when_it_fits_and_single_when_only_that_fits():
-    n = 20000  # large enough that the matrices outweigh the estimate's fixed reserve
+    n = HIERARCHICAL_ABOVE - 1  # below the crossover: the dense inverse while it fits
     double, single = inverse_memory_bytes(n), inverse_memory_bytes(n, precision="single")
-    assert single < 0.55 * double
+    assert single < 0.6 * double
     assert choose_precision(n, memory=double) == "double"
     assert choose_precision(n, memory=(single + double) // 2) == "single"
     assert choose_precision(n, memory=(single + double) // 2, slip_law="coulomb") == "double"
+    assert choose_method(n, memory=double) == "inverse"
     assert choose_method(n, memory=(single + double) // 2) == "inverse"
+    assert choose_method(n, memory=double, precision="single") == "inverse"
     # no dense inverse fits: the compressed one while its estimate fits, then matrix-free
     compressed = HierarchicalInverse.memory_bytes(n)
-    assert compressed < single // 2
+    assert compressed < single
     assert choose_method(n, memory=(single + double) // 2, precision="double") == "hierarchical"
-    assert choose_method(n, memory=single // 2) == "hierarchical"
+    assert choose_method(n, memory=compressed) == "hierarchical"
     # and in single precision when only that estimate fits
     half = HierarchicalInverse.memory_bytes(n, itemsize=4)
     assert half < compressed
@@ -259,6 +262,21 @@ def test_auto_chooses_double_when_it_fits_and_single_when_only_that_fits():
     assert choose_method(n, memory=between, slip_law="coulomb") != "hierarchical"
     assert choose_method(n, memory=half // 2) == "cg"
     assert choose_method(5, precision="single") == "inverse"  # not the literal algorithm
+
+
+def test_auto_takes_the_compressed_inverse_above_the_crossover():
+    """From the measured crossover on, the compressed inverse is faster than the dense one:
+    auto takes it whenever its estimate fits, in double precision when that fits, and keeps
+    the dense inverse for the laws it does not run."""
+    n = HIERARCHICAL_ABOVE
+    roomy = 2 * inverse_memory_bytes(n)
+    assert choose_method(n, memory=roomy) == "hierarchical"
+    assert choose_precision(n, memory=roomy, method="hierarchical") == "double"
+    assert choose_method(n, memory=roomy, precision="single") == "hierarchical"
+    assert choose_method(n, memory=roomy, slip_law="coulomb") == "inverse"
+    assert choose_method(n - 1, memory=roomy) == "inverse"
+    half = HierarchicalInverse.memory_bytes(n, itemsize=4)
+    assert choose_method(n, memory=half // 2) == "cg"
 
 
 def test_memory_guard_knows_both_precisions():

@@ -142,6 +142,10 @@ class PullMethod:
         the laws that have them, :attr:`~roughslip.friction.laws.SlipLaw.single`).
     tiny
         ``auto`` takes it for at most this many bonds (0: by the other rules).
+    above
+        ``auto`` takes it from this many bonds on, before the dense methods, where it was
+        measured faster than they are and its memory fits (0: only once no dense method
+        fits; docs/benchmarks.md).
     auto
         ``auto`` may choose it.
     early_stop
@@ -166,6 +170,7 @@ class PullMethod:
     offers: frozenset[str] = frozenset()
     precisions: tuple[str, ...] = ("double",)
     tiny: int = 0
+    above: int = 0
     auto: bool = True
     early_stop: bool = True
     estimate: bool = True
@@ -297,13 +302,16 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
     capabilities, in the order of :data:`METHODS`.
 
     A law that only dense methods run gets the first of them, which checks its memory
-    itself; so does ``precision="single"`` for a law with certified decisions. Otherwise a
-    method made for tiny contacts takes them (:attr:`PullMethod.tiny`, the literal
-    algorithm); then a dense method whenever its matrix fits in memory (in double or, where
-    the law and the method have it, single precision) and the LAPACK can index it (for
-    3 271 bonds the inverse was about 100 times faster than one warm-started CG solve per
-    break, docs/benchmarks.md); otherwise the first other exact method whose memory fits (a
-    compressed inverse, by its estimate), else the first matrix-free one.
+    itself. From the bond count where a method that is not dense was measured faster than the
+    dense ones (:attr:`PullMethod.above`: the compressed inverse), it takes them while its
+    memory fits. Below it, ``precision="single"`` for a law with certified decisions gets the
+    first dense method, which checks its memory itself. Otherwise a method made for tiny
+    contacts takes them (:attr:`PullMethod.tiny`, the literal algorithm); then a dense method
+    whenever its matrix fits in memory (in double or, where the law and the method have it,
+    single precision) and the LAPACK can index it (for 3 271 bonds the inverse was about 100
+    times faster than one warm-started CG solve per break, docs/benchmarks.md); otherwise the
+    first other exact method whose memory fits (a compressed inverse, by its estimate), else
+    the first matrix-free one.
     """
     law = _law(slip_law)
     cands = [METHODS.get(m) for m in METHODS.names()]
@@ -315,11 +323,14 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
     free = [m for m in cands if not m.dense and not m.tiny]
     if dense and not free:
         return dense[0].name
+    memory = available_bytes() if memory is None else memory
+    for m in free:
+        if m.above and n >= m.above and _fits(m, n, law, precision, memory):
+            return m.name
     if precision == "single":
         for m in dense:
             if single_ok(law, m):
                 return m.name  # asked for by name: it checks its memory itself
-    memory = available_bytes() if memory is None else memory
     for m in cands:
         if n <= m.tiny:
             return m.name
@@ -474,6 +485,11 @@ def pull(
     return res
 
 
+#: bonds from which ``auto`` takes the compressed inverse: on the rough benchmark scenes (20 %
+#: contact, 2 cores) it took 2.3 times the dense double inverse's time at 3 275 bonds, 1.20 at
+#: 7 362, 0.94 at 10 025 and 0.71 at 13 074 (docs/benchmarks.md)
+HIERARCHICAL_ABOVE = 10_000
+
 METHODS.register("auto", "an exact method chosen by bond count and memory")(
     PullMethod("auto", exact=True, dense=False, auto=False, chooses=True))
 METHODS.register("literal", "the report's algorithm, one CG solve from zero per break")(
@@ -486,7 +502,7 @@ METHODS.register("hierarchical", "exact with certified decisions, a compressed (
                  "of G_xx on the bonds (break law; a fraction of the dense memory)")(
     PullMethod("hierarchical", exact=True, dense=False, blas=True,
                solver=HierarchicalInverse, offers=frozenset({"tracked"}),
-               precisions=("double", "single"), inexact=True))
+               precisions=("double", "single"), inexact=True, above=HIERARCHICAL_ABOVE))
 METHODS.register("cg", "exact and matrix-free, a warm-started CG solve per break")(
     PullMethod("cg", exact=True, dense=False, run=break_cg))
 METHODS.register("batch", "approximate, several bonds broken per solve")(
