@@ -125,7 +125,7 @@ class PullMethod:
         Gives the exact pull curve (up to the solver tolerance).
     dense
         Works on an n x n matrix: ``auto`` takes it while its matrix fits in memory
-        (:func:`inverse_memory_bytes`).
+        (:func:`inverse_memory_bytes`), below the :attr:`above` of any other method.
     blas
         Its time goes to BLAS, as a dense method's does: BLAS gets the threads, and the FFTs
         of its certification one thread (two thread pools spinning on the same cores slow
@@ -145,7 +145,9 @@ class PullMethod:
     above
         ``auto`` takes it from this many bonds on, before the dense methods, where it was
         measured faster than they are and its memory fits (0: only once no dense method
-        fits; docs/benchmarks.md).
+        fits; docs/benchmarks.md). Measured on open rough contacts at 20 % with two BLAS
+        threads: more threads favour the dense methods, and periodic grids, whose blocks have
+        higher ranks, the dense ones too.
     auto
         ``auto`` may choose it.
     early_stop
@@ -303,15 +305,15 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
 
     A law that only dense methods run gets the first of them, which checks its memory
     itself. From the bond count where a method that is not dense was measured faster than the
-    dense ones (:attr:`PullMethod.above`: the compressed inverse), it takes them while its
-    memory fits. Below it, ``precision="single"`` for a law with certified decisions gets the
-    first dense method, which checks its memory itself. Otherwise a method made for tiny
-    contacts takes them (:attr:`PullMethod.tiny`, the literal algorithm); then a dense method
-    whenever its matrix fits in memory (in double or, where the law and the method have it,
-    single precision) and the LAPACK can index it (for 3 271 bonds the inverse was about 100
-    times faster than one warm-started CG solve per break, docs/benchmarks.md); otherwise the
-    first other exact method whose memory fits (a compressed inverse, by its estimate), else
-    the first matrix-free one.
+    dense ones (:attr:`PullMethod.above`: the compressed inverse), ``auto`` takes that method
+    whenever its memory fits. Otherwise, ``precision="single"`` for a law with certified
+    decisions gets the first dense method, which checks its memory itself. Otherwise a method
+    made for tiny contacts takes them (:attr:`PullMethod.tiny`, the literal algorithm); then
+    a dense method whenever its matrix fits in memory (in double or, where the law and the
+    method have it, single precision) and the LAPACK can index it (for 3 271 bonds the
+    inverse was about 100 times faster than one warm-started CG solve per break,
+    docs/benchmarks.md); otherwise the first other exact method whose memory fits (a
+    compressed inverse, by its estimate), else the first matrix-free one.
     """
     law = _law(slip_law)
     cands = [METHODS.get(m) for m in METHODS.names()]
