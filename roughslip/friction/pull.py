@@ -145,9 +145,9 @@ class PullMethod:
     above
         ``auto`` takes it from this many bonds on, before the dense methods, where it was
         measured faster than they are and its memory fits (0: only once no dense method
-        fits; docs/benchmarks.md). Measured on open rough contacts at 20 % with two BLAS
-        threads: more threads favour the dense methods, and periodic grids, whose blocks have
-        higher ranks, the dense ones too.
+        fits; docs/benchmarks.md). Measured on open rough contacts at 20 % with one and two
+        BLAS threads (the crossover came earlier on one); periodic grids, whose blocks have
+        higher ranks, were not measured.
     auto
         ``auto`` may choose it.
     early_stop
