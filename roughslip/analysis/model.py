@@ -75,14 +75,21 @@ def law_parameters(cfg: Mapping[str, Any], tex: bool = False) -> str:
 
 
 def law_label(cfg: Mapping[str, Any], tex: bool = False) -> str:
-    """The slip law with its parameters, ``slip-weakening law: lambda = 0.3, ...``, and
-    ``(coupled)`` under the coupled model; empty without a pull."""
+    """The slip law with its parameters, ``slip-weakening law: lambda = 0.3, ...``,
+    ``(coupled)`` under the coupled model, and ``, traction (f_x, f_y) pulled at 30 deg``
+    when the bonds carry the traction vector (``pull.components = "xy"``); empty without a
+    pull."""
     pull = cfg.get("pull", {})
     if not pull.get("enabled"):
         return ""
     law = pull.get("slip_law", "break")
+    vector = ""
+    if pull.get("components", "x") != "x":
+        f = r"$(f_x, f_y)$" if tex else "(f_x, f_y)"
+        deg = r"$^\circ$" if tex else " deg"
+        vector = f", traction {f} pulled at {show(pull.get('direction', 0.0))}{deg}"
     return (f"{law} law" + (" (coupled)" if coupled(cfg) else "") + ": "
-            + law_parameters(cfg, tex))
+            + law_parameters(cfg, tex) + vector)
 
 
 def nondefault(cfg: Mapping[str, Any]) -> dict[str, dict[str, Any]]:

@@ -335,7 +335,8 @@ def plot_run(path: str | Path, out: str | Path | None = None, sample: int | None
     where = f"sample {s}, {target_label(run, k)}"
     panels = []
     for name, title in (("contact", "contact"), ("stick", "stick at the friction peak"),
-                        ("fz", "normal force $f_z$"), ("fx", "tangential force $f_x$ at peak")):
+                        ("fz", "normal force $f_z$"), ("fx", "tangential force $f_x$ at peak"),
+                        ("fy", "tangential force $f_y$ at peak")):
         try:
             panels.append((name, title, run.field(s, k, name)))
         except InputError:
@@ -362,6 +363,8 @@ def _maps_figure(plt, stem: Path, run, panels: list, where: str) -> Path:
 
     u = units(run)
     pixel = pixel_size(run)
+    drive = run.config_dict().get("pull", {})
+    xlabel = "x, pull direction" if drive.get("components", "x") == "x" else "x"
     # at most two panels a row: four in a row shrink to unreadable text on a page or screen
     ncols = min(2, len(panels))
     nrows = -(-len(panels) // ncols)
@@ -386,14 +389,14 @@ def _maps_figure(plt, stem: Path, run, panels: list, where: str) -> Path:
             cb = fig.colorbar(im, ax=ax, fraction=0.046)
             cb.set_label("pixel force" + u.label("force"), fontsize=8)
         ax.set_title(title, fontsize=9)
-        ax.set_xlabel("x, pull direction" + u.label("length"))
+        ax.set_xlabel(xlabel + u.label("length"))
         ax.set_ylabel("y" + u.label("length"))
     fig.suptitle(run_title(run, where), fontsize=10)
     return save(plt, fig, stem.parent / f"{stem.name}_maps.png")
 
 
 #: fields with a sign (a direction): drawn on a diverging colour map centred on zero
-SIGNED = ("fx", "ux")
+SIGNED = ("fx", "fy", "ux")
 
 
 def field_colours(name: str, a: np.ndarray) -> dict:
@@ -419,13 +422,15 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
     law = "coupled" if coupled else pull.get("slip_law", "break")
     fig, ax = plt.subplots(figsize=(6, 4.2))
     what = LAWS.get(law).curve if law in LAWS else "events"
-    ax.plot(dx, fx, ".", color="0.6", ms=2.5, label=f"{what} $(D_{{x,lim}}, F_{{x,lim}})$")
+    # along the drive: x in the report's model, pull.direction with the traction vector
+    a = "x" if pull.get("components", "x") == "x" else r"\parallel"
+    ax.plot(dx, fx, ".", color="0.6", ms=2.5, label=f"{what} $(D_{{{a},lim}}, F_{{{a},lim}})$")
     i = int(np.argmax(fx))
     method = METHODS.get(pull.get("method", "auto"))
     if law in LAWS and LAWS.get(law).sequence and method.exact:
         exhausted = not method.early_stop or not pull.get("early_stop", True)
         c = pull_curve(dx, fx, exhausted=exhausted)
-        ax.plot(c.dx, c.fx, "-", color="C0", lw=0.8, label="pull curve, monotone $D_x$")
+        ax.plot(c.dx, c.fx, "-", color="C0", lw=0.8, label=f"pull curve, monotone $D_{a}$")
         big = c.complete & (c.burst_size > 1)
         if np.any(big):
             ax.plot(c.burst_dx[big], fx[c.burst_start[big]], "v", color="C1", ms=3,
@@ -433,7 +438,7 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
     elif law in LAWS and LAWS.get(law).lands and site is not None:
         c = landing_curve(dx, fx, site)
         i = c.peak_break  # the peak of the stable path (a state inside a burst never is)
-        ax.plot(c.dx, c.fx, "-", color="C0", lw=0.8, label="pull curve, monotone $D_x$")
+        ax.plot(c.dx, c.fx, "-", color="C0", lw=0.8, label=f"pull curve, monotone $D_{a}$")
         if c.burst_dx.size:
             ax.plot(c.burst_dx, fx[c.burst_start], "v", color="C1", ms=3,
                     label=f"bursts ({c.burst_dx.size})")
@@ -445,8 +450,8 @@ def _pull_figure(plt, stem: Path, cfg: dict, dx: np.ndarray, fx: np.ndarray,
     force = u.of_dimension("force")
     ax.plot(dx[i], fx[i], "o", color="C3", label=f"$F_{{friction}}$ = {fx[i]:.4g}"
             + (f" {u.tex('force')}" if force else ""))
-    ax.set_xlabel("pull displacement $D_x$" + u.label("length"))
-    ax.set_ylabel("pull force $F_x$" + u.label("force"))
+    ax.set_xlabel(f"pull displacement $D_{a}$" + u.label("length"))
+    ax.set_ylabel(f"pull force $F_{a}$" + u.label("force"))
     ax.set_title(f"pull curve, {model.law_label(cfg, tex=True)}\n{where}", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)

@@ -38,7 +38,8 @@ __all__ = ["config_attrs", "export_netcdf", "sample_fields", "to_dataframe", "to
 _SCALE_ATTRS = {"DIMENSION_LIST", "DIMENSION_LABELS", "REFERENCE_LIST", "CLASS", "NAME",
                 "_Netcdf4Dimid", "_Netcdf4Coordinates"}
 #: the fields measured in a length or in a force
-_FIELD_UNIT = {"fz": "force", "fx": "force", "uz": "length", "ux": "length", "gap": "length"}
+_FIELD_UNIT = {"fz": "force", "fx": "force", "fy": "force", "uz": "length", "ux": "length",
+               "gap": "length"}
 
 
 def _extra(module: str) -> Any:

@@ -22,7 +22,7 @@ from roughslip.contact.squeeze import NormalResult
 from roughslip.elastic.operators import ElasticOperator
 from roughslip.elastic.tables import gather_pairs
 from roughslip.errors import MemoryLimitError, NumericalError
-from roughslip.friction.events import Curve, EventKind, argext
+from roughslip.friction.events import Curve, EventKind, argext, plane_direction
 from roughslip.friction.result import (
     DecoupledDetails,
     PullResult,
@@ -47,22 +47,26 @@ def __getattr__(name: str) -> type:
 def decoupled_result(b: Bonds, *, friction_force: float, curve: Curve, peak_event: int,
                      peak_fx: np.ndarray, peak_stick: np.ndarray, t0: float, method: str,
                      slip_law: str, converged: bool, residual: float = 0.0, solves: int = 0,
-                     message: str = "", early_stopped: bool = False, precision: str = ""
-                     ) -> PullResult:
+                     message: str = "", early_stopped: bool = False, precision: str = "",
+                     peak_fy: np.ndarray | None = None) -> PullResult:
     """The :class:`~roughslip.friction.result.PullResult` of a decoupled pull of the bonds
     ``b``: the normal forces and the contact are the squeeze's (the pull does not move them),
-    the start has every bond holding and no tangential force."""
+    the start has every bond holding and no tangential force. ``peak_fy``: the y forces of
+    the peak, in the model with both components (None in the x-only model)."""
     normal = b.normal
     stick0 = b.mask(np.arange(b.n))
+    fy0 = None if peak_fy is None else np.zeros(b.shape)
     return PullResult(
         friction_force=friction_force, normal_force_at_peak=normal.normal_force,
         normal_force=normal.normal_force, curve=curve, peak_event=peak_event,
-        peak=PullState(normal.fz, peak_fx, normal.contact, peak_stick),
-        start=PullState(normal.fz, np.zeros(b.shape), normal.contact, stick0),
+        peak=PullState(normal.fz, peak_fx, normal.contact, peak_stick, peak_fy),
+        start=PullState(normal.fz, np.zeros(b.shape), normal.contact, stick0, fy0),
         converged=converged, seconds=time.perf_counter() - t0, method=method,
         slip_law=slip_law, residual=residual, solves=solves, message=message,
         details=DecoupledDetails(lam=b.lam, n_bonds=b.n,
-                                 early_stopped=early_stopped, precision=precision))
+                                 early_stopped=early_stopped, precision=precision,
+                                 components="".join(b.components),
+                                 direction=b.direction))
 
 
 @dataclass(frozen=True)
@@ -103,10 +107,32 @@ class PullOptions:
         return UpdatableInverse if self.method is None else self.method.solver
 
 
-class Bonds:
-    """The bonded sites of a squeezed contact and the tangential operator on the grid."""
+#: the tangential models, by the name of ``pull.components``: the force components each bond
+#: carries. ``"x"``, the report's model: :math:`f_x` alone, pulled along x, :math:`u_y` free;
+#: ``"xy"``: the traction vector :math:`(f_x, f_y)`, which the half-space couples through
+#: :math:`G_{xy}` (docs/theory/pull.rst#traction-vector)
+TANGENTIAL_MODELS: dict[str, tuple[str, ...]] = {"x": ("x",), "xy": ("x", "y")}
 
-    def __init__(self, normal: NormalResult, lam: float, threads: int | None = None):
+
+def _kernel(a: str, b: str) -> str:
+    """The kernel between components ``a`` (displacement) and ``b`` (force):
+    :math:`G_{yx} = G_{xy}` on the pixel grid (both odd in x and in y)."""
+    return "xy" if {a, b} == {"x", "y"} else a + b
+
+
+class Bonds:
+    r"""The bonded sites of a squeezed contact and the tangential operator on the grid.
+
+    Each bond carries the force ``components`` (:data:`TANGENTIAL_MODELS`; ``k`` of them), and
+    the *unknowns* of the pull are its bonds' components, unknown ``u`` being component
+    ``u % k`` of the bond at position ``u // k``; with the x component alone an unknown is a
+    bond position. The stick set holds :math:`\mathbf u_t = D\,\hat{\mathbf e}` with the
+    drive's unit vector :math:`\hat{\mathbf e}` at the angle ``direction`` (degrees from x
+    toward y; :attr:`drive`: its ``components``, :math:`(1)` in the report's model).
+    """
+
+    def __init__(self, normal: NormalResult, lam: float, threads: int | None = None,
+                 components: tuple[str, ...] = ("x",), direction: float = 0.0) -> None:
         self.normal = normal
         self.problem = normal.problem
         self.grid = normal.grid
@@ -116,8 +142,18 @@ class Bonds:
         self.n = int(self.sites.size)
         self.fz = normal.fz.ravel()[self.sites].astype(float)
         self.cap = lam * self.fz  # lambda f_z per bond
-        op = self.problem.operator("xx")
+        self.components = tuple(components)
+        self.k = len(self.components)
+        #: the unknowns: k per bond
+        self.size = self.n * self.k
+        self.direction = float(direction)
+        plane = plane_direction(self.direction)
+        self.drive = np.array([plane[("x", "y").index(c)] for c in self.components])
+        kernels = sorted({_kernel(a, b) for a in self.components for b in self.components},
+                         key=("xx", "xy", "yy").index)
+        op = self.problem.operator(*kernels)
         self.op: ElasticOperator = op if threads is None else op.with_threads(threads)
+        self._tmp: np.ndarray | None = None
 
     @staticmethod
     def count(normal: NormalResult) -> int:
@@ -125,12 +161,59 @@ class Bonds:
         return int(np.count_nonzero(normal.contact.ravel() & (normal.fz.ravel() > 0)))
 
     def apply(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
-        return self.op.apply("xx", v, out=out)
+        r"""The tangential displacements of the forces ``v`` on the grid: :math:`G_{xx} f_x`
+        for the x component alone; with two, stacked fields ``[f_x, f_y]`` of shape
+        ``(2, ny, nx)`` and :math:`u_a = \sum_b G_{ab} f_b`."""
+        if self.k == 1:
+            return self.op.apply("xx", v, out=out)
+        if self._tmp is None:
+            self._tmp = np.empty(self.shape)
+        tmp = self._tmp
+        for a, ca in enumerate(self.components):
+            self.op.apply(_kernel(ca, self.components[0]), v[0], out=out[a])
+            for b in range(1, self.k):
+                out[a] += self.op.apply(_kernel(ca, self.components[b]), v[b], out=tmp)
+        return out
 
-    def restricted(self, positions: np.ndarray | None = None) -> Restricted:
-        """:math:`G_{xx}[S, S]` on the bonds at ``positions`` (all bonds by default)."""
-        mask = self.mask(np.arange(self.n) if positions is None else positions)
+    def restricted(self, unknowns: np.ndarray | None = None) -> Restricted:
+        """:math:`G_{tt}[S, S]` on the ``unknowns`` (all by default): :math:`G_{xx}` on bond
+        positions with the x component alone."""
+        mask = self.unknown_mask(np.arange(self.size) if unknowns is None else unknowns)
         return Restricted(self.apply, mask)
+
+    def unknown_mask(self, unknowns: np.ndarray) -> np.ndarray:
+        """The ``unknowns`` as a mask of the fields :meth:`apply` acts on (the grid with the x
+        component alone, ``(k, ny, nx)`` otherwise)."""
+        if self.k == 1:
+            return self.mask(unknowns)
+        m = np.zeros((self.k, *self.shape), dtype=bool)
+        bond, comp = np.divmod(np.asarray(unknowns, dtype=np.int64), self.k)
+        m.reshape(self.k, -1)[comp, self.sites[bond]] = True
+        return m
+
+    def product(self, unknowns: np.ndarray, v: np.ndarray) -> np.ndarray:
+        r""":math:`G_{tt}[S,S]\,v` for ``v`` on the ``unknowns`` (in their order), by the FFT
+        operator."""
+        u = self.apply(self.unknown_field(v, unknowns), np.empty((self.k, *self.shape)))
+        bond, comp = np.divmod(np.asarray(unknowns, dtype=np.int64), self.k)
+        return u.reshape(self.k, -1)[comp, self.sites[bond]]
+
+    def unknown_field(self, values: np.ndarray, unknowns: np.ndarray) -> np.ndarray:
+        """The field :meth:`apply` acts on with ``values`` at the ``unknowns``, zero
+        elsewhere."""
+        if self.k == 1:
+            return self.field(values, unknowns)
+        out = np.zeros((self.k, *self.shape))
+        bond, comp = np.divmod(np.asarray(unknowns, dtype=np.int64), self.k)
+        out.reshape(self.k, -1)[comp, self.sites[bond]] = values
+        return out
+
+    def drive_rows(self, unknowns: np.ndarray) -> np.ndarray | float:
+        r"""The drive's component of each unknown: the right-hand side of
+        :math:`G_{tt}[S,S]\varphi = \hat{\mathbf e}` (1.0 with the x component alone)."""
+        if self.k == 1:
+            return 1.0
+        return self.drive[np.asarray(unknowns, dtype=np.int64) % self.k]
 
     def field(self, values: np.ndarray, positions: np.ndarray | None = None) -> np.ndarray:
         out = np.zeros(self.shape)
@@ -148,12 +231,31 @@ class Bonds:
         """:math:`G_{xx}` between the bonds at positions ``i`` and ``j`` (the assembler of
         :func:`bond_inverse`); a square block by columns (:meth:`dense_into`), in ``dtype``
         (the double-precision entries rounded once)."""
+        if self.k > 1:
+            return self._entries_components(np.asarray(i), np.asarray(j), order, dtype)
         if np.array_equal(i, j):
             return self.dense(i, order=order, dtype=dtype)
         T, _, off = self.op.tables.pair("xx")
         out = np.empty((len(i), len(j)), order=order, dtype=dtype)
         return gather_pairs(T.astype(out.dtype, copy=False), self._lin(i), self._lin(j), off,
                             out)
+
+    def _entries_components(self, i: np.ndarray, j: np.ndarray, order: str, dtype: type
+                            ) -> np.ndarray:
+        r""":meth:`entries` between unknowns with several components: the block of
+        :math:`G_{ab}` between the unknowns of components ``a`` and ``b``, for each pair."""
+        out = np.empty((len(i), len(j)), order=order, dtype=dtype)
+        bi, ci = np.divmod(i.astype(np.int64), self.k)
+        bj, cj = np.divmod(j.astype(np.int64), self.k)
+        lin = self._lin()
+        for a, ca in enumerate(self.components):
+            rows = np.flatnonzero(ci == a)
+            for b, cb in enumerate(self.components):
+                cols = np.flatnonzero(cj == b)
+                T, _, off = self.op.tables.pair(_kernel(ca, cb))
+                gather_pairs(T.astype(out.dtype, copy=False), lin[bi[rows]], lin[bj[cols]],
+                             off, out, rows, cols)
+        return out
 
     def _lin(self, positions: np.ndarray | None = None) -> np.ndarray:
         """The index of each bond's site in the pair table of :math:`G_{xx}`."""
@@ -165,7 +267,11 @@ class Bonds:
     def dense(self, positions: np.ndarray | None = None, order: str = "F",
               dtype: type = float) -> np.ndarray:
         """:math:`G_{xx}[S,S]` assembled from the closed-form kernel (in ``dtype``: no
-        double-precision copy of the matrix is made)."""
+        double-precision copy of the matrix is made); with several components, :math:`G_{tt}`
+        on the unknowns ``positions``."""
+        if self.k > 1:
+            u = np.arange(self.size) if positions is None else np.asarray(positions)
+            return self._entries_components(u, u, order, dtype)
         n = self.n if positions is None else len(positions)
         A = np.empty((n, n), order=order, dtype=dtype)
         return self.dense_into(A, positions)
@@ -179,9 +285,15 @@ class Bonds:
         return gather_pairs(T.astype(A.dtype, copy=False), lin, lin, off, A)
 
 
-def select(phi: np.ndarray, cap: np.ndarray) -> tuple[int, float]:
+def select(phi: np.ndarray, cap: np.ndarray, k: int = 1) -> tuple[int, float]:
     r"""Position of the next bond to break and the maximum ratio :math:`|\varphi|/(\lambda
-    f_z)` (ties: :func:`~roughslip.friction.events.argext`)."""
+    f_z)` (ties: :func:`~roughslip.friction.events.argext`). With ``k`` components per bond,
+    ``phi`` and ``cap`` hold a bond's components on ``k`` consecutive entries, the ratio is
+    :math:`|\boldsymbol\varphi_i|/(\lambda f_{z,i})` with the Euclidean norm, and the
+    position is that of the bond's first entry."""
+    if k > 1:
+        j, m = select(np.sqrt(np.square(phi).reshape(-1, k).sum(axis=1)), cap[::k])
+        return j * k, m
     ratio = np.abs(phi) / cap
     m = float(ratio.max())
     if not math.isfinite(m):
@@ -232,11 +344,16 @@ class BreakCurve:
                precision: str = "") -> PullResult:
         """The pull's result: the break sequence from its start, and the peak state."""
         b = self.b
+        fy = None if b.k == 1 else np.zeros(b.shape)
         if self.peak_state is None:
             stick, fx = np.zeros(b.shape, bool), np.zeros(b.shape)
-        else:
+        elif b.k == 1:
             pos, f, _ = self.peak_state
             stick, fx = b.mask(pos), b.field(f, pos)
+        else:  # the unknowns of each bond, its components in order
+            pos, f, _ = self.peak_state
+            bonds = pos[:: b.k] // b.k
+            stick, fx, fy = b.mask(bonds), b.field(f[:: b.k], bonds), b.field(f[1 :: b.k], bonds)
         n = len(self.fx)
         curve = Curve.empty() if b.n == 0 else start_curve(
             np.array(self.dx), np.array(self.fx), (EventKind.BREAK,) * n,
@@ -245,7 +362,8 @@ class BreakCurve:
             b, friction_force=max(self.best, 0.0), curve=curve,
             peak_event=self.peak + 1 if n else 0, peak_fx=fx, peak_stick=stick, t0=t0,
             method=method, slip_law=slip_law, converged=converged, residual=residual,
-            solves=solves, message=message, early_stopped=self.stopped, precision=precision)
+            solves=solves, message=message, early_stopped=self.stopped, precision=precision,
+            peak_fy=fy)
 
 
 def shrinking_only(ids: np.ndarray) -> np.ndarray:
@@ -261,7 +379,8 @@ PRECISION_NAMES = {np.dtype(np.float64): "double", np.dtype(np.float32): "single
 def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
                  solver: SolverFactory = UpdatableInverse) -> StickSolver:
     r"""The inverse of :math:`G_{xx}` on all bonds, held by the stick solver ``solver``
-    (:class:`~roughslip.linalg.stick.StickSolver`; unknown ``i``: bond position ``i``), for a
+    (:class:`~roughslip.linalg.stick.StickSolver`; unknown ``i``: bond position ``i``; with
+    both tangential components, :math:`G_{tt}` on the unknowns of :class:`Bonds`), for a
     set that only shrinks: for the dense inverse, the lower-triangle layout of
     :class:`~roughslip.linalg.inverse.UpdatableInverse`, one :math:`n \times n` matrix of
     ``dtype`` (float64, or float32 for the single-precision pull), compacted in place as bonds
@@ -271,9 +390,10 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
     (:func:`~roughslip.linalg.inverse.inverse_bytes`), and :class:`NumericalError` when
     :math:`G_{xx}` on the bonds is not positive definite.
     """
-    n = b.n
+    n = b.size
     dtype = np.dtype(dtype)
     need = solver.memory_bytes(n, block=block, itemsize=dtype.itemsize)
+    what = "G_xx" if b.k == 1 else f"G_tt ({b.k} components)"
 
     def room(m: int) -> bool:
         if need > available_bytes():
@@ -286,19 +406,19 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
                     <= available_bytes()):
                 other += "pull method 'hierarchical' (compressed, exact), "
             raise MemoryLimitError(
-                f"the inverse of G_xx on {n} bonds ({solver.kind}, "
+                f"the inverse of {what} on {b.n} bonds ({solver.kind}, "
                 f"{PRECISION_NAMES[dtype]} precision) needs ~{need / 2**30:.2f} GiB but "
                 f"{available_bytes() / 2**30:.2f} GiB are available; use {other}pull method "
                 "'cg' (exact, matrix-free) or 'batch' (approximate)")
         return True
 
-    iy, ix = np.divmod(b.sites, b.shape[1])
+    iy, ix = np.divmod(np.repeat(b.sites, b.k), b.shape[1])
     inv = solver(b.entries, n, room=room, threads=threads, block=block, lower=True,
                  dtype=dtype, points=np.column_stack([iy, ix]).astype(float))
     try:
         inv.factor(np.arange(n))
     except NumericalError as exc:
-        raise NumericalError(f"G_xx on the stick set: {exc}") from None
+        raise NumericalError(f"{what} on the stick set: {exc}") from None
     return inv
 
 
@@ -311,12 +431,12 @@ def track(inv: StickSolver, name: str, rhs: np.ndarray) -> np.ndarray:
 
 class BondRows:
     r""":math:`\lambda f_z` on the rows of a bond inverse (:func:`bond_inverse`), infinite once
-    the bond has left the stick set, and the count of bonds left: compacted with the
-    inverse."""
+    the bond has left the stick set, and the count of rows left: compacted with the
+    inverse. With several components a bond's :math:`\lambda f_z` is on each of its rows."""
 
     def __init__(self, b: Bonds) -> None:
-        self.cap = b.cap.copy()
-        self.alive = b.n
+        self.cap = b.cap.copy() if b.k == 1 else np.repeat(b.cap, b.k)
+        self.alive = b.size
 
     def remove(self, inv: StickSolver, row: int, column: np.ndarray | None = None,
                held: dict[str, float] | None = None) -> None:
@@ -343,8 +463,9 @@ class BondRows:
 def stick_residual(b: Bonds, pos: np.ndarray, v: np.ndarray, rhs: np.ndarray | float
                    ) -> tuple[np.ndarray, float]:
     r"""Residual :math:`r = \mathrm{rhs} - G_{xx}[S,S]\,v` on the stick set ``pos`` (bond
-    positions), by the FFT operator, and its norm relative to that of ``rhs``."""
-    u = b.restricted(pos).matvec(v)
+    positions; the unknowns of :class:`Bonds` with both components, :math:`G_{tt}`), by the
+    FFT operator, and its norm relative to that of ``rhs``."""
+    u = b.restricted(pos).matvec(v) if b.k == 1 else b.product(pos, v)
     rhs = np.broadcast_to(np.asarray(rhs, dtype=float), u.shape)
     r = rhs - u
     return r, float(np.linalg.norm(r)) / max(float(np.linalg.norm(rhs)), 1e-300)
@@ -363,7 +484,8 @@ def certify(b: Bonds, inv: StickSolver, name: str, load: np.ndarray | None, tol:
     """
     t, live = inv.tracked[name], inv.live
     pos = inv.ids[live]
-    rhs = 1.0 if load is None else b.apply(load, np.empty(b.shape)).ravel()[b.sites[pos]]
+    rhs = (b.drive_rows(pos) if load is None
+           else b.apply(load, np.empty(b.shape)).ravel()[b.sites[pos]])
     if shift is not None and np.any(shift[pos]):
         rhs = rhs - shift[pos]
 

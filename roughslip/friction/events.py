@@ -65,6 +65,17 @@ class EventKind(enum.StrEnum):
 X_AXIS: tuple[float, float] = (1.0, 0.0)
 
 
+def plane_direction(degrees: float) -> tuple[float, float]:
+    r"""The unit vector :math:`(\cos\theta, \sin\theta)` of the angle ``degrees`` from the x
+    axis toward y in the surface plane, exact at multiples of 90 degrees (the axes)."""
+    theta = float(degrees) % 360.0
+    exact = {0.0: (1.0, 0.0), 90.0: (0.0, 1.0), 180.0: (-1.0, 0.0), 270.0: (0.0, -1.0)}
+    if theta in exact:
+        return exact[theta]
+    rad = math.radians(theta)
+    return (math.cos(rad), math.sin(rad))
+
+
 #: the tangential force components of a site in the models, the last axis of a slip direction
 #: :math:`\boldsymbol\sigma` (:meth:`roughslip.friction.laws.SlipLaw.failed_direction`): the
 #: x component alone, the report's model, in which a unit vector is :math:`\pm 1`

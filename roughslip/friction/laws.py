@@ -90,6 +90,10 @@ class SlipLaw:
     single
         Its engine has certified decisions for a single-precision inverse
         (``pull(..., precision="single")``).
+    components
+        The tangential models its decoupled engine runs (``pull.components``,
+        :data:`~roughslip.friction.bonds.TANGENTIAL_MODELS`): ``"x"``, the report's model, and
+        ``"xy"`` for a law whose engine handles the traction vector.
     lam
         The static coefficient :math:`\lambda_s` once bound (:meth:`bind`; NaN before).
     """
@@ -106,6 +110,7 @@ class SlipLaw:
     couples: bool = True
     lands: bool = False
     single: bool = False
+    components: tuple[str, ...] = ("x",)
     engine: Callable[..., object] | None = None
     needs: frozenset[str] = frozenset({"tracked"})
     lam: float = math.nan
@@ -232,7 +237,8 @@ class SlipWeakeningLaw(SlipLaw):
 LAWS: Registry[SlipLaw] = Registry("slip law")
 
 LAWS.register("break", "a failed bond carries no force (the report's law)")(BreakLaw(
-    "break", failed="released", curve="break sequence", single=True, engine=break_sequence))
+    "break", failed="released", curve="break sequence", single=True, engine=break_sequence,
+    components=("x", "xy")))
 LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(
     "coulomb", failed="slipping", curve="slip events", reverses=True, slides=True,
     engine=slide, needs=frozenset({"tracked"})))

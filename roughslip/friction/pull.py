@@ -52,7 +52,7 @@ import numpy as np
 from roughslip.contact.squeeze import NormalResult
 from roughslip.errors import InputError
 from roughslip.friction import result as _result
-from roughslip.friction.bonds import Bonds, BreakCurve, PullOptions
+from roughslip.friction.bonds import TANGENTIAL_MODELS, Bonds, BreakCurve, PullOptions
 from roughslip.friction.breaking import break_batch, break_cg, break_literal
 from roughslip.friction.events import TIE
 from roughslip.friction.laws import LAWS, SlipLaw
@@ -161,6 +161,10 @@ class PullMethod:
         Its stick solver's inverse carries an error beyond rounding (a compressed one): it runs
         only the laws whose engines certify their decisions against the exact operator
         (:attr:`~roughslip.friction.laws.SlipLaw.single`).
+    components
+        The tangential models it runs (``pull.components``,
+        :data:`~roughslip.friction.bonds.TANGENTIAL_MODELS`), in double precision for the
+        traction vector.
     """
 
     name: str
@@ -178,12 +182,16 @@ class PullMethod:
     estimate: bool = True
     chooses: bool = False
     inexact: bool = False
+    components: tuple[str, ...] = ("x",)
 
-    def runs(self, law: SlipLaw) -> bool:
+    def runs(self, law: SlipLaw, components: str = "x") -> bool:
         r"""Whether it runs ``law``: on a stick solver, a law with an engine that needs
         nothing the solver does not offer; matrix-free, a law that needs nothing (a break
         sequence on :math:`\varphi` alone). An :attr:`inexact` solver runs only the laws with
-        certified decisions. A method that :attr:`chooses` runs nothing itself."""
+        certified decisions. A method that :attr:`chooses` runs nothing itself. The tangential
+        model ``components`` must be one of the method's and the law's."""
+        if components not in self.components or components not in law.components:
+            return False
         if self.solver is not None:
             return (law.engine is not None and law.needs <= self.offers
                     and (law.single or not self.inexact))
@@ -289,16 +297,33 @@ def check_friction(lam: float, slip_law: str | SlipLaw, coupled: bool = False) -
                          "the decoupled pull")
 
 
-def methods_for(slip_law: str | SlipLaw) -> list[str]:
-    """The pull methods that run ``slip_law`` (:meth:`PullMethod.runs`), and ``"auto"``,
-    which chooses among them."""
+def check_direction(components: str, direction: float) -> tuple[tuple[str, ...], float]:
+    """The tangential components of the model ``components``
+    (:data:`~roughslip.friction.bonds.TANGENTIAL_MODELS`) and the drive's angle in degrees;
+    :class:`InputError` names the key whose rule is broken: an unknown model, a non-finite
+    angle, or an angle other than 0 in the x-only model (it pulls along x alone)."""
+    if components not in TANGENTIAL_MODELS:
+        raise InputError(f"pull.components = {components!r}: must be one of "
+                         f"{', '.join(repr(c) for c in TANGENTIAL_MODELS)}")
+    if not (isinstance(direction, int | float) and math.isfinite(direction)):
+        raise InputError(f"pull.direction = {direction!r}: must be a finite angle in degrees")
+    if components == "x" and direction != 0:
+        raise InputError(f"pull.direction = {direction!r}: the x-only model "
+                         "(pull.components = 'x') pulls along x alone; use components = 'xy' "
+                         "for another drive direction")
+    return TANGENTIAL_MODELS[components], float(direction)
+
+
+def methods_for(slip_law: str | SlipLaw, components: str = "x") -> list[str]:
+    """The pull methods that run ``slip_law`` in the tangential model ``components``
+    (:meth:`PullMethod.runs`), and ``"auto"``, which chooses among them."""
     law = _law(slip_law)
     return [n for n in METHODS.names()
-            if METHODS.get(n).runs(law) or METHODS.get(n).chooses]
+            if METHODS.get(n).runs(law, components) or METHODS.get(n).chooses]
 
 
 def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "break",
-                  precision: str = "auto") -> str:
+                  precision: str = "auto", components: str = "x") -> str:
     """The exact method ``"auto"`` picks for ``n`` bonds given ``memory`` bytes, among those
     that run ``slip_law`` and that ``auto`` may choose (:attr:`PullMethod.auto`), by their
     capabilities, in the order of :data:`METHODS`.
@@ -313,12 +338,19 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
     method have it, single precision) and the LAPACK can index it (for 3 271 bonds the
     inverse was about 100 times faster than one warm-started CG solve per break,
     docs/benchmarks.md); otherwise the first other exact method whose memory fits (a
-    compressed inverse, by its estimate), else the first matrix-free one.
+    compressed inverse, by its estimate), else the first matrix-free one. ``n`` counts the
+    unknowns: the bonds times their tangential ``components``.
     """
     law = _law(slip_law)
     cands = [METHODS.get(m) for m in METHODS.names()]
-    cands = [m for m in cands if m.auto and m.exact and m.runs(law)]
+    cands = [m for m in cands if m.auto and m.exact and m.runs(law, components)]
     if not cands:
+        if components != "x":
+            raise InputError(f"pull.components = {components!r}: slip_law = {law.name!r} "
+                             "has no exact pull of the traction vector; use components = "
+                             "'x' or slip_law " + ", ".join(
+                                 repr(m) for m in LAWS.names()
+                                 if components in LAWS.get(m).components))
         raise InputError(f"slip_law = {law.name!r} has no exact decoupled pull method; use "
                          "the coupled model (coupling.enabled = true, or couple())")
     dense = [m for m in cands if m.dense]
@@ -360,6 +392,8 @@ def pull(
     lam_dynamic: float | None = None,
     slip_distance: float | None = None,
     precision: str = "auto",
+    components: str = "x",
+    direction: float = 0.0,
 ) -> PullResult:
     r"""Pull a squeezed contact sideways until it slides (docs/theory/pull.rst#break-law).
 
@@ -414,6 +448,18 @@ def pull(
         (:mod:`roughslip.friction.breaking_single`). ``"auto"``: double when the matrix
         fits in the memory available, else single (:func:`choose_precision`; for
         ``"hierarchical"`` by its estimate). The other methods take ``"auto"`` only.
+    components : {"x", "xy"}
+        The tangential model (:data:`~roughslip.friction.bonds.TANGENTIAL_MODELS`): ``"x"``,
+        the report's, each bond carries :math:`f_x` alone and :math:`u_y` is free; ``"xy"``,
+        each bond carries the traction vector :math:`(f_x, f_y)` and sticks in both
+        directions, coupled through :math:`G_{xy}` (docs/theory/pull.rst#traction-vector;
+        the break law, :math:`|\mathbf f_t| > \lambda f_z`, on the ``"inverse"`` method in
+        double precision).
+    direction : float
+        The drive's angle in the surface plane, degrees from x toward y; only 0 in the
+        ``"x"`` model. The curve is the pull force along the drive
+        (``friction_force``), and :attr:`~roughslip.friction.result.PullResult.friction_vector`
+        the force vector of the peak.
 
     Returns
     -------
@@ -434,19 +480,31 @@ def pull(
     threads = normal.problem.threads if threads is None else int(threads)
     if threads < 1:
         raise InputError(f"threads = {threads!r}: must be >= 1")
+    comps, direction = check_direction(components, direction)
     opt = PullOptions(tol=float(tol), early_stop=bool(early_stop), batch_size=int(batch_size),
                       block=int(block), max_iter=int(max_iter), threads=threads, law=law,
                       method=asked)
     n = Bonds.count(normal)
     if n == 0:
-        return BreakCurve(Bonds(normal, float(lam)), early_stop).result(
-            t0, asked.name, converged=True, message="no contact: nothing to pull",
-            slip_law=law.name)
-    impl = (METHODS.get(choose_method(n, slip_law=law, precision=precision))
+        return BreakCurve(Bonds(normal, float(lam), components=comps, direction=direction),
+                          early_stop).result(t0, asked.name, converged=True,
+                                             message="no contact: nothing to pull",
+                                             slip_law=law.name)
+    impl = (METHODS.get(choose_method(n * len(comps), slip_law=law, precision=precision,
+                                      components=components))
             if asked.chooses else asked)
-    if not impl.runs(law):
+    if not impl.runs(law, components):
+        if components != "x" and impl.runs(law):
+            raise InputError(f"pull.components = {components!r}: method {impl.name!r} runs "
+                             f"the x-only model; use method "
+                             f"{', '.join(repr(m) for m in methods_for(law, components))}")
         raise InputError(f"slip_law = {law.name!r} supports methods "
-                         f"{', '.join(methods_for(law))}, not {impl.name!r}")
+                         f"{', '.join(methods_for(law, components))}, not {impl.name!r}")
+    if components != "x" and precision == "single":
+        raise InputError(f"precision = 'single': the traction vector (pull.components = "
+                         f"{components!r}) is pulled in double precision only")
+    if components != "x":
+        precision = "double"
     if precision == "auto":
         precision = (choose_precision(n, slip_law=law, block=int(block), method=impl)
                      if impl.solver is not None else "double")
@@ -463,7 +521,8 @@ def pull(
     # on one thread beside it; FFT-bound CG loops keep BLAS single-threaded (competing FFTW
     # and OpenBLAS thread pools made CG iterations 60x slower).
     blas = impl.blas or impl.dense
-    b = Bonds(normal, float(lam), threads=1 if blas else None)
+    b = Bonds(normal, float(lam), threads=1 if blas else None, components=comps,
+              direction=direction)
     with blas_threads(threads if blas else 1):
         res = run(b, opt, t0)
     if impl is not asked:
@@ -499,7 +558,8 @@ METHODS.register("literal", "the report's algorithm, one CG solve from zero per 
                early_stop=False))
 METHODS.register("inverse", "exact, an updated inverse of G_xx on the bonds (O(n^2) memory)")(
     PullMethod("inverse", exact=True, dense=True, solver=UpdatableInverse,
-               offers=frozenset(CAPABILITIES), precisions=("double", "single")))
+               offers=frozenset(CAPABILITIES), precisions=("double", "single"),
+               components=("x", "xy")))
 METHODS.register("hierarchical", "exact with certified decisions, a compressed (HODLR) inverse "
                  "of G_xx on the bonds (break law; a fraction of the dense memory)")(
     PullMethod("hierarchical", exact=True, dense=False, blas=True,

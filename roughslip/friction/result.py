@@ -29,12 +29,14 @@ from roughslip.friction.events import Curve, Event, EventKind
 @dataclass(frozen=True)
 class PullState:
     """One state of a pull on the grid (``[iy, ix]``): the normal and tangential forces, the
-    contact sites and the stick sites (bonds that hold)."""
+    contact sites and the stick sites (bonds that hold). ``fy`` is None in the x-only model
+    (``pull.components = "x"``), whose bonds carry no y force."""
 
     fz: np.ndarray
     fx: np.ndarray
     contact: np.ndarray
     stick: np.ndarray
+    fy: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -77,6 +79,10 @@ class DecoupledDetails:
     condition : float
         :math:`\hat\kappa`, the Lanczos estimate of the condition number of :math:`G_{xx}` on
         the bonds of the squeeze (the exact value bounds that of every later stick set).
+    components : str
+        The tangential model (``pull.components``): ``"x"`` or ``"xy"``.
+    direction : float
+        The drive's angle in the surface plane, degrees from x toward y.
     """
 
     lam: float = 0.2
@@ -89,6 +95,8 @@ class DecoupledDetails:
     normal_error_estimate: float = math.nan
     error_bound: float = math.nan
     condition: float = math.nan
+    components: str = "x"
+    direction: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -203,6 +211,14 @@ class PullResult:
     def peak_dx(self) -> float:
         """:math:`D_x` at the peak."""
         return float(self.curve.dx[self.peak_event]) if self.curve.dx.size else 0.0
+
+    @property
+    def friction_vector(self) -> tuple[float, float]:
+        r"""The tangential force vector :math:`(F_x, F_y)` of the peak state, the sums of
+        its forces (:math:`F_y = 0` in the x-only model); :attr:`friction_force` is its
+        component along the drive."""
+        fy = 0.0 if self.peak.fy is None else float(self.peak.fy.sum())
+        return float(self.peak.fx.sum()), fy
 
     @property
     def events(self) -> list[Event]:

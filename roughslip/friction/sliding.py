@@ -92,7 +92,7 @@ class TangentialState:
         n = b.n
         dtype = np.float32 if opt.precision == "single" else np.float64
         self.inv = bond_inverse(b, opt.block, opt.threads, dtype=dtype, solver=opt.solver())
-        track(self.inv, "phi", np.ones(n))
+        track(self.inv, "phi", np.ones(n) if b.k == 1 else np.tile(b.drive, n))
         self.rows = BondRows(b)
         self.slip = np.zeros(n)  # f_x carried by each failed bond (bond positions)
         self.offset = np.zeros(n)  # a bond stuck again holds u_x = D + offset
@@ -351,21 +351,26 @@ class BreakSequence:
         b, opt, inv, rows = st.b, st.opt, st.inv, st.rows
         curve = st.observe(BreakCurve(b, opt.early_stop))
         cap_sum = float(b.cap.sum())
+        k = b.k
         while rows.alive:
             phi, cap, pos = inv.tracked["phi"].x, rows.cap, inv.ids
-            j, m = select(phi, cap)
-            live, phi_sum = np.isfinite(cap), float(phi.sum())
+            j, m = select(phi, cap, k)
+            live = np.isfinite(cap)
+            # the pull force along the drive (a bond's rows: its components, in order)
+            phi_sum = (float(phi.sum()) if k == 1
+                       else float(phi.reshape(-1, k).sum(axis=0) @ b.drive))
             for o in st.observers:
-                o.record(phi_sum, m, pos[j], lambda p=pos, f=phi, lv=live: (p[lv], f[lv]))
+                o.record(phi_sum, m, pos[j] // k, lambda p=pos, f=phi, lv=live: (p[lv], f[lv]))
             cap_sum -= float(cap[j])
-            if st.stops(cap_sum) or rows.alive == 1:
+            if st.stops(cap_sum) or rows.alive == k:
                 break
-            rows.remove(inv, j)
+            for c in range(k):
+                rows.remove(inv, j + c)
             if rows.fold(inv):
                 st.recertify()
         if curve.peak_state is not None:  # the state that gives the friction force, certified
             pos, f, dx = curve.peak_state
-            _, res = stick_residual(b, pos, f / dx, 1.0)
+            _, res = stick_residual(b, pos, f / dx, b.drive_rows(pos))
             st.worst, st.ok = max(st.worst, res), st.ok and res <= opt.tol
         return curve.result(t0, opt.method_name, converged=bool(st.ok), residual=st.worst,
                             solves=st.refinements, precision="double",

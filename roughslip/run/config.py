@@ -32,12 +32,11 @@ from pathlib import Path
 from typing import Any
 
 from roughslip.errors import ConfigError, echo, shorten
-from roughslip.friction.laws import LAWS, LawParameterError
-from roughslip.friction.pull import METHODS, methods_for, single_ok
 from roughslip.run import schema, titles
 from roughslip.run.digest import RENAMED, RETIRED
 from roughslip.run.machine import machine_file, read_machine
 from roughslip.run.messages import Context, Errors
+from roughslip.run.pull_rules import check_pull
 from roughslip.run.sections import (
     FIELD_NAMES,
     LAW_PARAMS,
@@ -448,37 +447,7 @@ def _check_cross(cfg: RunConfig, ctx: Context, errors: Errors) -> None:
                    "needs a surface with relief; a plane with no slope is flat (its rms "
                    "height and range are 0, so every depth would be 0): give surface.slope, "
                    "or depths in length units (squeeze.depth_unit = \"length\")")
-    law = LAWS.get(cfg.pull.slip_law)
-    if cfg.pull.enabled:  # the slip law's own parameters ([pull] keys named as the law's)
-        given = {k: getattr(cfg.pull, k) for k in LAW_PARAMS}
-        try:
-            law.bind(cfg.pull.lam, **given)
-        except LawParameterError as exc:
-            key = f"pull.{exc.key}"
-            if exc.value is None:
-                errors.add(key, rule=exc.rule)
-            else:
-                errors.add(key, exc.value, exc.rule)
-    if cfg.coupling.enabled and not law.couples:
-        errors.add("pull.slip_law", cfg.pull.slip_law,
-                   "has no exact coupled model (its strength and f_z both vary, a "
-                   "bilinear constraint); needs coupling.enabled = false")
-    if cfg.pull.enabled and not cfg.coupling.enabled:
-        laws = methods_for(cfg.pull.slip_law)
-        if all(METHODS.get(m).chooses for m in laws):  # only the method that chooses
-            errors.add("pull.slip_law", cfg.pull.slip_law,
-                       "has no decoupled pull method; needs coupling.enabled = true")
-        if cfg.pull.method not in laws:
-            errors.add("pull.method", cfg.pull.method,
-                       f"slip_law = {cfg.pull.slip_law!r} needs one of {', '.join(laws)}")
-    if cfg.pull.precision == "single" and (
-            cfg.coupling.enabled or cfg.pull.method not in METHODS
-            or not single_ok(law, cfg.pull.method)):
-        single = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)
-        methods = ", ".join(repr(n) for n in METHODS.names() if single_ok(law, n))
-        errors.add("pull.precision", "single", "is the decoupled single-precision matrix of "
-                   f"slip_law {single} only (coupling.enabled = false, method "
-                   f"{methods or repr('auto')})")
+    check_pull(cfg, errors)
     es = cfg.elastic_surface
     tiled = [r for r in ("surface", "elastic_surface") if getattr(cfg, r) is not None
              and getattr(cfg, r).kind == "file" and getattr(cfg, r).tiles]

@@ -149,7 +149,8 @@ class Scene:
     def stages(self) -> tuple[str, ...]:
         """The stages whose columns the run stores (:func:`roughslip.run.schema.stages`): the
         coupled model's column whenever it is asked for, also at nu = 1/2."""
-        return schema.stages(self.pull, self.config.coupling.enabled)
+        return schema.stages(self.pull, self.config.coupling.enabled,
+                             self.config.pull.components != "x")
 
     @property
     def columns(self) -> tuple[schema.Column, ...]:

@@ -26,7 +26,7 @@ FORMAT = "roughslip-run"
 FORMAT_VERSION = 2
 
 #: the stages a run can have, in the order a sample runs them
-STAGES = ("squeeze", "pull", "coupled")
+STAGES = ("squeeze", "pull", "coupled", "traction")
 
 
 @dataclass(frozen=True)
@@ -79,6 +79,11 @@ COLUMNS: tuple[Column, ...] = (
            "(one refinement step on the contact set); within a factor 3.2 of the true error "
            "on the verify scenes; NaN when not estimated and for method 'batch', which has "
            "none"),
+    Column("friction_force_x", "traction", "pull.components = 'xy': the x component of the "
+           "peak's tangential force vector (friction_force is its component along the drive, "
+           "pull.direction)", dimension="force"),
+    Column("friction_force_y", "traction", "pull.components = 'xy': the y component of the "
+           "peak's tangential force vector", dimension="force"),
     Column("released_bonds", "coupled", "coupled model: contact sites with no bond holding "
            "when the pull starts, at D_x = 0 (released, broken or slipping under the squeeze "
            "history, coupling.history)", "count"),
@@ -133,7 +138,9 @@ FIELDS: tuple[Field, ...] = (
     Field("uz", "normal surface displacement after the squeeze"),
     Field("gap", "gap u_z - overlap (0 in contact)"),
     Field("contact", "contact sites", boolean=True),
-    Field("fx", "tangential pixel forces at the friction peak", stage="pull"),
+    Field("fx", "tangential pixel forces at the friction peak (x component)", stage="pull"),
+    Field("fy", "tangential pixel forces at the friction peak, y component "
+          "(pull.components = 'xy')", stage="pull"),
     Field("ux", "tangential surface displacement at the friction peak", stage="pull"),
     Field("stick", "bonded (stick) sites at the friction peak", boolean=True, stage="pull"),
     Field("dx_lim", "pull curve: displacement of each event", grid=False, stage="pull"),
@@ -156,11 +163,14 @@ def needs_pull(name: str) -> bool:
     return any(FIELD_BY_NAME[n].stage == "pull" for n in FIELD_GROUPS.get(name, (name,)))
 
 
-def stages(pull: bool, coupled: bool) -> tuple[str, ...]:
+def stages(pull: bool, coupled: bool, traction: bool = False) -> tuple[str, ...]:
     """The stages whose columns a run stores: the squeeze always, the pull when it runs, the
     coupled model's own column when the coupled model is asked for (at nu = 1/2 it is the
-    decoupled model, which releases no bond before the pull: the column then holds 0)."""
-    return ("squeeze", *(("pull",) if pull else ()), *(("coupled",) if coupled else ()))
+    decoupled model, which releases no bond before the pull: the column then holds 0), and
+    the force vector's components when the pull carries the traction vector
+    (``traction``, ``pull.components = "xy"``)."""
+    return ("squeeze", *(("pull",) if pull else ()), *(("coupled",) if coupled else ()),
+            *(("traction",) if pull and traction else ()))
 
 
 def columns(have: Iterable[str]) -> tuple[Column, ...]:

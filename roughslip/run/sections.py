@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -19,6 +20,7 @@ from typing import Any
 from roughslip.contact.squeeze import METHODS as SQUEEZE_METHODS
 from roughslip.coupling.histories import HISTORIES
 from roughslip.elastic.boundaries import BOUNDARIES
+from roughslip.friction.bonds import TANGENTIAL_MODELS
 from roughslip.friction.laws import LAWS
 from roughslip.friction.pull import METHODS as PULL_METHODS
 from roughslip.friction.pull import PRECISIONS as PULL_PRECISIONS
@@ -187,6 +189,10 @@ class SqueezeConfig:
     warm_start: bool = option(True, "start each depth from the previous depth's forces")
 
 
+def _finite(v: float) -> str | None:
+    return None if math.isfinite(v) else "must be finite"
+
+
 #: the slip laws' own parameters, each a key of ``[pull]``
 LAW_PARAMS = tuple(sorted({k for name in LAWS for k in LAWS.get(name).params}))
 
@@ -220,6 +226,14 @@ class PullConfig:
                             "sequence and friction force by certified decisions, the other "
                             "curve points to ~1e-6) or auto (double when it fits in memory, "
                             "else single)", choices=PULL_PRECISIONS)
+    components: str = option("x", "the tangential model: x (the report's: each bond carries f_x "
+                             "alone and u_y is free) or xy (each bond carries the traction "
+                             "vector (f_x, f_y) and sticks in both directions; the break law "
+                             "on method inverse, decoupled)",
+                             choices=tuple(TANGENTIAL_MODELS))
+    direction: float = option(0.0, "the drive's angle in the surface plane, degrees from x "
+                              "toward y; 0 with components = 'x', which pulls along x alone",
+                              ruled("a finite angle in degrees", _finite))
 
 
 @dataclass(frozen=True)

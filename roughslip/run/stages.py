@@ -107,7 +107,8 @@ class _DecoupledSample:
             s = pull(r, lam=pl.lam, slip_law=pl.slip_law, method=pl.method, tol=pl.tol,
                      batch_size=pl.batch_size, estimate_error=pl.error_estimate,
                      early_stop=pl.early_stop, lam_dynamic=pl.lam_dynamic,
-                     slip_distance=pl.slip_distance, precision=pl.precision)
+                     slip_distance=pl.slip_distance, precision=pl.precision,
+                     components=pl.components, direction=pl.direction)
         except NumericalError as exc:
             raise NumericalError(f"{where}: pull: {exc}") from None
         if cfg.execution.strict and not s.converged:
@@ -116,6 +117,11 @@ class _DecoupledSample:
                                                     if s.details.precision else {}))
         add_pull(rec, s, want, lambda: self.problem.operator("xx").apply("xx", s.peak.fx),
                  estimate=pl.error_estimate, what="pull", with_start=False)
+        if s.peak.fy is not None:
+            fx, fy = s.friction_vector
+            rec.scalars.update(friction_force_x=fx, friction_force_y=fy)
+            if "fy" in want:
+                rec.fields["fy"] = s.peak.fy
 
 
 class CoupledStage:
