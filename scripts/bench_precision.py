@@ -2,19 +2,20 @@
 
     python scripts/bench_precision.py [--size 256] [--area 0.2] [--repeat 3] [--threads 2]
                                       [--variants double single hierarchical
-                                                  hierarchical-single]
+                                                  hierarchical-single vector]
 
 The scene is bench_pull.py's (rough, H = 0.8, open, nu = 0.3, lambda = 0.2, tol = 1e-10).
-A variant is ``double`` or ``single`` (the ``inverse`` method in that precision) or
+A variant is ``double`` or ``single`` (the ``inverse`` method in that precision),
 ``hierarchical`` or ``hierarchical-single`` (the compressed inverse, stored in double or in
-single precision); the first is the reference (default: double and
-single). Each run is a fresh process, alternating the variants, so that its peak resident
-memory is its own: ``peak`` is the process's, ``pull`` the rise of the peak over the resident
-set just before the pull. Prints the medians, whether the break sequences are identical to
-the reference's, the friction forces' relative difference and each certified path's counters,
-then every run's seconds and the time ratio of each alternating pair (a variant over the
-reference run just before it), whose spread shows how far the machine's scatter moves the
-ratio.
+single precision), or ``vector`` (the traction vector, ``pull.components = "xy"``, on the
+double-precision inverse: another model, so its break sequence differs); the first is the
+reference (default: double and single). Each run is a fresh process, alternating the
+variants, so that its peak resident memory is its own: ``peak`` is the process's, ``pull``
+the rise of the peak over the resident set just before the pull. Prints the medians, whether
+the break sequences are identical to the reference's, the friction forces' relative
+difference and each certified path's counters, then every run's seconds and the time ratio
+of each alternating pair (a variant over the reference run just before it), whose spread
+shows how far the machine's scatter moves the ratio.
 """
 
 from __future__ import annotations
@@ -36,10 +37,11 @@ def _rss() -> int:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
-#: variant -> (pull method, precision)
-VARIANTS = {"double": ("inverse", "double"), "single": ("inverse", "single"),
-            "hierarchical": ("hierarchical", "double"),
-            "hierarchical-single": ("hierarchical", "single")}
+#: variant -> (pull method, precision, tangential model)
+VARIANTS = {"double": ("inverse", "double", "x"), "single": ("inverse", "single", "x"),
+            "hierarchical": ("hierarchical", "double", "x"),
+            "hierarchical-single": ("hierarchical", "single", "x"),
+            "vector": ("inverse", "double", "xy")}
 
 
 def child(size: int, area: float, variant: str, threads: int, out: str) -> None:
@@ -51,9 +53,9 @@ def child(size: int, area: float, variant: str, threads: int, out: str) -> None:
     normal = contact(size, area)
     before = _rss()
     t0 = time.perf_counter()
-    method, precision = VARIANTS[variant]
+    method, precision, components = VARIANTS[variant]
     res = pull(normal, lam=0.2, method=method, tol=1e-10, threads=threads,
-               precision=precision)
+               precision=precision, components=components)
     sec = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     np.save(out + ".npy", res.curve.site[1:])

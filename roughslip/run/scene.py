@@ -222,6 +222,7 @@ class Scene:
             self.grid.shape, hurst=sc.hurst, rng=rng, a=self.grid.a, rms_height=sc.rms_height,
             rms_slope=sc.rms_slope, rolloff_wavelength=sc.rolloff_wavelength,
             cutoff_wavelength=sc.cutoff_wavelength, oversample=sc.oversample,
+            anisotropy=sc.anisotropy,
         )
 
     def targets(self, composite: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:

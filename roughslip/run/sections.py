@@ -42,13 +42,22 @@ from roughslip.run.tomlio import dumps_toml
 from roughslip.run.units import STRESS
 from roughslip.surfaces.topography import LENGTH_UNITS
 
+
+def _finite(v: float) -> str | None:
+    return None if math.isfinite(v) else "must be finite"
+
+
+def _finite_positive(v: float) -> str | None:
+    return None if math.isfinite(v) and v > 0 else "must be a finite number > 0"
+
+
 SURFACE_KINDS = ("self-affine", "sphere", "punch", "sinusoid", "plane", "file")
 
 #: keys allowed (and, in the second set, required) for each surface kind
 SURFACE_KEYS: dict[str, tuple[set[str], set[str]]] = {
     "self-affine": (
         {"hurst", "rms_height", "rms_slope", "rolloff_wavelength", "cutoff_wavelength",
-         "oversample"},
+         "oversample", "anisotropy"},
         {"hurst"},
     ),
     "sphere": ({"radius", "center"}, {"radius"}),
@@ -116,6 +125,10 @@ class SurfaceConfig:
                                              dimension="length")
     oversample: int = option(1, "generate on an oversample-times larger periodic grid and crop",
                          at_least(1))
+    anisotropy: float = option(1.0, "xi_y / xi_x, the ratio of the correlation lengths along y "
+                               "and x: the isotropic surface stretched by it along y (ridges "
+                               "along y when > 1); 1: isotropic",
+                               ruled("a finite number > 0", _finite_positive))
     # sphere / punch
     radius: float | None = option(None, "sphere or punch radius (length)", positive,
                                   dimension="length")
@@ -187,10 +200,6 @@ class SqueezeConfig:
     tol: float = option(1e-10, "dimensionless residual tolerance", tol_rule)
     max_iter: int = option(20000, "iteration limit", at_least(1))
     warm_start: bool = option(True, "start each depth from the previous depth's forces")
-
-
-def _finite(v: float) -> str | None:
-    return None if math.isfinite(v) else "must be finite"
 
 
 #: the slip laws' own parameters, each a key of ``[pull]``

@@ -70,6 +70,7 @@ def self_affine(
     rolloff_wavelength: float | None = None,
     cutoff_wavelength: float | None = None,
     oversample: int = 1,
+    anisotropy: float = 1.0,
 ) -> np.ndarray:
     r"""Random self-affine surface by Fourier filtering ([Report2003] §4.3).
 
@@ -90,6 +91,13 @@ def self_affine(
         shorter than the cut-off.
     oversample : int
         Generate on an ``oversample``-times larger periodic grid and crop the top-left corner.
+    anisotropy : float
+        :math:`\gamma = \xi_y/\xi_x > 0`, the ratio of the lengths over which the heights are
+        correlated along y and along x. The filter is that of the isotropic surface evaluated
+        at :math:`\mathbf q' = (q_x, \gamma q_y)`, so the surface is the isotropic one
+        stretched by :math:`\gamma` along y (its roll-off and cut-off wavelengths too, along
+        y): ridges run along y for :math:`\gamma > 1`, along x for :math:`\gamma < 1`
+        (the Peklenik number of tribology). 1: isotropic.
 
     Returns
     -------
@@ -107,12 +115,14 @@ def self_affine(
     m = int(oversample)
     if m < 1:
         raise InputError(f"oversample = {oversample!r}: must be >= 1")
+    if not (math.isfinite(anisotropy) and anisotropy > 0):
+        raise InputError(f"anisotropy = {anisotropy!r}: must be a finite number > 0")
     my, mx = ny * m, nx * m
     noise = rng.standard_normal((my, mx))
     spec = np.fft.rfft2(noise)
     ky = np.fft.fftfreq(my, d=a)[:, None]
     kx = np.fft.rfftfreq(mx, d=a)[None, :]
-    k = np.hypot(kx, ky)
+    k = np.hypot(kx, ky if anisotropy == 1.0 else anisotropy * ky)
     kk = k.copy()
     if rolloff_wavelength is not None:
         kk = np.maximum(kk, 1.0 / rolloff_wavelength)
