@@ -70,14 +70,38 @@ def test_break_sequence_matches_the_dense_reference(seed, nu, direction):
     assert r.details.components == "xy" and r.details.direction == direction
 
 
+def _engine(normal, direction: float):
+    """The traction vector's own engine (two unknowns per bond), which ``pull`` bypasses at
+    nu = 0."""
+    import time
+
+    from roughslip.friction.bonds import PullOptions
+    from roughslip.friction.breaking import break_sequence
+    from roughslip.friction.laws import LAWS
+    from roughslip.friction.pull import METHODS
+
+    b = Bonds(normal, 0.2, components=("x", "y"), direction=direction)
+    opt = PullOptions(law=LAWS.get("break").bind(0.2), method=METHODS.get("inverse"))
+    return break_sequence(b, opt, time.perf_counter())
+
+
 @pytest.mark.parametrize("direction", [0.0, 30.0, 45.0, 90.0, 200.0])
 def test_at_nu_zero_the_vector_model_is_the_x_model_turned(direction):
     """At nu = 0 the pixel kernels are isotropic (G_xx = G_yy, G_xy = 0): every bond's force
     points along the drive and the break sequence is the x-only model's, whatever the
-    direction."""
+    direction. The vector engine on 2n unknowns gives it, and ``pull`` takes the x-only model
+    turned, which is the same to rounding."""
     normal = squeeze(_rough(32, 5), depth=2.5, nu=0.0, tol=1e-13)
     ref = pull(normal, method="inverse")
-    r = pull(normal, method="inverse", components="xy", direction=direction)
+    fast = pull(normal, method="inverse", components="xy", direction=direction)
+    assert fast.message.startswith("nu = 0: the x-only model along the drive, turned")
+    assert np.array_equal(fast.curve.fx, ref.curve.fx)
+    r = _engine(normal, direction)
+    for other in (r, fast):
+        np.testing.assert_allclose(other.peak.fx, r.peak.fx, rtol=0,
+                                   atol=1e-12 * abs(ref.peak.fx).max())
+        np.testing.assert_allclose(other.peak.fy, r.peak.fy, rtol=0,
+                                   atol=1e-12 * abs(ref.peak.fx).max())
     np.testing.assert_array_equal(r.curve.site, ref.curve.site)
     np.testing.assert_allclose(r.curve.fx, ref.curve.fx, rtol=1e-12, atol=0)
     e = np.array(plane_direction(direction))
@@ -252,3 +276,59 @@ def test_a_run_stores_the_force_vector(tmp_path):
     cfg = _config(tmp_path, ["ensemble.samples=1"])
     run(cfg, tmp_path / "x.h5", workers=1)
     assert "friction_force_x" not in read_run(tmp_path / "x.h5").scalars
+
+
+@pytest.mark.parametrize("direction", [0.0, 30.0, 45.0])
+def test_coulomb_cattaneo_mindlin_in_any_direction(direction):
+    """Cattaneo-Mindlin at nu = 0 (the isotropic half-space, where the isotropic cone keeps
+    every force along the drive), lambda = 0.3, at delta/delta_s = 0.3 and 0.7: the force
+    along the drive and the stick radius to the x-only test's tolerances, the force vector
+    along the drive, and at full sliding lambda P."""
+    import math
+
+    from roughslip.analysis.verify import hertz_scene
+    from roughslip.contact.analytic import cattaneo_mindlin
+    from roughslip.friction.pull import coulomb_force_at
+
+    lam, R, d = 0.3, 1.0, 1 / 16
+    heights, h, depth, ac = hertz_scene(8, R, d)
+    normal = squeeze(heights, depth=depth, a=h, nu=0.0, tol=1e-12)
+    res = pull(normal, lam=lam, slip_law="coulomb", components="xy", direction=direction)
+    P = normal.normal_force
+    e = np.array(plane_direction(direction))
+    assert res.converged and res.friction_force == pytest.approx(lam * P, rel=1e-12)
+    np.testing.assert_allclose(res.friction_vector, lam * P * e, rtol=0, atol=1e-12 * lam * P)
+    ft = np.hypot(res.peak.fx, res.peak.fy)
+    np.testing.assert_allclose(ft, lam * normal.fz, rtol=1e-12, atol=1e-15)  # all slipping
+    cm = cattaneo_mindlin(P, ac, lam, nu=0.0)
+    for frac in (0.3, 0.7):
+        q = float(coulomb_force_at(res, frac * cm.delta_s))
+        q_exact = cm.force(frac * cm.delta_s)
+        assert abs(q - q_exact) / (lam * P) < 3e-3, "Cattaneo-Mindlin tangential force"
+        stick = int(np.count_nonzero(res.curve.dx[1:] > frac * cm.delta_s))
+        c_eq = math.sqrt(stick * h * h / math.pi)
+        assert abs(c_eq - cm.stick_radius(q_exact)) < 1.5 * h, "Cattaneo-Mindlin stick radius"
+
+
+def test_every_law_runs_the_vector_at_nu_zero():
+    """Slip-weakening and the single-precision and compressed inverses run the traction
+    vector at nu = 0 (the x-only model turned), and refuse it at nu > 0 in one line."""
+    normal = squeeze(_rough(32, 13), depth=2.2, nu=0.0, tol=1e-13)
+    sw = dict(slip_law="slip-weakening", lam_dynamic=0.1, slip_distance=0.05)
+    a = pull(normal, **sw)
+    b = pull(normal, **sw, components="xy", direction=60.0)
+    assert a.friction_force == b.friction_force and b.peak.fy is not None
+    for kw in (dict(precision="single"), dict(method="hierarchical"), dict(method="cg")):
+        assert pull(normal, components="xy", direction=10.0, **kw).friction_force == \
+            pull(normal, **kw).friction_force
+    stiff = squeeze(_rough(16, 13), depth=2.2, nu=0.3, tol=1e-13)
+    with pytest.raises(InputError, match=r"pull.components = 'xy': slip_law = 'slip-weakening'"
+                                         r" has no exact pull of the traction vector at nu > 0"):
+        pull(stiff, **sw, components="xy")
+
+
+def test_the_configuration_takes_every_law_with_the_vector_at_nu_zero(tmp_path):
+    for sets in (["pull.slip_law='coulomb'"], ["pull.precision='single'"],
+                 ["pull.method='cg'"], ["pull.error_estimate=true"]):
+        cfg = _config(tmp_path, ["material.nu=0", "pull.components='xy'", *sets])
+        assert cfg.pull.components == "xy"

@@ -54,7 +54,7 @@ from roughslip.errors import InputError
 from roughslip.friction import result as _result
 from roughslip.friction.bonds import TANGENTIAL_MODELS, Bonds, BreakCurve, PullOptions
 from roughslip.friction.breaking import break_batch, break_cg, break_literal
-from roughslip.friction.events import TIE
+from roughslip.friction.events import TIE, plane_direction
 from roughslip.friction.laws import LAWS, SlipLaw
 from roughslip.friction.pull_estimates import (  # noqa: F401  (public here too)
     REFINE_TOL,
@@ -62,7 +62,7 @@ from roughslip.friction.pull_estimates import (  # noqa: F401  (public here too)
     normal_share,
     refinement_estimate,
 )
-from roughslip.friction.result import PullResult
+from roughslip.friction.result import PullResult, PullState
 from roughslip.linalg import lapack64
 from roughslip.linalg.hierarchical import HierarchicalInverse
 from roughslip.linalg.inverse import UpdatableInverse, inverse_bytes
@@ -314,6 +314,24 @@ def check_direction(components: str, direction: float) -> tuple[tuple[str, ...],
     return TANGENTIAL_MODELS[components], float(direction)
 
 
+def turned(res: PullResult, components: str, direction: float) -> PullResult:
+    r"""The pull of the traction vector on an isotropic half-space (:math:`\nu = 0`) from the
+    x-only model's pull ``res`` along the drive: there :math:`G_{xy} = 0` and
+    :math:`G_{xx} = G_{yy}` (docs/theory/pull.rst#traction-vector), so every force of every
+    state, stick or slipping, points along the drive :math:`\hat{\mathbf e}` and the bonds'
+    forces are the x-only model's times :math:`\hat{\mathbf e}`. The curve (along the drive)
+    and the friction force are unchanged, exactly, under every slip law."""
+    e = plane_direction(direction)
+
+    def vector(state: PullState) -> PullState:
+        return replace(state, fx=state.fx * e[0], fy=state.fx * e[1])
+
+    return replace(res, peak=vector(res.peak), start=vector(res.start),
+                   details=replace(res.details, components=components, direction=direction),
+                   message="nu = 0: the x-only model along the drive, turned (G_xy = 0, "
+                           f"G_xx = G_yy); {res.message}")
+
+
 def methods_for(slip_law: str | SlipLaw, components: str = "x") -> list[str]:
     """The pull methods that run ``slip_law`` in the tangential model ``components``
     (:meth:`PullMethod.runs`), and ``"auto"``, which chooses among them."""
@@ -347,10 +365,10 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
     if not cands:
         if components != "x":
             raise InputError(f"pull.components = {components!r}: slip_law = {law.name!r} "
-                             "has no exact pull of the traction vector; use components = "
-                             "'x' or slip_law " + ", ".join(
-                                 repr(m) for m in LAWS.names()
-                                 if components in LAWS.get(m).components))
+                             "has no exact pull of the traction vector at nu > 0 (its slip "
+                             "directions turn); use components = 'x', nu = 0 or slip_law "
+                             + ", ".join(repr(m) for m in LAWS.names()
+                                         if components in LAWS.get(m).components))
         raise InputError(f"slip_law = {law.name!r} has no exact decoupled pull method; use "
                          "the coupled model (coupling.enabled = true, or couple())")
     dense = [m for m in cands if m.dense]
@@ -452,9 +470,10 @@ def pull(
         The tangential model (:data:`~roughslip.friction.bonds.TANGENTIAL_MODELS`): ``"x"``,
         the report's, each bond carries :math:`f_x` alone and :math:`u_y` is free; ``"xy"``,
         each bond carries the traction vector :math:`(f_x, f_y)` and sticks in both
-        directions, coupled through :math:`G_{xy}` (docs/theory/pull.rst#traction-vector;
-        the break law, :math:`|\mathbf f_t| > \lambda f_z`, on the ``"inverse"`` method in
-        double precision).
+        directions, coupled through :math:`G_{xy}` (docs/theory/pull.rst#traction-vector):
+        at :math:`\nu = 0` every law and method, the x-only model turned (:func:`turned`);
+        at :math:`\nu > 0` the break law, :math:`|\mathbf f_t| > \lambda f_z`, on the
+        ``"inverse"`` method in double precision.
     direction : float
         The drive's angle in the surface plane, degrees from x toward y; only 0 in the
         ``"x"`` model. The curve is the pull force along the drive
@@ -481,6 +500,13 @@ def pull(
     if threads < 1:
         raise InputError(f"threads = {threads!r}: must be >= 1")
     comps, direction = check_direction(components, direction)
+    if len(comps) > 1 and normal.problem.material.nu == 0:
+        # the isotropic half-space: the x-only model along the drive, turned (exact)
+        return turned(pull(normal, lam=lam, slip_law=slip_law, method=method, tol=tol,
+                           early_stop=early_stop, batch_size=batch_size, block=block,
+                           max_iter=max_iter, threads=threads, estimate_error=estimate_error,
+                           lam_dynamic=lam_dynamic, slip_distance=slip_distance,
+                           precision=precision), components, direction)
     opt = PullOptions(tol=float(tol), early_stop=bool(early_stop), batch_size=int(batch_size),
                       block=int(block), max_iter=int(max_iter), threads=threads, law=law,
                       method=asked)

@@ -28,29 +28,32 @@ def check_pull(cfg: RunConfig, errors: Errors) -> None:
                    "has no exact coupled model (its strength and f_z both vary, a "
                    "bilinear constraint); needs coupling.enabled = false")
     comps = cfg.pull.components
+    # on an isotropic half-space (nu = 0) the traction vector is the x-only model turned, which
+    # every law, method and precision runs; at nu > 0 it needs its own engine
+    engine = comps != "x" and cfg.material.nu != 0
     if comps != "x" and cfg.coupling.enabled:
         errors.add("pull.components", comps, "the coupled model carries f_x alone; needs "
                    "coupling.enabled = false")
     if comps == "x" and cfg.pull.direction != 0:
         errors.add("pull.direction", cfg.pull.direction, "the x-only model (pull.components "
                    "= 'x') pulls along x alone; use components = 'xy'")
-    if comps != "x" and cfg.pull.enabled and cfg.pull.precision == "single":
+    if engine and cfg.pull.enabled and cfg.pull.precision == "single":
         errors.add("pull.precision", "single", f"pull.components = {comps!r} is pulled in "
-                   "double precision only")
-    if comps != "x" and cfg.pull.error_estimate:
+                   "double precision only at nu > 0")
+    if engine and cfg.pull.error_estimate:
         errors.add("pull.error_estimate", True, f"has no estimate for pull.components = "
-                   f"{comps!r} yet; needs components = 'x'")
+                   f"{comps!r} at nu > 0 yet; needs components = 'x'")
     if comps == "x" and "fy" in cfg.output.fields:
         errors.add("output.fields", cfg.output.fields, "'fy' needs pull.components = 'xy' "
                    "(the x-only model has no y force)")
-    if cfg.pull.enabled and not cfg.coupling.enabled and comps != "x":
+    if cfg.pull.enabled and not cfg.coupling.enabled and engine:
         laws = methods_for(cfg.pull.slip_law, comps)
         if all(METHODS.get(m).chooses for m in laws):
             have = ", ".join(repr(n) for n in LAWS.names()
                              if comps in LAWS.get(n).components)
             errors.add("pull.components", comps, f"slip_law = {cfg.pull.slip_law!r} has no "
-                       f"pull of the traction vector; needs slip_law {have} or components = "
-                       "'x'")
+                       f"pull of the traction vector at nu > 0; needs slip_law {have}, "
+                       "material.nu = 0 or components = 'x'")
         elif cfg.pull.method not in laws:
             errors.add("pull.method", cfg.pull.method, f"pull.components = {comps!r} needs "
                        f"one of {', '.join(laws)}")
