@@ -332,3 +332,15 @@ def test_the_configuration_takes_every_law_with_the_vector_at_nu_zero(tmp_path):
                  ["pull.method='cg'"], ["pull.error_estimate=true"]):
         cfg = _config(tmp_path, ["material.nu=0", "pull.components='xy'", *sets])
         assert cfg.pull.components == "xy"
+
+
+def test_the_memory_guard_names_the_vector_model():
+    from roughslip.errors import MemoryLimitError
+    from roughslip.linalg import memory
+
+    normal = squeeze(_rough(24, 14), depth=2.0, nu=0.3, tol=1e-13)
+    with memory.limited(1e-6), pytest.raises(MemoryLimitError,
+                                             match=r"G_tt \(2 components\) on \d+ bonds .*"
+                                                   r"use pull.components = 'x'") as e:
+        pull(normal, components="xy")
+    assert "\n" not in str(e.value)

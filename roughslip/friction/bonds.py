@@ -396,6 +396,12 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
     what = "G_xx" if b.k == 1 else f"G_tt ({b.k} components)"
 
     def room(m: int) -> bool:
+        if need > available_bytes() and b.k > 1:
+            raise MemoryLimitError(
+                f"the inverse of {what} on {b.n} bonds ({solver.kind}, "
+                f"{PRECISION_NAMES[dtype]} precision) needs ~{need / 2**30:.2f} GiB but "
+                f"{available_bytes() / 2**30:.2f} GiB are available; use pull.components = "
+                "'x' (a quarter of the memory) or a smaller grid")
         if need > available_bytes():
             half = solver.memory_bytes(n, block=block, itemsize=4)
             other = ("pull precision 'single' (half the memory), "

@@ -178,9 +178,12 @@ class Scene:
 
     @property
     def components(self) -> tuple[str, ...]:
-        """Green function components the run builds."""
+        """Green function components the run builds: with the traction vector at
+        :math:`\nu > 0` (``pull.components = "xy"``) the tangential ones of both directions."""
         if self.coupled:
             return ("zz", "zx", "xx")
+        if self.pull and self.config.pull.components != "x" and self.material.nu != 0:
+            return ("zz", "xx", "xy", "yy")
         return ("zz", "xx") if self.pull else ("zz",)
 
     # -- per sample -----------------------------------------------------------------------------
