@@ -2,13 +2,16 @@
 
     python scripts/bench_precision.py [--size 256] [--area 0.2] [--repeat 3] [--threads 2]
                                       [--variants double single hierarchical
-                                                  hierarchical-single vector]
+                                                  hierarchical-single vector
+                                                  vector-single vector-hierarchical
+                                                  vector-hierarchical-single]
 
 The scene is bench_pull.py's (rough, H = 0.8, open, nu = 0.3, lambda = 0.2, tol = 1e-10).
 A variant is ``double`` or ``single`` (the ``inverse`` method in that precision),
 ``hierarchical`` or ``hierarchical-single`` (the compressed inverse, stored in double or in
 single precision), or ``vector`` (the traction vector, ``pull.components = "xy"``, on the
-double-precision inverse: another model, so its break sequence differs); the first is the
+double-precision inverse: another model, so its break sequence differs; ``vector-single``,
+``vector-hierarchical`` and ``vector-hierarchical-single`` on the others); the first is the
 reference (default: double and single). Each run is a fresh process, alternating the
 variants, so that its peak resident memory is its own: ``peak`` is the process's, ``pull``
 the rise of the peak over the resident set just before the pull. Prints the medians, whether
@@ -41,7 +44,10 @@ def _rss() -> int:
 VARIANTS = {"double": ("inverse", "double", "x"), "single": ("inverse", "single", "x"),
             "hierarchical": ("hierarchical", "double", "x"),
             "hierarchical-single": ("hierarchical", "single", "x"),
-            "vector": ("inverse", "double", "xy")}
+            "vector": ("inverse", "double", "xy"),
+            "vector-single": ("inverse", "single", "xy"),
+            "vector-hierarchical": ("hierarchical", "double", "xy"),
+            "vector-hierarchical-single": ("hierarchical", "single", "xy")}
 
 
 def child(size: int, area: float, variant: str, threads: int, out: str) -> None:

@@ -196,6 +196,8 @@ def test_bonds_assemble_the_vector_matrix_from_the_tables():
 
 def test_auto_chooses_a_method_that_runs_the_vector():
     assert choose_method(1000, slip_law="break", components="xy") == "inverse"
+    # the unknowns count: from the crossover on, the compressed inverse
+    assert choose_method(20_000, slip_law="break", components="xy") == "hierarchical"
     normal = squeeze(_rough(24, 11), depth=2.0, nu=0.3, tol=1e-13)
     r = pull(normal, components="xy", direction=10.0)
     assert r.method == "inverse" and r.details.precision == "double"
@@ -209,10 +211,8 @@ def test_auto_chooses_a_method_that_runs_the_vector():
     (dict(components="xy", slip_law="coulomb"), r"pull.components = 'xy': slip_law = "
                                                  r"'coulomb' has no exact pull"),
     (dict(components="xy", method="cg"), r"pull.components = 'xy': method 'cg' runs the "
-                                         r"x-only model; use method 'auto', 'inverse'"),
-    (dict(components="xy", method="hierarchical"), r"method 'hierarchical' runs the x-only"),
-    (dict(components="xy", method="inverse", precision="single"),
-     r"precision = 'single': the traction vector"),
+                                         r"x-only model; use method 'auto', 'inverse', "
+                                         r"'hierarchical'"),
 ])
 def test_what_the_vector_model_does_not_run_is_refused_in_one_line(kwargs, match):
     normal = squeeze(_rough(16, 12), depth=2.0, nu=0.3, tol=1e-13)
@@ -240,9 +240,8 @@ def _config(tmp_path, sets):
     (["pull.components='xy'", "pull.slip_law='coulomb'"],
      r"pull\.components = \"xy\": slip_law = 'coulomb' has no pull of the traction vector"),
     (["pull.components='xy'", "pull.method='cg'"],
-     r"pull\.method = \"cg\": pull\.components = 'xy' needs one of auto, inverse"),
-    (["pull.components='xy'", "pull.precision='single'"],
-     r"pull\.precision = \"single\": pull\.components = 'xy' is pulled in double"),
+     r"pull\.method = \"cg\": pull\.components = 'xy' needs one of auto, inverse, "
+     r"hierarchical"),
     (["pull.components='xy'", "pull.error_estimate=true"], r"pull\.error_estimate = true"),
     (["output.fields=['fy']"], r"'fy' needs pull\.components = 'xy'"),
     (["pull.components='z'"], r"pull\.components = \"z\": must be one of"),
@@ -344,3 +343,40 @@ def test_the_memory_guard_names_the_vector_model():
                                                    r"use pull.components = 'x'") as e:
         pull(normal, components="xy")
     assert "\n" not in str(e.value)
+
+
+def _vector_scenes():
+    """Rough scenes (open and periodic, two nu, several drive angles) and symmetric spheres,
+    whose exact ties the tie rule breaks by the lowest index."""
+    from roughslip.surfaces.synthetic import sphere
+
+    out = []
+    for k, (n, depth, nu, boundary, direction) in enumerate([
+            (48, 2.2, 0.25, "open", 0.0), (48, 2.8, 0.45, "open", 30.0),
+            (64, 2.0, 0.3, "open", 100.0), (48, 2.0, 0.3, "periodic", 45.0),
+            (64, 2.4, 0.45, "periodic", 0.0)]):
+        out.append((f"rough{k}-{boundary}", _rough(n, 200 + k), depth, nu, boundary, direction))
+    for n, radius, depth, direction in [(16, 12.0, 1.0, 0.0), (24, 20.0, 1.5, 45.0)]:
+        out.append((f"sphere{n}", sphere((n, n), radius=radius), depth, 0.3, "open", direction))
+    return out
+
+
+@pytest.mark.parametrize("scene", _vector_scenes(), ids=lambda s: s[0])
+def test_certified_paths_give_the_double_sequence(scene):
+    """The single-precision and the compressed inverses decide each break of the traction
+    vector against a bound on the norm of its two components, and give the double-precision
+    path's breaks and friction force."""
+    _, h, depth, nu, boundary, direction = scene
+    normal = squeeze(h, depth=depth, nu=nu, boundary=boundary, tol=1e-13)
+    ref = pull(normal, method="inverse", precision="double", components="xy",
+               direction=direction)
+    for method, precision in [("inverse", "single"), ("hierarchical", "double"),
+                              ("hierarchical", "single")]:
+        r = pull(normal, method=method, precision=precision, components="xy",
+                 direction=direction)
+        np.testing.assert_array_equal(r.curve.site, ref.curve.site)
+        # the peak is solved again by CG to 1e-4 tol against the FFT operator (as in x)
+        assert r.friction_force == pytest.approx(ref.friction_force, rel=1e-10)
+        assert r.converged
+        np.testing.assert_allclose(r.friction_vector, ref.friction_vector, rtol=1e-9,
+                                   atol=1e-10 * ref.friction_force)

@@ -30,6 +30,7 @@ from roughslip.friction.result import (
     renamed,
     start_curve,
 )
+from roughslip.linalg.cg import cg
 from roughslip.linalg.hierarchical import HierarchicalInverse
 from roughslip.linalg.inverse import Tracked, UpdatableInverse
 from roughslip.linalg.memory import available_bytes
@@ -193,10 +194,39 @@ class Bonds:
 
     def product(self, unknowns: np.ndarray, v: np.ndarray) -> np.ndarray:
         r""":math:`G_{tt}[S,S]\,v` for ``v`` on the ``unknowns`` (in their order), by the FFT
-        operator."""
+        operator (:math:`G_{xx}[S,S]` by :meth:`restricted` with the x component alone)."""
+        if self.k == 1:
+            return self.restricted(unknowns).matvec(v)
         u = self.apply(self.unknown_field(v, unknowns), np.empty((self.k, *self.shape)))
         bond, comp = np.divmod(np.asarray(unknowns, dtype=np.int64), self.k)
         return u.reshape(self.k, -1)[comp, self.sites[bond]]
+
+    def solve_stick(self, unknowns: np.ndarray, x0: np.ndarray, tol: float, max_iter: int
+                    ) -> np.ndarray:
+        r""":math:`\varphi` on the stick ``unknowns`` (in their order) by CG on the FFT operator
+        from ``x0``: :math:`G_{tt}[S,S]\varphi = \hat{\mathbf e}` (:meth:`drive_rows`)."""
+        A = self.restricted(unknowns)
+        if self.k == 1:
+            res = cg(A, A.weights, x0=self.field(x0, unknowns), tol=tol, max_iter=max_iter)
+            return A.gather(res.x)
+        rhs = A.weights * self.drive[:, None, None]
+        res = cg(A, rhs, x0=self.unknown_field(x0, unknowns), tol=tol, max_iter=max_iter)
+        bond, comp = np.divmod(np.asarray(unknowns, dtype=np.int64), self.k)
+        return res.x.reshape(self.k, -1)[comp, self.sites[bond]]
+
+    def bond_values(self, x: np.ndarray) -> np.ndarray:
+        r"""Per bond, from values on its ``k`` consecutive unknowns: the Euclidean norm
+        :math:`|\mathbf x_i|` (the absolute value with the x component alone)."""
+        if self.k == 1:
+            return np.abs(x)
+        return np.sqrt(np.square(x).reshape(-1, self.k).sum(axis=1))
+
+    def along(self, x: np.ndarray) -> float:
+        r""":math:`\hat{\mathbf e}\cdot\sum_i \mathbf x_i`, the sum of the values on the
+        unknowns projected on the drive (the plain sum with the x component alone)."""
+        if self.k == 1:
+            return float(x.sum())
+        return float(x.reshape(-1, self.k).sum(axis=0) @ self.drive)
 
     def unknown_field(self, values: np.ndarray, unknowns: np.ndarray) -> np.ndarray:
         """The field :meth:`apply` acts on with ``values`` at the ``unknowns``, zero
@@ -396,12 +426,6 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
     what = "G_xx" if b.k == 1 else f"G_tt ({b.k} components)"
 
     def room(m: int) -> bool:
-        if need > available_bytes() and b.k > 1:
-            raise MemoryLimitError(
-                f"the inverse of {what} on {b.n} bonds ({solver.kind}, "
-                f"{PRECISION_NAMES[dtype]} precision) needs ~{need / 2**30:.2f} GiB but "
-                f"{available_bytes() / 2**30:.2f} GiB are available; use pull.components = "
-                "'x' (a quarter of the memory) or a smaller grid")
         if need > available_bytes():
             half = solver.memory_bytes(n, block=block, itemsize=4)
             other = ("pull precision 'single' (half the memory), "
@@ -411,11 +435,13 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
                     and HierarchicalInverse.memory_bytes(n, block=block, itemsize=4)
                     <= available_bytes()):
                 other += "pull method 'hierarchical' (compressed, exact), "
+            last = ("pull method 'cg' (exact, matrix-free) or 'batch' (approximate)"
+                    if b.k == 1 else "pull.components = 'x' (a quarter of the unknowns' "
+                    "memory)")
             raise MemoryLimitError(
                 f"the inverse of {what} on {b.n} bonds ({solver.kind}, "
                 f"{PRECISION_NAMES[dtype]} precision) needs ~{need / 2**30:.2f} GiB but "
-                f"{available_bytes() / 2**30:.2f} GiB are available; use {other}pull method "
-                "'cg' (exact, matrix-free) or 'batch' (approximate)")
+                f"{available_bytes() / 2**30:.2f} GiB are available; use {other}{last}")
         return True
 
     iy, ix = np.divmod(np.repeat(b.sites, b.k), b.shape[1])
@@ -471,7 +497,7 @@ def stick_residual(b: Bonds, pos: np.ndarray, v: np.ndarray, rhs: np.ndarray | f
     r"""Residual :math:`r = \mathrm{rhs} - G_{xx}[S,S]\,v` on the stick set ``pos`` (bond
     positions; the unknowns of :class:`Bonds` with both components, :math:`G_{tt}`), by the
     FFT operator, and its norm relative to that of ``rhs``."""
-    u = b.restricted(pos).matvec(v) if b.k == 1 else b.product(pos, v)
+    u = b.product(pos, v)
     rhs = np.broadcast_to(np.asarray(rhs, dtype=float), u.shape)
     r = rhs - u
     return r, float(np.linalg.norm(r)) / max(float(np.linalg.norm(rhs)), 1e-300)

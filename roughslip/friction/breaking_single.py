@@ -84,7 +84,6 @@ from roughslip.friction.events import TIE, argext
 from roughslip.friction.result import PullResult
 from roughslip.friction.sliding import TangentialState
 from roughslip.linalg import jit
-from roughslip.linalg.cg import cg
 from roughslip.linalg.stick import StickSolver
 
 #: safety factor on the Lanczos estimate of :math:`\lambda_{\max}(G_0^{-1})` (a Ritz value,
@@ -138,7 +137,6 @@ def _compression_error(b: Bonds, inv: StickSolver) -> float:
     :math:`G_{SS}` by the FFT operator (ARPACK's tolerance 1e-2, deterministic starts)."""
     live = inv.live
     pos = inv.ids[live]
-    A = b.restricted(pos)
     m = int(live.sum())
     eps = float(np.finfo(float).eps)
     if m <= 500:
@@ -151,13 +149,13 @@ def _compression_error(b: Bonds, inv: StickSolver) -> float:
         v = np.ravel(v)
         full = np.zeros(inv.m)
         full[live] = v
-        return A.matvec(v) - inv.compressed_product(full)[live]
+        return b.product(pos, v) - inv.compressed_product(full)[live]
 
     start = np.random.default_rng(0).standard_normal(m)
     norms = [float(abs(eigsh(LinearOperator((m, m), matvec=f, dtype=np.float64), k=1,
                              which="LM", v0=start, tol=1e-2,
                              return_eigenvectors=False)[0]))
-             for f in (diff, lambda v: A.matvec(np.ravel(v)))]
+             for f in (diff, lambda v: b.product(pos, np.ravel(v)))]
     return NU_SAFETY * (norms[0] + m * eps * norms[1])
 
 
@@ -167,7 +165,7 @@ class _Bound:
 
     def __init__(self, b: Bonds, inv: StickSolver, tol: float) -> None:
         self.b, self.inv, self.tol = b, inv, tol
-        self.nu = NU_SAFETY * _largest_eigenvalue(inv, b.sites[inv.ids[: inv.m]],
+        self.nu = NU_SAFETY * _largest_eigenvalue(inv, b.sites[inv.ids[: inv.m] // b.k],
                                                   b.shape[1])
         self.gamma = 0.0  # largest measured ||rho|| / ||c||
         self.growth = 0.0  # largest measured (||r|| - R_c) / A over a stretch of removals
@@ -243,7 +241,7 @@ class _Bound:
         pos = inv.ids[live]
 
         def residual(x: np.ndarray) -> tuple[np.ndarray, float]:
-            r, res = stick_residual(self.b, pos, x[live], 1.0)
+            r, res = stick_residual(self.b, pos, x[live], self.b.drive_rows(pos))
             full = np.zeros(inv.m)
             full[live] = r
             if first is not None and not first:
@@ -289,25 +287,34 @@ class _Bound:
         r"""Measure :math:`\|\rho\|/\|\tilde c\|` for the column of ``row`` (one FFT)."""
         inv, live = self.inv, self.inv.live
         c = inv.column(row)
-        u = self.b.restricted(inv.ids[live]).matvec(c[live])
+        u = self.b.product(inv.ids[live], c[live])
         rho = -u
         rho[int(np.count_nonzero(live[:row]))] += 1.0
         self.gamma = max(self.gamma, float(np.linalg.norm(rho) /
                                            max(np.linalg.norm(c[live]), 1e-300)))
 
     def decide(self, phi: np.ndarray, cap: np.ndarray) -> tuple[int, float, float]:
-        r"""The row of the next break, the largest ratio :math:`m` and the bound on the error
-        of :math:`m` (module docstring)."""
+        r"""The row of the next break (with several components per bond, its bond's first
+        row), the largest ratio :math:`m` and the bound on the error of :math:`m` (module
+        docstring). A bond's ratio is :math:`|\boldsymbol\varphi_i|/(\lambda f_{z,i})`, whose
+        error is at most the norm of its components' bounds,
+        :math:`\sqrt{\nu \sum_c d_{i,c}}\,R`."""
         self.states += 1
+        k = self.b.k
         Rb = self.residual_bound()
-        wide = math.sqrt(self.nu * self.d_max) * Rb
-        found = _candidates(phi, cap, self.d, self.nu, Rb, wide / self.cap_min)
+        d = self.d if k == 1 else self.d.reshape(-1, k).sum(axis=1)
+        wide = math.sqrt(self.nu * (self.d_max if k == 1 else k * self.d_max)) * Rb
+        if k == 1:
+            found = _candidates(phi, cap, d, self.nu, Rb, wide / self.cap_min)
+        else:
+            found = _candidates(self.b.bond_values(phi), np.ascontiguousarray(cap[::k]), d,
+                                self.nu, Rb, wide / self.cap_min)
         if found is None:
             raise NumericalError("pull: non-finite tangential force ratio")
         j, m, dm, cand = found
         low = m - dm
         if cand.size <= 1:
-            return j, m, dm
+            return j * k, m, dm
         if cand.size <= MAX_SHARPEN:
             picked = self._sharpen(phi, cap, cand, low)
             if picked is not None:
@@ -319,9 +326,12 @@ class _Bound:
                                       6)
         self.refinements += n
         self.R, self.A = res * math.sqrt(live.sum()), 0.0
-        ratio = np.abs(t.x) / cap
+        ratio = self.b.bond_values(t.x) / cap[::k]
         j = argext(ratio, None, "max")
-        return j, float(ratio[j]), float(self.beta(j)) / cap[j]
+        if k == 1:
+            return j, float(ratio[j]), float(self.beta(j)) / cap[j]
+        beta = self.beta(np.arange(j * k, j * k + k))
+        return j * k, float(ratio[j]), float(np.sqrt(np.sum(np.square(beta)))) / cap[j * k]
 
     def _sharpen(self, phi: np.ndarray, cap: np.ndarray, cand: np.ndarray, low: float
                  ) -> tuple[int, float, float] | None:
@@ -331,12 +341,22 @@ class _Bound:
         self.measured(rn)
         vals, errs = np.empty(cand.size), np.empty(cand.size)
         live = self.inv.live
-        for k, i in enumerate(cand):
-            c = self.inv.column(int(i))
-            c[~live] = 0.0
-            vals[k] = abs(phi[i] + float(c @ r)) / cap[i]
-            errs[k] = (self.nu * self.gamma_hat * float(np.linalg.norm(c)) * rn
-                       + 4 * np.finfo(float).eps * abs(phi[i])) / cap[i]
+        comps = self.b.k
+        for k, bond in enumerate(cand):
+            v, e = np.empty(comps), np.empty(comps)
+            for c_ in range(comps):
+                i = int(bond) * comps + c_
+                c = self.inv.column(i)
+                c[~live] = 0.0
+                v[c_] = phi[i] + float(c @ r)
+                e[c_] = (self.nu * self.gamma_hat * float(np.linalg.norm(c)) * rn
+                         + 4 * np.finfo(float).eps * abs(phi[i]))
+            i = int(bond) * comps
+            if comps == 1:
+                vals[k], errs[k] = abs(v[0]) / cap[i], e[0] / cap[i]
+            else:  # the norm's error is at most the norm of its components' errors
+                vals[k] = math.sqrt(float(v @ v)) / cap[i]
+                errs[k] = math.sqrt(float(e @ e)) / cap[i]
         lower, upper = vals - errs, vals + errs
         rest = (1 - TIE) * low  # above every upper bound outside the candidates
         for k in range(cand.size):  # rows in increasing order: the tie rule's order
@@ -348,7 +368,7 @@ class _Bound:
                 continue  # certainly out of the tie set
             if lower[k] >= (1 - TIE) * hi:
                 top = int(np.argmax(vals))
-                return int(cand[k]), float(vals[top]), float(errs[top])
+                return int(cand[k]) * comps, float(vals[top]), float(errs[top])
             return None
         return None
 
@@ -463,16 +483,13 @@ class _Peaks:
                 done.append((step, pos, phi, curve.fx[step], 0.0))
                 best = max(best, curve.fx[step])
                 continue
-            A = b.restricted(pos)
-            res = cg(A, A.weights, x0=b.field(phi, pos), tol=PEAK_FRACTION * self.tol,
-                     max_iter=self.max_iter)
-            phi = A.gather(res.x)
-            _, rel = stick_residual(b, pos, phi, 1.0)
+            phi = b.solve_stick(pos, phi, PEAK_FRACTION * self.tol, self.max_iter)
+            _, rel = stick_residual(b, pos, phi, b.drive_rows(pos))
             self.worst = max(self.worst, rel)
             self.solved += 1
-            m = float(np.max(np.abs(phi) / b.cap[pos]))
+            m = float(np.max(b.bond_values(phi) / b.cap[pos[:: b.k] // b.k]))
             dx = 1.0 / m
-            F = float(phi.sum()) * dx
+            F = b.along(phi) * dx
             curve.dx[step], curve.fx[step] = dx, F
             done.append((step, pos, phi, F, 0.0))
             best = max(best, F)
@@ -517,19 +534,22 @@ class SingleSequence:
             live = np.isfinite(cap)
             on = phi[live]
             dx = 1.0 / m
-            F = float(on.sum()) * dx
+            # the force along the drive; its error, e.(sum of errors) = -phi^T r, at most
+            # |phi| |r| (the adjoint of the stick solve)
+            F = b.along(on) * dx
             R = bound.residual_bound()
             err = (math.sqrt(float(on @ on)) * R * dx + abs(F) * dm / m) * 1.01
             curve.dx.append(dx)
             curve.fx.append(F)
-            curve.site.append(int(b.sites[pos[j]]))
+            curve.site.append(int(b.sites[pos[j] // b.k]))
             peaks.add(len(curve.fx) - 1, F, err, lambda p=pos, lv=live, o=on: (p[lv], o))
             cap_sum -= float(cap[j])
-            if peaks.stop(cap_sum) or rows.alive == 1:
+            if peaks.stop(cap_sum) or rows.alive == b.k:
                 break
-            c = inv.column(j)
-            bound.removed(phi[j] / c[j], c)
-            rows.remove(inv, j, c)
+            for row in range(j, j + b.k):  # the bond's rows, each with its current column
+                c = inv.column(row)
+                bound.removed(inv.tracked["phi"].x[row] / c[row], c)
+                rows.remove(inv, row, c)
             if rows.fold(inv, dead=COMPACT_DEAD):
                 bound.certify(rows.cap)
         if peaks.kept:

@@ -163,8 +163,7 @@ class PullMethod:
         (:attr:`~roughslip.friction.laws.SlipLaw.single`).
     components
         The tangential models it runs (``pull.components``,
-        :data:`~roughslip.friction.bonds.TANGENTIAL_MODELS`), in double precision for the
-        traction vector.
+        :data:`~roughslip.friction.bonds.TANGENTIAL_MODELS`).
     """
 
     name: str
@@ -473,7 +472,7 @@ def pull(
         directions, coupled through :math:`G_{xy}` (docs/theory/pull.rst#traction-vector):
         at :math:`\nu = 0` every law and method, the x-only model turned (:func:`turned`);
         at :math:`\nu > 0` the break law, :math:`|\mathbf f_t| > \lambda f_z`, on the
-        ``"inverse"`` method in double precision.
+        dense and the compressed inverse in either precision.
     direction : float
         The drive's angle in the surface plane, degrees from x toward y; only 0 in the
         ``"x"`` model. The curve is the pull force along the drive
@@ -526,13 +525,9 @@ def pull(
                              f"{', '.join(repr(m) for m in methods_for(law, components))}")
         raise InputError(f"slip_law = {law.name!r} supports methods "
                          f"{', '.join(methods_for(law, components))}, not {impl.name!r}")
-    if components != "x" and precision == "single":
-        raise InputError(f"precision = 'single': the traction vector (pull.components = "
-                         f"{components!r}) is pulled in double precision only")
-    if components != "x":
-        precision = "double"
     if precision == "auto":
-        precision = (choose_precision(n, slip_law=law, block=int(block), method=impl)
+        precision = (choose_precision(n * len(comps), slip_law=law, block=int(block),
+                                      method=impl)
                      if impl.solver is not None else "double")
     if precision == "single" and not single_ok(law, impl):
         laws = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)
@@ -590,7 +585,8 @@ METHODS.register("hierarchical", "exact with certified decisions, a compressed (
                  "of G_xx on the bonds (break law; a fraction of the dense memory)")(
     PullMethod("hierarchical", exact=True, dense=False, blas=True,
                solver=HierarchicalInverse, offers=frozenset({"tracked"}),
-               precisions=("double", "single"), inexact=True, above=HIERARCHICAL_ABOVE))
+               precisions=("double", "single"), inexact=True, above=HIERARCHICAL_ABOVE,
+               components=("x", "xy")))
 METHODS.register("cg", "exact and matrix-free, a warm-started CG solve per break")(
     PullMethod("cg", exact=True, dense=False, run=break_cg))
 METHODS.register("batch", "approximate, several bonds broken per solve")(

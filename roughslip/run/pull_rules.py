@@ -37,9 +37,6 @@ def check_pull(cfg: RunConfig, errors: Errors) -> None:
     if comps == "x" and cfg.pull.direction != 0:
         errors.add("pull.direction", cfg.pull.direction, "the x-only model (pull.components "
                    "= 'x') pulls along x alone; use components = 'xy'")
-    if engine and cfg.pull.enabled and cfg.pull.precision == "single":
-        errors.add("pull.precision", "single", f"pull.components = {comps!r} is pulled in "
-                   "double precision only at nu > 0")
     if engine and cfg.pull.error_estimate:
         errors.add("pull.error_estimate", True, f"has no estimate for pull.components = "
                    f"{comps!r} at nu > 0 yet; needs components = 'x'")
