@@ -178,8 +178,8 @@ class Scene:
 
     @property
     def components(self) -> tuple[str, ...]:
-        """Green function components the run builds: with the traction vector at
-        :math:`\nu > 0` (``pull.components = "xy"``) the tangential ones of both directions."""
+        """Green function components the run builds, with those of both tangential directions
+        for the traction vector (``pull.components = "xy"``) at nu > 0."""
         if self.coupled:
             return ("zz", "zx", "xx")
         if self.pull and self.config.pull.components != "x" and self.material.nu != 0:
