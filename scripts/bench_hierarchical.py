@@ -3,6 +3,7 @@ parts against the bond count.
 
     python scripts/bench_hierarchical.py [--sizes 128 256 384 512] [--area 0.2] [--dense 16000]
                                          [--precision double] [--threads 2]
+                                         [--components x]
 
 The scene is bench_pull.py's (rough, H = 0.8, open, nu = 0.3, 20 % contact by default). For
 each grid it builds the compressed inverse of G_xx on all bonds
@@ -15,7 +16,9 @@ one column of the inverse (median of 100), the measured error delta = ||G_SS - A
 to ||G_SS||_2 (Lanczos, as the pull measures it, with its rounding floor, without its safety
 factor), and, up to ``--dense`` bonds, the largest
 relative error of 40 columns against the dense inverse. Then the growth exponents of the
-memory and of the column's time against the bonds (least squares in log-log).
+memory and of the column's time against the bonds (least squares in log-log). ``--components
+xy``: the inverse of the traction vector's G_tt (two unknowns per bond at the bond's point;
+the column counts are of unknowns).
 """
 
 from __future__ import annotations
@@ -38,10 +41,11 @@ from roughslip.linalg.hierarchical import HierarchicalInverse, hierarchical_byte
 from roughslip.linalg.threads import blas_threads
 
 
-def measure(size: int, area: float, dense: int, dtype: type, threads: int) -> dict:
-    b = Bonds(contact(size, area), 0.2, threads=1)
-    iy, ix = np.divmod(b.sites, b.shape[1])
-    h = HierarchicalInverse(b.entries, b.n, room=lambda m: True,
+def measure(size: int, area: float, dense: int, dtype: type, threads: int,
+            components: tuple[str, ...] = ("x",)) -> dict:
+    b = Bonds(contact(size, area), 0.2, threads=1, components=components)
+    iy, ix = np.divmod(np.repeat(b.sites, b.k), b.shape[1])
+    h = HierarchicalInverse(b.entries, b.size, room=lambda m: True,
                             points=np.column_stack([iy, ix]).astype(float), block=128,
                             dtype=dtype, threads=threads)
     with blas_threads(threads):
@@ -50,31 +54,32 @@ def measure(size: int, area: float, dense: int, dtype: type, threads: int) -> di
 
 def _measure(b: Bonds, h: HierarchicalInverse, dense: int) -> dict:
     t0 = time.perf_counter()
-    h.factor(np.arange(b.n))
+    h.factor(np.arange(b.size))
     build = time.perf_counter() - t0
     ranks = h.ranks()[h.ranks() > 0]
     out = {"bonds": b.n, "root": int(h.ranks()[0]), "median": float(np.median(ranks)),
            "p90": float(np.percentile(ranks, 90)), "held": h.nbytes() / 2**20,
-           "estimate": hierarchical_bytes(b.n, block=128, itemsize=h.dtype.itemsize) / 2**20,
+           "estimate": hierarchical_bytes(b.size, block=128, itemsize=h.dtype.itemsize) / 2**20,
            "compress": h.compress_seconds, "factor": build - h.compress_seconds}
     times = []
-    for r in range(0, b.n, max(1, b.n // 100))[:100]:
+    for r in range(0, b.size, max(1, b.size // 100))[:100]:
         t = time.perf_counter()
         h.column(r)
         times.append(time.perf_counter() - t)
     out["column_ms"] = 1e3 * statistics.median(times)
-    A = b.restricted(np.arange(b.n))
-    norm = float(eigsh(LinearOperator((b.n, b.n), matvec=lambda v: A.matvec(np.ravel(v)),
+    every = np.arange(b.size)
+    norm = float(eigsh(LinearOperator((b.size, b.size),
+                                      matvec=lambda v: b.product(every, np.ravel(v)),
                                       dtype=np.float64), k=1, which="LM", tol=1e-2,
-                       v0=np.ones(b.n), return_eigenvectors=False)[0])
+                       v0=np.ones(b.size), return_eigenvectors=False)[0])
     out["delta"] = _compression_error(b, h) / NU_SAFETY / norm
     out["column_error"] = float("nan")
-    if b.n <= dense:
+    if b.size <= dense:
         Gi = np.linalg.inv(b.dense())
-        cols = range(0, b.n, max(1, b.n // 40))
+        cols = range(0, b.size, max(1, b.size // 40))
         out["column_error"] = max(float(np.linalg.norm(h.column(r) - Gi[:, r])
                                         / np.linalg.norm(Gi[:, r])) for r in cols)
-    for u in np.random.default_rng(0).permutation(b.n)[: b.n // 100]:
+    for u in np.random.default_rng(0).permutation(b.size)[: b.size // 100]:
         h.remove(int(u))
     t = time.perf_counter()
     h.flush()
@@ -90,16 +95,17 @@ def main() -> None:
     ap.add_argument("--dense", type=int, default=16000)
     ap.add_argument("--precision", choices=["double", "single"], default="double")
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--components", choices=["x", "xy"], default="x")
     a = ap.parse_args()
     dtype = np.float32 if a.precision == "single" else np.float64
     print(f"# cores: {os.cpu_count()}; area {a.area}; {a.precision} precision; "
-          f"BLAS threads {a.threads}")
+          f"BLAS threads {a.threads}; components {a.components}")
     print(f"{'N':>5} {'bonds':>6} {'root':>5} {'med':>4} {'p90':>5} {'MiB':>7} {'est':>7} "
           f"{'compress':>8} {'factor':>7} {'fold':>6} {'col ms':>7} {'delta':>8} "
           f"{'col err':>8}")
     rows = []
     for n in a.sizes:
-        r = measure(n, a.area, a.dense, dtype, a.threads)
+        r = measure(n, a.area, a.dense, dtype, a.threads, tuple(a.components))
         rows.append(r)
         print(f"{n:>5} {r['bonds']:>6} {r['root']:>5} {r['median']:>4.0f} {r['p90']:>5.0f} "
               f"{r['held']:>7.0f} {r['estimate']:>7.0f} {r['compress']:>8.2f} "
