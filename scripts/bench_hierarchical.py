@@ -59,7 +59,8 @@ def _measure(b: Bonds, h: HierarchicalInverse, dense: int) -> dict:
     ranks = h.ranks()[h.ranks() > 0]
     out = {"bonds": b.n, "root": int(h.ranks()[0]), "median": float(np.median(ranks)),
            "p90": float(np.percentile(ranks, 90)), "held": h.nbytes() / 2**20,
-           "estimate": hierarchical_bytes(b.size, block=128, itemsize=h.dtype.itemsize) / 2**20,
+           "estimate": hierarchical_bytes(b.size, block=128, itemsize=h.dtype.itemsize,
+                                          per_point=b.k) / 2**20,
            "compress": h.compress_seconds, "factor": build - h.compress_seconds}
     times = []
     for r in range(0, b.size, max(1, b.size // 100))[:100]:

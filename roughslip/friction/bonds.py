@@ -422,17 +422,18 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
     """
     n = b.size
     dtype = np.dtype(dtype)
-    need = solver.memory_bytes(n, block=block, itemsize=dtype.itemsize)
+    k = {"per_point": b.k} if b.k > 1 else {}  # the components of a bond share its point
+    need = solver.memory_bytes(n, block=block, itemsize=dtype.itemsize, **k)
     what = "G_xx" if b.k == 1 else f"G_tt ({b.k} components)"
 
     def room(m: int) -> bool:
         if need > available_bytes():
-            half = solver.memory_bytes(n, block=block, itemsize=4)
+            half = solver.memory_bytes(n, block=block, itemsize=4, **k)
             other = ("pull precision 'single' (half the memory), "
                      if dtype.itemsize == 8 and half < need and half <= available_bytes()
                      else "")
             if (solver is not HierarchicalInverse
-                    and HierarchicalInverse.memory_bytes(n, block=block, itemsize=4)
+                    and HierarchicalInverse.memory_bytes(n, block=block, itemsize=4, **k)
                     <= available_bytes()):
                 other += "pull method 'hierarchical' (compressed, exact), "
             last = ("pull method 'cg' (exact, matrix-free) or 'batch' (approximate)"

@@ -238,32 +238,38 @@ def single_ok(slip_law: str | SlipLaw, method: str | PullMethod = "inverse") -> 
 
 
 def choose_precision(n: int, memory: int | None = None, slip_law: str | SlipLaw = "break",
-                     block: int = 128, method: str | PullMethod = "inverse") -> str:
+                     block: int = 128, method: str | PullMethod = "inverse",
+                     per_point: int = 1) -> str:
     """The precision ``"auto"`` picks for the matrix of ``n`` bonds given ``memory`` bytes:
     double when it fits, else single when that fits and the law and the method have it
     (:func:`single_ok`), else double (whose memory check then says what would fit). The
     memory is :func:`inverse_memory_bytes` for a dense method, the stick solver's estimate
-    for another."""
+    for another (with ``per_point`` unknowns at each point, the tangential components)."""
     memory = available_bytes() if memory is None else memory
     m = _method(method)
-    if _matrix_bytes(m, n, "double", block) <= memory or not single_ok(slip_law, method):
+    if (_matrix_bytes(m, n, "double", block, per_point) <= memory
+            or not single_ok(slip_law, method)):
         return "double"
-    return "single" if _matrix_bytes(m, n, "single", block) <= memory else "double"
+    return ("single" if _matrix_bytes(m, n, "single", block, per_point) <= memory
+            else "double")
 
 
-def _matrix_bytes(m: PullMethod, n: int, precision: str, block: int = 128) -> int:
-    """The memory of ``m``'s matrix for ``n`` bonds in ``precision``:
+def _matrix_bytes(m: PullMethod, n: int, precision: str, block: int = 128,
+                  per_point: int = 1) -> int:
+    """The memory of ``m``'s matrix for ``n`` unknowns in ``precision``:
     :func:`inverse_memory_bytes` for a dense method, the stick solver's estimate for
-    another."""
+    another (``per_point`` unknowns at each point: the tangential components)."""
     if m.dense or m.solver is None:
         return inverse_memory_bytes(n, block, precision)
-    return m.solver.memory_bytes(n, itemsize=4 if precision == "single" else 8)
+    k = {"per_point": per_point} if per_point > 1 else {}
+    return m.solver.memory_bytes(n, itemsize=4 if precision == "single" else 8, **k)
 
 
-def _fits(m: PullMethod, n: int, law: SlipLaw, precision: str, memory: int) -> bool:
+def _fits(m: PullMethod, n: int, law: SlipLaw, precision: str, memory: int,
+          per_point: int = 1) -> bool:
     """Whether ``m``'s matrix for ``n`` bonds fits in ``memory`` in a precision that
     ``precision`` (``"auto"``: any) and the law allow (single: :func:`single_ok`)."""
-    return any(_matrix_bytes(m, n, p) <= memory for p in m.precisions
+    return any(_matrix_bytes(m, n, p, per_point=per_point) <= memory for p in m.precisions
                if precision in ("auto", p) and (p == "double" or single_ok(law, m)))
 
 
@@ -359,6 +365,7 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
     unknowns: the bonds times their tangential ``components``.
     """
     law = _law(slip_law)
+    k = len(TANGENTIAL_MODELS.get(components, ("x",)))
     cands = [METHODS.get(m) for m in METHODS.names()]
     cands = [m for m in cands if m.auto and m.exact and m.runs(law, components)]
     if not cands:
@@ -376,7 +383,7 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
         return dense[0].name
     memory = available_bytes() if memory is None else memory
     for m in free:
-        if m.above and n >= m.above and _fits(m, n, law, precision, memory):
+        if m.above and n >= m.above and _fits(m, n, law, precision, memory, k):
             return m.name
     if precision == "single":
         for m in dense:
@@ -387,9 +394,9 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
             return m.name
     limit = lapack64.max_n()
     for m in dense:
-        if _fits(m, n, law, precision, memory) and (limit is None or n <= limit):
+        if _fits(m, n, law, precision, memory, k) and (limit is None or n <= limit):
             return m.name
-    fits = [m for m in free if m.solver is None or _fits(m, n, law, precision, memory)]
+    fits = [m for m in free if m.solver is None or _fits(m, n, law, precision, memory, k)]
     return (fits or free or dense)[0].name
 
 
@@ -527,7 +534,7 @@ def pull(
                          f"{', '.join(methods_for(law, components))}, not {impl.name!r}")
     if precision == "auto":
         precision = (choose_precision(n * len(comps), slip_law=law, block=int(block),
-                                      method=impl)
+                                      method=impl, per_point=len(comps))
                      if impl.solver is not None else "double")
     if precision == "single" and not single_ok(law, impl):
         laws = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)

@@ -321,9 +321,10 @@ class UpdatableInverse:
         self.shifts = 0
 
     @staticmethod
-    def memory_bytes(m: int, *, block: int = 512, itemsize: int = 8) -> int:
+    def memory_bytes(m: int, *, block: int = 512, itemsize: int = 8, per_point: int = 1) -> int:
         """The peak memory of an inverse of order ``m`` on a set that only shrinks (the
-        lower-triangle layout, :func:`inverse_bytes`)."""
+        lower-triangle layout, :func:`inverse_bytes`; how many unknowns share a point,
+        ``per_point``, does not change it)."""
         return inverse_bytes(m, lower=True, block=block, itemsize=itemsize)
 
     # -- state ---------------------------------------------------------------------------------

@@ -125,7 +125,8 @@ class StickSolver(Protocol):
 #: the matrix is definite (a layout may use it); ``dtype``: the precision of what is stored;
 #: ``points``: the point of each unknown (a compressed solver clusters by it). The factory
 #: also says what it is (``kind``, in messages) and what it takes before it is built
-#: (``memory_bytes(m, block=..., itemsize=...)``).
+#: (``memory_bytes(m, block=..., itemsize=...)``, and ``per_point=k`` when ``k`` unknowns
+#: share each point: the components of the traction vector).
 SolverFactory = Callable[..., StickSolver]
 
 __all__ = ["Entries", "SolverFactory", "StickSolver", "Tracked"]

@@ -38,7 +38,7 @@ class RecomputedInverse:
         self._shift: tuple[int, float] | None = None  # a shift the assembler gives only later
 
     @staticmethod
-    def memory_bytes(m: int, *, block: int = 512, itemsize: int = 8) -> int:
+    def memory_bytes(m: int, *, block: int = 512, itemsize: int = 8, per_point: int = 1) -> int:
         """One dense inverse and the matrix it is computed from."""
         return 2 * 8 * m * m
 
