@@ -35,10 +35,11 @@ writes into ``OUT_DIR``:
   coupled pulls of one 24 x 24 rough surface (H = 0.8, seed 7, depth 1.6 rms, lambda = 0.2,
   nu = 0.25 and 0.45, the ``bonded`` history) computed here (about a second).
 * ``histories.png``, ``histories_weakening.png``, ``hertz_exponents.png``, ``rough_exponents.png``,
-  ``coupled_finite_size.png``, ``indentation.png``, ``weakening_rough.png``,
-  ``burst_exponents.png``: the studies of ``docs/results.md`` (the squeeze histories, the
-  Hertz and the rough-surface exponents against N, the coupled finite-size study, the
-  frictional indentation, slip-weakening on rough surfaces, the burst exponents), drawn from
+  ``coupled_finite_size.png``, ``indentation.png``, ``traction_direction.png``,
+  ``weakening_rough.png``, ``burst_exponents.png``: the studies of ``docs/results.md`` (the
+  squeeze histories, the Hertz and the rough-surface exponents against N, the coupled
+  finite-size study, the frictional indentation, the friction against the drive's angle,
+  slip-weakening on rough surfaces, the burst exponents), drawn from
   the page's own tables (:func:`results_figures`; recorded numbers: the studies take minutes
   to hours).
 * ``bench_scaling.png``: time against size with fitted slopes, and against the peer codes,
@@ -836,6 +837,41 @@ def indentation(out: Path) -> None:
     save(plt, fig, out / "indentation.png")
 
 
+def traction_direction(out: Path) -> None:
+    """The drive-angle table of the results page: the friction ratio to the x-only model
+    against the drive's angle, anisotropic and isotropic surfaces, one panel per nu."""
+    from roughslip.analysis.plotting import pyplot, save
+
+    rows = _markdown_table(RESULTS, "| $\\nu$ | drive | anisotropic")
+    nus = sorted({float(r[0]) for r in rows})
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(nus), figsize=(7.5, 3.6), sharey=True,
+                             layout="constrained")
+    for ax, nu in zip(np.atleast_1d(axes), nus, strict=True):
+        mine = [r for r in rows if float(r[0]) == nu]
+        angle = np.array([_number(r[1]) for r in mine])
+        ax.axhline(1.0, color="0.5", lw=0.8, ls=":")
+        for j, (col, name) in enumerate(((3, "anisotropic, $\\gamma$ = 4: ridges along y, "
+                                              "pulled across them at 0, along at 90"),
+                                         (5, "isotropic (the control)"))):
+            ratio, err = (np.array(c) for c in zip(*(_plus_minus(r[col]) for r in mine),
+                                                   strict=True))
+            ax.errorbar(angle + 0.8 * (j - 0.5), ratio, yerr=err, fmt="os"[j] + "-",
+                        color=f"C{j}", ms=4, lw=1, capsize=2.5, label=name)
+        ax.set_xticks([0, 15, 30, 45, 60, 75, 90])
+        ax.set_title(f"$\\nu$ = {nu:g}", fontsize=9)
+        ax.set_xlabel("drive angle from x (degrees)", fontsize=8)
+        _style(ax)
+    np.atleast_1d(axes)[0].set_ylabel("$F_{\\rm fric}$ / x-only model along x", fontsize=8)
+    handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=1, fontsize=8, frameon=False,
+               title="traction vector, mean over 20 samples $\\pm$ bootstrap s.d.",
+               title_fontsize=8)
+    fig.suptitle("friction against the drive's angle, break law, $\\lambda$ = 0.2; "
+                 "N = 128, H = 0.8, 6 depths 0.3-2 rms", fontsize=10)
+    save(plt, fig, out / "traction_direction.png")
+
+
 def weakening_rough(out: Path) -> None:
     """The slip-weakening table of rough surfaces on the results page: the friction
     coefficient at three depths and the exponent, per law and grid."""
@@ -930,6 +966,7 @@ def results_figures(out: Path) -> None:
     rough_exponents(out)
     coupled_finite_size(out)
     indentation(out)
+    traction_direction(out)
     weakening_rough(out)
     burst_exponents(out)
 

@@ -136,7 +136,8 @@ def test_the_generated_guide_output_is_what_the_script_writes():
                   "coupled_events.txt", "histories.png", "histories_weakening.png",
                   "bench_scaling.png",
                   "hertz_exponents.png", "rough_exponents.png", "coupled_finite_size.png",
-                  "indentation.png", "weakening_rough.png", "burst_exponents.png",
+                  "indentation.png", "traction_direction.png", "weakening_rough.png",
+                  "burst_exponents.png",
                   "python_friction_coefficient.png", "python_sample0_fz.png"}
                | {f"python_{c}.{ext}" for c in cells for ext in ("py", "txt")})
     used = set()
