@@ -203,7 +203,8 @@ def sample_fields(path: str | Path, sample: int, *,
         Each field a variable of dimensions ``(depth, y, x)`` (``force_target`` instead of
         ``depth`` under load control); the surfaces (``rigid_surface``, and
         ``elastic_surface`` for two rough surfaces) of dimensions ``(y, x)``. ``x`` and ``y``
-        are the pixel positions, index times pixel size; ``x`` is the pull direction. Each
+        are the pixel positions, index times pixel size; ``x`` is the pull direction of the x-only
+        model (``pull.direction`` gives the drive of the traction vector). Each
         variable and coordinate has the attribute ``long_name`` of the NetCDF conventions,
         and ``units`` where the run names one, which plotting tools label axes with: lengths
         in the run's length unit (``units.length``) and forces in its force unit (``uN``, or
@@ -268,10 +269,12 @@ def sample_fields(path: str | Path, sample: int, *,
     depth_unit = axis_unit(run)  # rms, range, pressure, or the run's named unit
     axis = {"long_name": schema.AXES[run.axis_name],
             **({"units": depth_unit} if depth_unit else {})}
+    vector = run.config_dict().get("pull", {}).get("components", "x") != "x"
     coords = {run.axis_name: (run.axis_name, run.axis, axis),
               "y": ("y", np.arange(ny) * a, {"long_name": "y", **unit("length")}),
               "x": ("x", np.arange(nx) * a,
-                    {"long_name": "x, the pull direction", **unit("length")})}
+                    {"long_name": "x" if vector else "x, the pull direction",
+                     **unit("length")})}
     return xr.Dataset(data, coords=coords, attrs={**attrs, "sample": sample})
 
 

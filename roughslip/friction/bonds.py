@@ -178,7 +178,10 @@ class Bonds:
 
     def restricted(self, unknowns: np.ndarray | None = None) -> Restricted:
         """:math:`G_{tt}[S, S]` on the ``unknowns`` (all by default): :math:`G_{xx}` on bond
-        positions with the x component alone."""
+        positions with the x component alone. With several components its compressed vectors
+        list the unknowns component by component (the C order of its ``(k, ny, nx)`` mask),
+        not in the order of ``unknowns``: :meth:`product` and :meth:`solve_stick` take that
+        order."""
         mask = self.unknown_mask(np.arange(self.size) if unknowns is None else unknowns)
         return Restricted(self.apply, mask)
 

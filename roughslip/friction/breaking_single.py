@@ -250,10 +250,18 @@ class _Bound:
 
         return residual
 
+    def _rhs_norm(self) -> float:
+        r"""The 2-norm of the right-hand side on the live rows, which turns a relative
+        residual into :math:`\|r\|_2`: the square root of the live rows with the x component
+        alone, of the live bonds with the traction vector (each bond's
+        :math:`\hat{\mathbf e}` has norm 1)."""
+        live = int(self.inv.live.sum())
+        return math.sqrt(live) if self.b.k == 1 else math.sqrt(live / self.b.k)
+
     def residual(self) -> tuple[np.ndarray, float]:
         """The residual of the tracked solution on the rows and its 2-norm."""
         r, res = self._residual_on_rows()(self.inv.tracked["phi"].x)
-        return r, res * math.sqrt(float(self.inv.live.sum()))
+        return r, res * self._rhs_norm()
 
     def removed(self, alpha: float, column: np.ndarray) -> None:
         r"""A row leaves with the column ``column`` of the inverse and the step ``alpha``:
@@ -268,7 +276,7 @@ class _Bound:
         :math:`\lambda f_z` on the rows, infinite on dead ones)."""
         live = self.inv.live
         alive = int(live.sum())
-        scale = math.sqrt(alive)
+        scale = self._rhs_norm()
         first: list[float] = []
         t = self.inv.tracked["phi"]
         t.x, res, n = self.inv.refine(t.x, self._residual_on_rows(first), CERT_FRACTION
@@ -320,12 +328,11 @@ class _Bound:
             if picked is not None:
                 return picked
         self.full += 1
-        live = self.inv.live
         t = self.inv.tracked["phi"]
         t.x, res, n = self.inv.refine(t.x, self._residual_on_rows(), CERT_FRACTION * self.tol,
                                       6)
         self.refinements += n
-        self.R, self.A = res * math.sqrt(live.sum()), 0.0
+        self.R, self.A = res * self._rhs_norm(), 0.0
         ratio = self.b.bond_values(t.x) / cap[::k]
         j = argext(ratio, None, "max")
         if k == 1:

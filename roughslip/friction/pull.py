@@ -382,8 +382,8 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
     if dense and not free:
         return dense[0].name
     memory = available_bytes() if memory is None else memory
-    for m in free:
-        if m.above and n >= m.above and _fits(m, n, law, precision, memory, k):
+    for m in free:  # above is a bond count (measured per bond, as fast for the vector)
+        if m.above and n >= m.above * k and _fits(m, n, law, precision, memory, k):
             return m.name
     if precision == "single":
         for m in dense:
@@ -506,6 +506,9 @@ def pull(
     if threads < 1:
         raise InputError(f"threads = {threads!r}: must be >= 1")
     comps, direction = check_direction(components, direction)
+    if len(comps) > 1 and normal.problem.material.nu != 0 and estimate_error:
+        raise InputError(f"pull.error_estimate: the error estimate is the x-only model's; it "
+                         f"has none for pull.components = {components!r} at nu > 0")
     if len(comps) > 1 and normal.problem.material.nu == 0:
         # the isotropic half-space: the x-only model along the drive, turned (exact)
         return turned(pull(normal, lam=lam, slip_law=slip_law, method=method, tol=tol,
@@ -526,6 +529,8 @@ def pull(
                                       components=components))
             if asked.chooses else asked)
     if not impl.runs(law, components):
+        if components not in law.components:  # the law's refusal (choose_method's words)
+            choose_method(n * len(comps), slip_law=law, components=components)
         if components != "x" and impl.runs(law):
             raise InputError(f"pull.components = {components!r}: method {impl.name!r} runs "
                              f"the x-only model; use method "

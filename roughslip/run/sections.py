@@ -237,8 +237,9 @@ class PullConfig:
                             "else single)", choices=PULL_PRECISIONS)
     components: str = option("x", "the tangential model: x (the report's: each bond carries f_x "
                              "alone and u_y is free) or xy (each bond carries the traction "
-                             "vector (f_x, f_y) and sticks in both directions; the break law "
-                             "on method inverse, decoupled)",
+                             "vector (f_x, f_y) and sticks in both directions, pulled at "
+                             "pull.direction; decoupled: every law at nu = 0, the break law on "
+                             "methods inverse and hierarchical at nu > 0)",
                              choices=tuple(TANGENTIAL_MODELS))
     direction: float = option(0.0, "the drive's angle in the surface plane, degrees from x "
                               "toward y; 0 with components = 'x', which pulls along x alone",

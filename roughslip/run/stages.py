@@ -100,6 +100,14 @@ class _DecoupledSample:
             self._pull(r, rec, where)
         return rec
 
+    def _ux(self, s: PullResult) -> np.ndarray:
+        r""":math:`u_x` at the peak: :math:`G_{xx} f_x`, plus :math:`G_{xy} f_y` when the bonds
+        carry the traction vector."""
+        if s.peak.fy is None:
+            return self.problem.operator("xx").apply("xx", s.peak.fx)
+        op = self.problem.operator("xx", "xy")
+        return op.apply("xx", s.peak.fx) + op.apply("xy", s.peak.fy)
+
     def _pull(self, r: NormalResult, rec: Record, where: str) -> None:
         cfg, want = self.stage.config, self.stage.want
         pl = cfg.pull
@@ -115,8 +123,8 @@ class _DecoupledSample:
             raise ConvergenceError(f"{where}: pull did not converge: {s.message}")
         rec.solvers.update(pull_method=s.method, **({"precision": s.details.precision}
                                                     if s.details.precision else {}))
-        add_pull(rec, s, want, lambda: self.problem.operator("xx").apply("xx", s.peak.fx),
-                 estimate=pl.error_estimate, what="pull", with_start=False)
+        add_pull(rec, s, want, lambda: self._ux(s), estimate=pl.error_estimate, what="pull",
+                 with_start=False)
         if s.peak.fy is not None:
             fx, fy = s.friction_vector
             rec.scalars.update(friction_force_x=fx, friction_force_y=fy)
