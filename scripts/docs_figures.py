@@ -561,14 +561,22 @@ def histories(out: Path) -> None:
         ax.set_xlabel("grid size N (unit pixels: a larger patch)", fontsize=8)
         ax.tick_params(labelsize=8)
         ax.grid(True, alpha=0.3)
-    np.atleast_1d(axes)[0].set_ylabel("$F_{\\rm fric}$ coupled / decoupled", fontsize=8)
-    handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=4, fontsize=8, frameon=False,
-               title="squeeze history (mean over 20 samples, $\\pm$ bootstrap s.d.)",
-               title_fontsize=8)
-    fig.suptitle("coupled over decoupled friction force, break law, $\\lambda$ = 0.2; "
-                 "H = 0.8, 6 depths 0.3-2 rms", fontsize=10)
+    _panels_done(fig, axes, "$F_{\\rm fric}$ coupled / decoupled", 4,
+                 "squeeze history (mean over 20 samples, $\\pm$ bootstrap s.d.)",
+                 "coupled over decoupled friction force, break law, $\\lambda$ = 0.2; "
+                 "H = 0.8, 6 depths 0.3-2 rms")
     save(plt, fig, out / "histories.png")
+
+
+def _panels_done(fig, axes, ylabel: str, ncol: int, legend: str, title: str) -> None:
+    """A row of panels finished: the first panel's y label, one legend below them all (from
+    the first panel's lines, titled ``legend``) and the figure's title."""
+    first = np.atleast_1d(axes)[0]
+    first.set_ylabel(ylabel, fontsize=8)
+    handles, labels = first.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=ncol, fontsize=8,
+               frameon=False, title=legend, title_fontsize=8)
+    fig.suptitle(title, fontsize=10)
 
 
 def histories_weakening(out: Path) -> None:
@@ -862,13 +870,10 @@ def traction_direction(out: Path) -> None:
         ax.set_title(f"$\\nu$ = {nu:g}", fontsize=9)
         ax.set_xlabel("drive angle from x (degrees)", fontsize=8)
         _style(ax)
-    np.atleast_1d(axes)[0].set_ylabel("$F_{\\rm fric}$ / x-only model along x", fontsize=8)
-    handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=1, fontsize=8, frameon=False,
-               title="traction vector, mean over 20 samples $\\pm$ bootstrap s.d.",
-               title_fontsize=8)
-    fig.suptitle("friction against the drive's angle, break law, $\\lambda$ = 0.2; "
-                 "N = 128, H = 0.8, 6 depths 0.3-2 rms", fontsize=10)
+    _panels_done(fig, axes, "$F_{\\rm fric}$ / x-only model along x", 1,
+                 "traction vector, mean over 20 samples $\\pm$ bootstrap s.d.",
+                 "friction against the drive's angle, break law, $\\lambda$ = 0.2; "
+                 "N = 128, H = 0.8, 6 depths 0.3-2 rms")
     save(plt, fig, out / "traction_direction.png")
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from roughslip.analysis.verify import hertz_scene
-from roughslip.contact.analytic import cattaneo_mindlin, mindlin_bonded_punch_stiffness
+from roughslip.contact.analytic import mindlin_bonded_punch_stiffness
 from roughslip.contact.squeeze import squeeze
 from roughslip.errors import InputError, MemoryLimitError
 from roughslip.friction.bonds import Bonds as _Bonds
@@ -21,6 +21,7 @@ from roughslip.friction.pull import (
 )
 from roughslip.linalg import memory
 from roughslip.surfaces.synthetic import punch, sample_rng, self_affine, sphere
+from tests.mindlin import assert_cattaneo_mindlin
 
 
 @pytest.fixture(scope="module")
@@ -252,15 +253,7 @@ def test_coulomb_matches_cattaneo_mindlin(a_over_h):
     P = normal.normal_force
     assert res.converged and res.friction_force == pytest.approx(lam * P, rel=1e-12)
     assert np.all(np.diff(res.curve.fx[1:]) >= -1e-12 * lam * P)  # Q(delta) never decreases
-    cm = cattaneo_mindlin(P, ac, lam, nu=nu)
-    for frac in (0.3, 0.7):
-        q = float(coulomb_force_at(res, frac * cm.delta_s))
-        q_exact = cm.force(frac * cm.delta_s)
-        assert abs(q - q_exact) / (lam * P) < 3e-3, "Cattaneo-Mindlin tangential force"
-        stick = int(np.count_nonzero(res.curve.dx[1:] > frac * cm.delta_s))
-        c_eq = math.sqrt(stick * h * h / math.pi)
-        c = cm.stick_radius(q_exact)
-        assert abs(c_eq - c) < 1.5 * h, "Cattaneo-Mindlin stick radius"
+    assert_cattaneo_mindlin(res, P, ac, h, lam, nu)
 
 
 def test_batch_is_approximate_and_says_so(rough_contact):

@@ -287,11 +287,8 @@ def test_coulomb_cattaneo_mindlin_in_any_direction(direction):
     every force along the drive), lambda = 0.3, at delta/delta_s = 0.3 and 0.7: the force
     along the drive and the stick radius to the x-only test's tolerances, the force vector
     along the drive, and at full sliding lambda P."""
-    import math
-
     from roughslip.analysis.verify import hertz_scene
-    from roughslip.contact.analytic import cattaneo_mindlin
-    from roughslip.friction.pull import coulomb_force_at
+    from tests.mindlin import assert_cattaneo_mindlin
 
     lam, R, d = 0.3, 1.0, 1 / 16
     heights, h, depth, ac = hertz_scene(8, R, d)
@@ -303,14 +300,7 @@ def test_coulomb_cattaneo_mindlin_in_any_direction(direction):
     np.testing.assert_allclose(res.friction_vector, lam * P * e, rtol=0, atol=1e-12 * lam * P)
     ft = np.hypot(res.peak.fx, res.peak.fy)
     np.testing.assert_allclose(ft, lam * normal.fz, rtol=1e-12, atol=1e-15)  # all slipping
-    cm = cattaneo_mindlin(P, ac, lam, nu=0.0)
-    for frac in (0.3, 0.7):
-        q = float(coulomb_force_at(res, frac * cm.delta_s))
-        q_exact = cm.force(frac * cm.delta_s)
-        assert abs(q - q_exact) / (lam * P) < 3e-3, "Cattaneo-Mindlin tangential force"
-        stick = int(np.count_nonzero(res.curve.dx[1:] > frac * cm.delta_s))
-        c_eq = math.sqrt(stick * h * h / math.pi)
-        assert abs(c_eq - cm.stick_radius(q_exact)) < 1.5 * h, "Cattaneo-Mindlin stick radius"
+    assert_cattaneo_mindlin(res, P, ac, h, lam, 0.0)
 
 
 def test_every_law_runs_the_vector_at_nu_zero():
