@@ -220,9 +220,7 @@ class Bonds:
     def bond_values(self, x: np.ndarray) -> np.ndarray:
         r"""Per bond, from values on its ``k`` consecutive unknowns: the Euclidean norm
         :math:`|\mathbf x_i|` (the absolute value with the x component alone)."""
-        if self.k == 1:
-            return np.abs(x)
-        return np.sqrt(np.square(x).reshape(-1, self.k).sum(axis=1))
+        return bond_norms(x, self.k)
 
     def along(self, x: np.ndarray) -> float:
         r""":math:`\hat{\mathbf e}\cdot\sum_i \mathbf x_i`, the sum of the values on the
@@ -318,6 +316,14 @@ class Bonds:
         return gather_pairs(T.astype(A.dtype, copy=False), lin, lin, off, A)
 
 
+def bond_norms(x: np.ndarray, k: int) -> np.ndarray:
+    """The Euclidean norm of each run of ``k`` consecutive entries (a bond's components; the
+    absolute value for ``k = 1``)."""
+    if k == 1:
+        return np.abs(x)
+    return np.sqrt(np.square(x).reshape(-1, k).sum(axis=1))
+
+
 def select(phi: np.ndarray, cap: np.ndarray, k: int = 1) -> tuple[int, float]:
     r"""Position of the next bond to break and the maximum ratio :math:`|\varphi|/(\lambda
     f_z)` (ties: :func:`~roughslip.friction.events.argext`). With ``k`` components per bond,
@@ -325,7 +331,7 @@ def select(phi: np.ndarray, cap: np.ndarray, k: int = 1) -> tuple[int, float]:
     :math:`|\boldsymbol\varphi_i|/(\lambda f_{z,i})` with the Euclidean norm, and the
     position is that of the bond's first entry."""
     if k > 1:
-        j, m = select(np.sqrt(np.square(phi).reshape(-1, k).sum(axis=1)), cap[::k])
+        j, m = select(bond_norms(phi, k), cap[::k])
         return j * k, m
     ratio = np.abs(phi) / cap
     m = float(ratio.max())

@@ -337,6 +337,15 @@ def turned(res: PullResult, components: str, direction: float) -> PullResult:
                            f"G_xx = G_yy); {res.message}")
 
 
+def _no_vector(law: SlipLaw, components: str) -> InputError:
+    """The refusal of a law that has no exact pull of the traction vector at nu > 0."""
+    return InputError(f"pull.components = {components!r}: slip_law = {law.name!r} has no "
+                      "exact pull of the traction vector at nu > 0 (its slip directions "
+                      "turn); use components = 'x', nu = 0 or slip_law "
+                      + ", ".join(repr(m) for m in LAWS.names()
+                                  if components in LAWS.get(m).components))
+
+
 def methods_for(slip_law: str | SlipLaw, components: str = "x") -> list[str]:
     """The pull methods that run ``slip_law`` in the tangential model ``components``
     (:meth:`PullMethod.runs`), and ``"auto"``, which chooses among them."""
@@ -370,11 +379,7 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
     cands = [m for m in cands if m.auto and m.exact and m.runs(law, components)]
     if not cands:
         if components != "x":
-            raise InputError(f"pull.components = {components!r}: slip_law = {law.name!r} "
-                             "has no exact pull of the traction vector at nu > 0 (its slip "
-                             "directions turn); use components = 'x', nu = 0 or slip_law "
-                             + ", ".join(repr(m) for m in LAWS.names()
-                                         if components in LAWS.get(m).components))
+            raise _no_vector(law, components)
         raise InputError(f"slip_law = {law.name!r} has no exact decoupled pull method; use "
                          "the coupled model (coupling.enabled = true, or couple())")
     dense = [m for m in cands if m.dense]
@@ -529,8 +534,8 @@ def pull(
                                       components=components))
             if asked.chooses else asked)
     if not impl.runs(law, components):
-        if components not in law.components:  # the law's refusal (choose_method's words)
-            choose_method(n * len(comps), slip_law=law, components=components)
+        if components not in law.components:
+            raise _no_vector(law, components)
         if components != "x" and impl.runs(law):
             raise InputError(f"pull.components = {components!r}: method {impl.name!r} runs "
                              f"the x-only model; use method "

@@ -356,9 +356,7 @@ class BreakSequence:
             phi, cap, pos = inv.tracked["phi"].x, rows.cap, inv.ids
             j, m = select(phi, cap, k)
             live = np.isfinite(cap)
-            # the pull force along the drive (a bond's rows: its components, in order)
-            phi_sum = (float(phi.sum()) if k == 1
-                       else float(phi.reshape(-1, k).sum(axis=0) @ b.drive))
+            phi_sum = b.along(phi)  # the pull force along the drive, per unit of it
             for o in st.observers:
                 o.record(phi_sum, m, pos[j] // k, lambda p=pos, f=phi, lv=live: (p[lv], f[lv]))
             cap_sum -= float(cap[j])

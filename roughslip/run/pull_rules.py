@@ -43,25 +43,22 @@ def check_pull(cfg: RunConfig, errors: Errors) -> None:
     if comps == "x" and "fy" in cfg.output.fields:
         errors.add("output.fields", cfg.output.fields, "'fy' needs pull.components = 'xy' "
                    "(the x-only model has no y force)")
-    if cfg.pull.enabled and not cfg.coupling.enabled and engine:
-        laws = methods_for(cfg.pull.slip_law, comps)
-        if all(METHODS.get(m).chooses for m in laws):
+    if cfg.pull.enabled and not cfg.coupling.enabled:
+        laws = methods_for(cfg.pull.slip_law, comps if engine else "x")
+        none = all(METHODS.get(m).chooses for m in laws)  # only the method that chooses
+        if none and engine:
             have = ", ".join(repr(n) for n in LAWS.names()
                              if comps in LAWS.get(n).components)
             errors.add("pull.components", comps, f"slip_law = {cfg.pull.slip_law!r} has no "
                        f"pull of the traction vector at nu > 0; needs slip_law {have}, "
                        "material.nu = 0 or components = 'x'")
-        elif cfg.pull.method not in laws:
-            errors.add("pull.method", cfg.pull.method, f"pull.components = {comps!r} needs "
-                       f"one of {', '.join(laws)}")
-    elif cfg.pull.enabled and not cfg.coupling.enabled:
-        laws = methods_for(cfg.pull.slip_law)
-        if all(METHODS.get(m).chooses for m in laws):  # only the method that chooses
+        elif none:
             errors.add("pull.slip_law", cfg.pull.slip_law,
                        "has no decoupled pull method; needs coupling.enabled = true")
-        if cfg.pull.method not in laws:
-            errors.add("pull.method", cfg.pull.method,
-                       f"slip_law = {cfg.pull.slip_law!r} needs one of {', '.join(laws)}")
+        if cfg.pull.method not in laws and not (none and engine):
+            what = f"pull.components = {comps!r}" if engine else \
+                f"slip_law = {cfg.pull.slip_law!r}"
+            errors.add("pull.method", cfg.pull.method, f"{what} needs one of {', '.join(laws)}")
     if cfg.pull.precision == "single" and (
             cfg.coupling.enabled or cfg.pull.method not in METHODS
             or not single_ok(law, cfg.pull.method)):
