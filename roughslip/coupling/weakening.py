@@ -89,6 +89,10 @@ ESCAPE = 1e-6
 #: the rate evaluations a burst's flow may take to its next event or rest before it is
 #: refused as stalled (a flow at the residual's rounding floor takes bounded steps for ever)
 FLOW_EVALS = 100_000
+#: the horizons of a burst's flow, in units of the stiffest bond's relaxation time: the next
+#: is tried when BDF overflows on the one before (its huge steps at rest). A shorter horizon
+#: ends the flow early, and the burst's loop goes on from there: the same path, more calls
+FLOW_SPANS = (1e12, 1e6, 1e3)
 #: a violation that comes back inside a burst at less than this fraction of its last size
 #: is an approach to a tie (a site tending to a contact with no force), not a cycle
 APPROACH = 0.1
@@ -1230,8 +1234,8 @@ class _Events:
                 events.append(fn)
         self._pushed = False
         # BDF's difference table can overflow on the huge steps it takes at rest: then the
-        # same flow again over a bounded horizon (the burst's loop goes on from its end)
-        for span in (1e12, 1e6):
+        # same flow again over shorter horizons (the burst's loop goes on from its end)
+        for span in FLOW_SPANS:
             try:
                 with np.errstate(over="raise", invalid="raise"):
                     sol = solve_ivp(rate, (0.0, span), self.s, method="BDF", jac=jac,
