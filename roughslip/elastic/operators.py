@@ -443,6 +443,31 @@ class ElasticOperator:
         ux = self._unload(w, out_x)
         return uz, ux
 
+    def apply_tangential(self, fx: np.ndarray, fy: np.ndarray, out_x: np.ndarray,
+                         out_y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r"""The tangential block: :math:`u_x = G_{xx}f_x + G_{xy}f_y`,
+        :math:`u_y = G_{yx}f_x + G_{yy}f_y` (:math:`G_{yx} = G_{xy}`), the sums taken in
+        Fourier space: two forward and two backward FFTs."""
+        self._check_field(fx, "fx")
+        self._check_field(fy, "fy")
+        kxx, sxx = self._khat_signed("xx")
+        kxy, sxy = self._khat_signed("xy")
+        kyy, syy = self._khat_signed("yy")
+        if self._work is None:
+            self._work = (self.fft.spectrum_buffer(), self.fft.spectrum_buffer())
+        sx, sy = self._spec
+        w, w2 = self._work
+        self._load(fx, sx)
+        self._load(fy, sy)
+        np.multiply(sx, kxx if sxx > 0 else -kxx, out=w)  # u_x
+        np.multiply(sy, kxy if sxy > 0 else -kxy, out=w2)
+        np.add(w, w2, out=w)
+        np.multiply(sx, kxy if sxy > 0 else -kxy, out=sx)  # u_y
+        np.multiply(sy, kyy if syy > 0 else -kyy, out=sy)
+        np.add(sx, sy, out=sx)
+        self.applications += 2
+        return self._unload(w, out_x), self._unload(sx, out_y)
+
     def apply_stacked(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
         """:meth:`apply_block` on stacked fields ``v = [f_z, f_x]`` of shape ``(2, ny, nx)``."""
         self.apply_block(v[0], v[1], out[0], out[1])

@@ -167,6 +167,9 @@ class Bonds:
         ``(2, ny, nx)`` and :math:`u_a = \sum_b G_{ab} f_b`."""
         if self.k == 1:
             return self.op.apply("xx", v, out=out)
+        if self.components == ("x", "y"):  # two forward and two backward FFTs
+            self.op.apply_tangential(v[0], v[1], out[0], out[1])
+            return out
         if self._tmp is None:
             self._tmp = np.empty(self.shape)
         tmp = self._tmp
