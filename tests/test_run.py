@@ -445,7 +445,8 @@ def test_runs_started_before_keys_were_renamed_or_added_resume(tmp_path):
     old.pop("execution", None)
     old["pull"] = {("error_bound" if k == "error_estimate" else k): v
                    for k, v in old["pull"].items()
-                   if k not in ("early_stop", "precision", "components", "direction")}
+                   if k not in ("early_stop", "precision", "components", "direction",
+                                "facets")}
     old["pull"]["coulomb_steps"] = 32  # a key of that version, retired since
     old["coupling"].pop("pull_control")  # keys added later
     old["coupling"].pop("gained")

@@ -212,8 +212,10 @@ def test_auto_chooses_a_method_that_runs_the_vector():
     (dict(direction=30.0), r"pull.direction = 30.0: the x-only model"),
     (dict(components="xy", direction=float("nan")),
      r"pull.direction = nan: must be a finite angle"),
-    (dict(components="xy", slip_law="coulomb"), r"pull.components = 'xy': slip_law = "
-                                                 r"'coulomb' has no exact pull"),
+    (dict(components="xy", slip_law="slip-weakening", lam_dynamic=0.1, slip_distance=0.05),
+     r"pull.components = 'xy': slip_law = 'slip-weakening' has no exact pull"),
+    (dict(components="xy", slip_law="coulomb", method="hierarchical"),
+     r"slip_law = 'coulomb' supports methods .*, not 'hierarchical'"),
     (dict(components="xy", method="cg"), r"pull.components = 'xy': method 'cg' runs the "
                                          r"x-only model; use method 'auto', 'inverse', "
                                          r"'hierarchical'"),
@@ -241,8 +243,14 @@ def _config(tmp_path, sets):
     (["pull.direction=30"], r"pull\.direction = 30\.0: the x-only model"),
     (["pull.components='xy'", "coupling.enabled=true"],
      r"pull\.components = \"xy\": the coupled model carries f_x alone"),
-    (["pull.components='xy'", "pull.slip_law='coulomb'"],
-     r"pull\.components = \"xy\": slip_law = 'coulomb' has no pull of the traction vector"),
+    (["pull.components='xy'", "pull.slip_law='slip-weakening'", "pull.lam_dynamic=0.1",
+      "pull.slip_distance=0.05"],
+     r"pull\.components = \"xy\": slip_law = 'slip-weakening' has no pull of the traction "
+     r"vector"),
+    (["pull.components='xy'", "pull.slip_law='coulomb'", "pull.method='hierarchical'"],
+     r"pull\.method = \"hierarchical\": pull\.components = 'xy' needs one of auto, "
+     r"inverse"),
+    (["pull.facets=3"], r"pull\.facets = 3: must be an integer from 4 to 4096"),
     (["pull.components='xy'", "pull.method='cg'"],
      r"pull\.method = \"cg\": pull\.components = 'xy' needs one of auto, inverse, "
      r"hierarchical"),
@@ -398,9 +406,11 @@ def test_the_api_refuses_what_the_vector_model_has_not_at_nu_above_zero():
     with pytest.raises(InputError, match=r"pull.error_estimate: .* none for pull.components = "
                                          r"'xy' at nu > 0"):
         pull(normal, components="xy", estimate_error=True)
-    with pytest.raises(InputError, match=r"pull.components = 'xy': slip_law = 'coulomb' has "
-                                         r"no exact pull of the traction vector at nu > 0"):
-        pull(normal, components="xy", slip_law="coulomb", method="inverse")
+    with pytest.raises(InputError, match=r"pull.components = 'xy': slip_law = "
+                                         r"'slip-weakening' has no exact pull of the traction "
+                                         r"vector at nu > 0"):
+        pull(normal, components="xy", slip_law="slip-weakening", method="inverse",
+             lam_dynamic=0.1, slip_distance=0.05)
 
 
 def test_the_stored_ux_holds_the_drive_on_the_stick_sites(tmp_path):

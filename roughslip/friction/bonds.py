@@ -92,6 +92,9 @@ class PullOptions:
     method: object = None
     #: the precision of the stored inverse (``"double"`` or ``"single"``)
     precision: str = "double"
+    #: the facets of the polygon inscribed in the Coulomb cone (the traction vector at
+    #: :math:`\nu > 0`, :mod:`roughslip.friction.cone`)
+    facets: int = 64
 
     def __post_init__(self) -> None:
         if self.law is not None:

@@ -44,6 +44,9 @@ class EventKind(enum.StrEnum):
     BREAK = "break"
     #: a slipping bond sticks again where it is (the reversal rule)
     STICK = "stick"
+    #: a slipping bond's force reaches a corner of the faceted Coulomb cone, or leaves one
+    #: along a facet (:mod:`roughslip.friction.cone`)
+    TURN = "turn"
     #: a contact's normal force reaches zero, a gap closes (coupled model)
     LOST = "lost"
     GAINED = "gained"

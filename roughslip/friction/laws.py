@@ -241,7 +241,7 @@ LAWS.register("break", "a failed bond carries no force (the report's law)")(Brea
     components=("x", "xy")))
 LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(
     "coulomb", failed="slipping", curve="slip events", reverses=True, slides=True,
-    engine=slide, needs=frozenset({"tracked"})))
+    engine=slide, needs=frozenset({"tracked"}), components=("x", "xy")))
 LAWS.register("slip-weakening", "a failed bond slips, its strength falling from lam f_z to "
               "lam_dynamic f_z over the slip slip_distance")(SlipWeakeningLaw(
     "slip-weakening", failed="slipping", curve="slip events", reverses=True, couples=True,

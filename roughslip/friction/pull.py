@@ -54,6 +54,7 @@ from roughslip.errors import InputError
 from roughslip.friction import result as _result
 from roughslip.friction.bonds import TANGENTIAL_MODELS, Bonds, BreakCurve, PullOptions
 from roughslip.friction.breaking import break_batch, break_cg, break_literal
+from roughslip.friction.cone import FACETS, MAX_FACETS, MIN_FACETS
 from roughslip.friction.events import TIE, plane_direction
 from roughslip.friction.laws import LAWS, SlipLaw
 from roughslip.friction.pull_estimates import (  # noqa: F401  (public here too)
@@ -423,6 +424,7 @@ def pull(
     precision: str = "auto",
     components: str = "x",
     direction: float = 0.0,
+    facets: int = FACETS,
 ) -> PullResult:
     r"""Pull a squeezed contact sideways until it slides (docs/theory/pull.rst#break-law).
 
@@ -484,12 +486,18 @@ def pull(
         directions, coupled through :math:`G_{xy}` (docs/theory/pull.rst#traction-vector):
         at :math:`\nu = 0` every law and method, the x-only model turned (:func:`turned`);
         at :math:`\nu > 0` the break law, :math:`|\mathbf f_t| > \lambda f_z`, on the
-        dense and the compressed inverse in either precision.
+        dense and the compressed inverse in either precision, and the Coulomb law's cone on
+        the dense inverse (``facets``).
     direction : float
         The drive's angle in the surface plane, degrees from x toward y; only 0 in the
         ``"x"`` model. The curve is the pull force along the drive
         (``friction_force``), and :attr:`~roughslip.friction.result.PullResult.friction_vector`
         the force vector of the peak.
+    facets : int
+        The Coulomb law with ``components = "xy"`` at :math:`\nu > 0`: the facets of the
+        regular polygon inscribed in the cone :math:`|\mathbf f_t| \le \lambda f_z`, one
+        vertex on the drive (docs/theory/pull.rst#coulomb-cone; at least 4). Its strength is
+        the cone's within :math:`1 - \cos(\pi/\mathrm{facets})` in every direction.
 
     Returns
     -------
@@ -511,6 +519,10 @@ def pull(
     if threads < 1:
         raise InputError(f"threads = {threads!r}: must be >= 1")
     comps, direction = check_direction(components, direction)
+    if isinstance(facets, bool) or not isinstance(facets, int | np.integer) or not (
+            MIN_FACETS <= facets <= MAX_FACETS):
+        raise InputError(f"pull.facets = {facets!r}: must be an integer from {MIN_FACETS} "
+                         f"to {MAX_FACETS}")
     if len(comps) > 1 and normal.problem.material.nu != 0 and estimate_error:
         raise InputError(f"pull.error_estimate: the error estimate is the x-only model's; it "
                          f"has none for pull.components = {components!r} at nu > 0")
@@ -523,7 +535,7 @@ def pull(
                            precision=precision), components, direction)
     opt = PullOptions(tol=float(tol), early_stop=bool(early_stop), batch_size=int(batch_size),
                       block=int(block), max_iter=int(max_iter), threads=threads, law=law,
-                      method=asked)
+                      method=asked, facets=int(facets))
     n = Bonds.count(normal)
     if n == 0:
         return BreakCurve(Bonds(normal, float(lam), components=comps, direction=direction),

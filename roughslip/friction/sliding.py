@@ -54,6 +54,7 @@ from roughslip.friction.bonds import (
     stick_residual,
     track,
 )
+from roughslip.friction.cone import cone_slide
 from roughslip.friction.events import (
     TANGENTIAL,
     TIE,
@@ -378,5 +379,9 @@ class BreakSequence:
 
 def slide(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     r"""The decoupled pull under ``opt.slip_law`` to full sliding, by the event loop: the exact
-    piecewise-linear :math:`F_x(D_x)` (module docstring; :meth:`TangentialState.result`)."""
+    piecewise-linear :math:`F_x(D_x)` (module docstring; :meth:`TangentialState.result`).
+    With both tangential components, the Coulomb law's faceted cone
+    (:func:`~roughslip.friction.cone.cone_slide`)."""
+    if b.k > 1:
+        return cone_slide(b, opt, t0, opt.facets)
     return TangentialState(b, opt).run(FollowEvents(), t0)

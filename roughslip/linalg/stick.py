@@ -52,6 +52,8 @@ class StickSolver(Protocol):
     row: np.ndarray
     #: rows in use (removed ones included)
     m: int
+    #: counts every change of the rows (their unknowns or which are live)
+    version: int
     #: pending updates, and how many are kept before they are folded
     k: int
     block: int

@@ -21,6 +21,7 @@ from roughslip.contact.squeeze import METHODS as SQUEEZE_METHODS
 from roughslip.coupling.histories import HISTORIES
 from roughslip.elastic.boundaries import BOUNDARIES
 from roughslip.friction.bonds import TANGENTIAL_MODELS
+from roughslip.friction.cone import FACETS, MAX_FACETS, MIN_FACETS
 from roughslip.friction.laws import LAWS
 from roughslip.friction.pull import METHODS as PULL_METHODS
 from roughslip.friction.pull import PRECISIONS as PULL_PRECISIONS
@@ -45,6 +46,12 @@ from roughslip.surfaces.topography import LENGTH_UNITS
 
 def _finite(v: float) -> str | None:
     return None if math.isfinite(v) else "must be finite"
+
+
+def _facets(v: int) -> str | None:
+    if MIN_FACETS <= v <= MAX_FACETS:
+        return None
+    return f"must be an integer from {MIN_FACETS} to {MAX_FACETS}"
 
 
 def _finite_positive(v: float) -> str | None:
@@ -239,11 +246,17 @@ class PullConfig:
                              "alone and u_y is free) or xy (each bond carries the traction "
                              "vector (f_x, f_y) and sticks in both directions, pulled at "
                              "pull.direction; decoupled: every law at nu = 0, the break law on "
-                             "methods inverse and hierarchical at nu > 0)",
+                             "methods inverse and hierarchical and the Coulomb cone on method "
+                             "inverse at nu > 0)",
                              choices=tuple(TANGENTIAL_MODELS))
     direction: float = option(0.0, "the drive's angle in the surface plane, degrees from x "
                               "toward y; 0 with components = 'x', which pulls along x alone",
                               ruled("a finite angle in degrees", _finite))
+    facets: int = option(FACETS, "slip_law = 'coulomb' with components = 'xy' at nu > 0: the "
+                         "facets of the polygon inscribed in the cone |f_t| <= lam f_z, a "
+                         "vertex on the drive; its strength is the cone's within "
+                         "1 - cos(pi/facets) in every direction",
+                         ruled(f"an integer from {MIN_FACETS} to {MAX_FACETS}", _facets))
 
 
 @dataclass(frozen=True)

@@ -116,7 +116,7 @@ class _DecoupledSample:
                      batch_size=pl.batch_size, estimate_error=pl.error_estimate,
                      early_stop=pl.early_stop, lam_dynamic=pl.lam_dynamic,
                      slip_distance=pl.slip_distance, precision=pl.precision,
-                     components=pl.components, direction=pl.direction)
+                     components=pl.components, direction=pl.direction, facets=pl.facets)
         except NumericalError as exc:
             raise NumericalError(f"{where}: pull: {exc}") from None
         if cfg.execution.strict and not s.converged:
