@@ -25,7 +25,7 @@ def _rough(n: int, seed: int) -> np.ndarray:
 
 def _states(monkeypatch, normal, **kw):
     """The pull and every state of its path: the bond forces and the tangential displacements
-    just before each event and at the end (recorded from the engine, checked by the test)."""
+    just before each event (recorded from the engine, checked by the test)."""
     states = []
     apply = cone_module.ConeState.apply
 
@@ -69,7 +69,7 @@ def _certify_path(normal, res, states, nu, lam, facets, direction):
     cone = Cone(facets, direction)
     e = np.array(plane_direction(direction))
     scale = float(cap.max())
-    prev = None
+    prev = (0.0, np.zeros((cap.size, 2)), np.zeros((cap.size, 2)))  # the start: at rest
     for D, F, U in states:
         u = (G @ F.ravel()).reshape(-1, 2)
         np.testing.assert_allclose(u, U, rtol=0, atol=1e-10 * float(np.abs(u).max()))
@@ -111,6 +111,7 @@ def test_a_hertz_contact_is_certified_along_its_path(monkeypatch):
     heights, h, depth, _ = hertz_scene(6, 1.0, 1 / 16)
     normal = squeeze(heights, depth=depth, a=h, nu=0.4, tol=1e-12)
     res, states = _states(monkeypatch, normal, lam=0.3, direction=30.0, facets=32)
+    assert res.converged and res.residual < 1e-10
     _certify_path(normal, res, states, 0.4, 0.3, 32, 30.0)
 
 
@@ -154,7 +155,8 @@ def test_at_nu_zero_the_cone_is_the_x_model(monkeypatch):
 def test_the_curve_converges_with_the_facets():
     """The inscribed polygon's strength is the disc's within 1 - cos(pi/m): against 256
     facets, the pull force along the curve is within that bound (times lambda P) for 32 to
-    128 facets, and from 64 facets on it converges at about the bound's order 2."""
+    128 facets, and from 64 to 256 facets it converges at an order above 1 (1.85 here; the
+    bound's order 2 is not reached at these m on every scene)."""
     normal = squeeze(_rough(32, 5), depth=2.5, nu=0.45, tol=1e-13)
     P = normal.normal_force
     curves = {m: pull(normal, lam=0.2, slip_law="coulomb", components="xy", direction=20.0,
@@ -165,7 +167,7 @@ def test_the_curve_converges_with_the_facets():
     for m, e in err.items():
         assert e < 1 - math.cos(math.pi / m)
     step = [float(np.abs(q[m] - q[2 * m]).max()) for m in (64, 128)]
-    assert 1.3 < math.log2(step[0] / step[1]) < 3.0
+    assert 1.0 < math.log2(step[0] / step[1]) < 3.0
 
 
 def test_transposed_surface_and_reversed_drive():
@@ -262,3 +264,55 @@ def test_the_path_is_the_loading_history_of_the_round_cone():
     once = _incremental_round_cone(normal, 0.3, 0.5, D, 1)
     assert float(np.linalg.norm(path - F)) / norm < 2.5e-3
     assert float(np.linalg.norm(once - F)) / norm > 4e-3
+
+
+def test_a_vertex_bond_whose_slip_turns_back_solves_its_own_problem():
+    """A bond at a vertex whose slip rate points along neither facet goes to the one state of
+    its 2-by-2 problem (the others held): against the bond's compliance from the dense
+    kernels, for slip rates all around the back of the vertex, exactly one of sticking and the
+    two facets is consistent, and it is the one chosen."""
+    from roughslip.friction.bonds import Bonds, PullOptions
+    from roughslip.friction.cone import FACET, STICK, VERTEX, ConeState
+
+    nu = 0.45
+    normal = squeeze(_rough(24, 2), depth=2.2, nu=nu, tol=1e-13)
+    st = ConeState(Bonds(normal, 0.2, components=("x", "y"), direction=71.0),
+                   PullOptions(slip_law="coulomb"), 16)
+    while not (st.mode == VERTEX).sum() >= 3:  # a state with bonds at vertices
+        st.solve()
+        inc, i, mode, face = st.next_event()
+        st.D += inc
+        st.apply(i, mode, face)
+    st.solve()
+    G = _dense(normal, nu)
+    # the constrained unknowns of the state: stick bonds' x, y; facet bonds' tangents
+    cone = st.cone
+    rows = []
+    for b_, (m_, k_) in enumerate(zip(st.mode, st.face, strict=True)):
+        if m_ == STICK:
+            rows += [np.eye(2 * st.b.n)[2 * b_], np.eye(2 * st.b.n)[2 * b_ + 1]]
+        elif m_ == FACET:
+            r = np.zeros(2 * st.b.n)
+            r[2 * b_: 2 * b_ + 2] = cone.tangents[k_]
+            rows.append(r)
+    R = np.array(rows)
+    checked = 0
+    for i in np.flatnonzero(st.mode == VERTEX)[:3]:
+        j = int(st.face[i])
+        Gi = G[2 * i: 2 * i + 2]
+        C = Gi[:, 2 * i: 2 * i + 2] - (Gi @ R.T) @ np.linalg.solve(R @ G @ R.T, R @ Gi.T)
+        for angle in np.linspace(0, 2 * np.pi, 24, endpoint=False):
+            rate = np.array([math.cos(angle), math.sin(angle)])
+            ab = cone.cone_inverse[j] @ rate
+            if not (ab < -1e-6).all():
+                continue
+            fdot = np.linalg.solve(C, rate)
+            ok = {(STICK, 0): bool((cone.normals[[j - 1, j]] @ fdot <= 1e-9).all())}
+            for k, away in ((j, 1.0), ((j - 1) % cone.m, -1.0)):
+                tau, sig = np.linalg.solve(np.column_stack([C @ cone.tangents[k],
+                                                            cone.normals[k]]), rate)
+                ok[(FACET, k)] = bool(away * tau >= -1e-9 and sig >= -1e-9)
+            assert sum(ok.values()) == 1, ok
+            assert ok[st._leave_vertex(int(i), j, rate)]
+            checked += 1
+    assert checked >= 6

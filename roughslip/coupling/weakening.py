@@ -1236,6 +1236,7 @@ class _Events:
         # BDF's difference table can overflow on the huge steps it takes at rest: then the
         # same flow again over shorter horizons (the burst's loop goes on from its end)
         for span in FLOW_SPANS:
+            evals = 0  # each horizon gets its own budget of evaluations
             try:
                 with np.errstate(over="raise", invalid="raise"):
                     sol = solve_ivp(rate, (0.0, span), self.s, method="BDF", jac=jac,

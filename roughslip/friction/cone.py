@@ -26,7 +26,8 @@ whose rate leaves the cone changes at the drive where the last event left it: a 
 facet whose slip rate turns back sticks again; at a vertex, a negative :math:`a` (or
 :math:`b`) moves it onto facet :math:`k` (or :math:`k - 1`), both negative make it stick.
 
-:math:`\mathbf o_i` is the slip up to the bond's last change of state. The unknowns are the
+:math:`\mathbf o_i = \mathbf u_i - D\hat{\mathbf e}` at the bond's last change of state
+(the slip accumulated up to it, negated). The unknowns are the
 components of the sticking bonds and the :math:`\tau_i` of the bonds on facets; their matrix is
 :math:`G_{tt}` on them, projected on each unknown's direction, and its inverse is updated as
 bonds change state (:class:`~roughslip.linalg.inverse.UpdatableInverse`: a removal, or a
@@ -117,7 +118,9 @@ class ConeState:
         # a displacement scale: a bond's self-compliance times the largest strength
         g0 = float(b.entries(np.array([0]), np.array([0]))[0, 0])
         self.dscale = g0 * float(self.cap.max())
-        need = 2 * 8 * (2 * n + 64) ** 2 + 8 * 512 * 2 * n
+        # the inverse on at most 2n unknowns (a bond leaves before it joins again: compacted
+        # in place), its pending columns, and the row of every unknown the ids can name
+        need = 8 * (2 * n) ** 2 + 8 * opt.block * 2 * n + 8 * n * (2 + facets) + 8 * 64 * n
 
         def room(m: int) -> bool:
             if need > available_bytes():
@@ -125,7 +128,7 @@ class ConeState:
                     f"the Coulomb cone's inverse of G_tt on {n} bonds (dense, double "
                     f"precision) needs ~{need / 2**30:.2f} GiB but "
                     f"{available_bytes() / 2**30:.2f} GiB are available; use "
-                    "pull.components = 'x' (a quarter of the memory)")
+                    "pull.components = 'x' (an eighth of the memory)")
             return True
 
         self.size = 2 * n + n * self.cone.m
@@ -313,14 +316,47 @@ class ConeState:
             j = self.face[v]
             ab = np.einsum("pij,pj->pi", cone.cone_inverse[j], Sa[v])  # a n_{j-1} + b n_j
             neg = ab < -RATE_TIE
-            take(v, np.where(neg.all(axis=1), 0.0, np.inf), STICK, 0)
-            take(v, np.where(neg[:, 0], 0.0, np.inf), FACET, j)  # along n_j alone
-            take(v, np.where(neg[:, 1], 0.0, np.inf), FACET, (j - 1) % cone.m)
+            both = neg.all(axis=1)
+            take(v, np.where(neg[:, 0] & ~both, 0.0, np.inf), FACET, j)  # along n_j alone
+            take(v, np.where(neg[:, 1] & ~both, 0.0, np.inf), FACET, (j - 1) % cone.m)
+            for p in np.flatnonzero(both):  # the slip turns back: the bond's own problem
+                mode, face = self._leave_vertex(int(v[p]), int(j[p]), Sa[v[p]])
+                take(v[p:p + 1], np.zeros(1), mode, face)
         if not np.isfinite(best).any():
             return math.inf, -1, -1, -1
         low = float(best.min())
         i = int(np.flatnonzero(best <= low + TIE * max(low, 1e-300) + 0.0)[0])
         return low, i, int(to[i]), int(where[i])
+
+    def _leave_vertex(self, i: int, j: int, rate: np.ndarray) -> tuple[int, int]:
+        r"""Where bond ``i`` at vertex ``j`` goes when its slip rate ``rate`` points along
+        neither facet: the one state of its own 2-by-2 problem, the others held as they are.
+        With :math:`C` the bond's compliance given the others (the Schur complement of
+        :math:`G_{tt}` on the live unknowns), sticking makes the force rate
+        :math:`\dot{\mathbf f} = C^{-1}\dot{\mathbf s}`, which must not leave through either
+        facet; on facet :math:`k` the force moves along :math:`\mathbf t_k` at
+        :math:`\dot\tau` and slips along :math:`\mathbf n_k` at :math:`\dot\sigma \ge 0`,
+        :math:`\dot{\mathbf s} - C\mathbf t_k\dot\tau = \dot\sigma\mathbf n_k`, with
+        :math:`\dot\tau` away from the vertex. :math:`C` is positive definite, so one of the
+        three holds."""
+        inv, cone = self.inv, self.cone
+        live, _, _ = self._rows()
+        xy = np.array([2 * i, 2 * i + 1])
+        B = np.zeros((inv.m, 2))
+        B[live] = self._entries(inv.ids[live], xy, "C")
+        HB = inv.apply(B)
+        HB[~inv.live] = 0.0
+        C = self._entries(xy, xy, "C") - B.T @ HB
+        tie = RATE_TIE * max(float(np.abs(rate).max()), np.finfo(float).tiny)
+        fdot = np.linalg.solve(C, rate)
+        if (cone.normals[[j - 1, j]] @ fdot <= tie / float(np.abs(C).max())).all():
+            return STICK, 0
+        for k, away in ((j % cone.m, 1.0), ((j - 1) % cone.m, -1.0)):
+            tau, sig = np.linalg.solve(np.column_stack([C @ cone.tangents[k], cone.normals[k]]),
+                                       rate)
+            if away * tau >= -tie and sig >= -tie:
+                return FACET, k
+        return STICK, 0
 
     def apply(self, i: int, mode: int, face: int) -> None:
         """Bond ``i`` changes to ``mode`` on ``face`` at the current drive: its unknowns leave
@@ -390,7 +426,7 @@ def cone_slide(b: Bonds, opt: PullOptions, t0: float, facets: int = FACETS) -> P
             message = f"stopped after {limit} events without reaching full sliding"
             break
         D = st.D + inc
-        if inc == 0.0:
+        if inc <= TIE * max(abs(st.D), st.dscale):  # at one drive, to the tie
             sig = st.signature()
             seen[sig] = seen.get(sig, 0) + 1
             if seen[sig] > VISITS:

@@ -71,8 +71,8 @@ COLUMNS: tuple[Column, ...] = (
     Column("pull_seconds", "pull", "pull wall-clock time (a measurement, differs between "
            "runs; coupled model: the rest of its solve)", dimension="seconds"),
     Column("pull_converged", "pull", "1 when every pull solve met its tolerance", "flag"),
-    Column("pull_steps", "pull", "bonds broken (or sites slipped, or coupled events) until "
-           "the pull stopped", "count"),
+    Column("pull_steps", "pull", "bonds broken (or sites slipped, the Coulomb cone's events, "
+           "or coupled events) until the pull stopped", "count"),
     Column("pull_error_estimate", "pull", "with pull.error_estimate: estimate of the relative "
            "error of friction_force, the pull's own part (one refinement step on the peak "
            "state; 0 under the Coulomb law) plus the part of the squeeze's error in f_z "
