@@ -50,16 +50,7 @@ def roughslip_state(a_over_h: int, facets: int) -> dict:
     Q = FRACTION * MU * normal.normal_force
     b = Bonds(normal, MU, components=("x", "y"))
     st = ConeState(b, PullOptions(slip_law="coulomb"), facets)
-    while True:
-        st.solve()
-        inc, i, mode, face = st.next_event()
-        F0, rate = float(st.force(st.D)[:, 0].sum()), float(st.Fa[:, 0].sum())
-        if i < 0 or F0 + rate * inc >= Q:
-            D = st.D + (Q - F0) / rate
-            break
-        st.D += inc
-        st.apply(i, mode, face)
-    F = st.force(D)
+    F = st.force(st.run_to(Q))
     return {"qx": b.field(F[:, 0]) / h**2, "qy": b.field(F[:, 1]) / h**2,
             "p": normal.fz / h**2, "stick": b.mask(np.flatnonzero(st.mode == STICK)),
             "h": h, "shape": heights.shape}

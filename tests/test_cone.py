@@ -204,15 +204,15 @@ def _state_at_force(normal, lam: float, facets: int, Q: float):
 
     st = ConeState(Bonds(normal, lam, components=("x", "y")), PullOptions(slip_law="coulomb"),
                    facets)
-    while True:
-        st.solve()
-        inc, i, mode, face = st.next_event()
-        F0, rate = float(st.force(st.D)[:, 0].sum()), float(st.Fa[:, 0].sum())
-        if i < 0 or F0 + rate * inc >= Q:
-            D = st.D + (Q - F0) / rate
-            return D, st.force(D)
-        st.D += inc
-        st.apply(i, mode, face)
+    D = st.run_to(Q)
+    F = st.force(D)
+    # the load is met, and the state holds there: every force in its polygon
+    assert float(F[:, 0].sum()) == pytest.approx(Q, rel=1e-12)
+    assert ((F @ st.cone.normals.T).max(axis=1) <= st.cone.rho * st.cap * (1 + 1e-10)).all()
+    with pytest.raises(InputError, match="not below the force at full sliding"):
+        ConeState(Bonds(normal, lam, components=("x", "y")), PullOptions(slip_law="coulomb"),
+                  facets).run_to(1.01 * lam * normal.normal_force)
+    return D, F
 
 
 def _incremental_round_cone(normal, lam: float, nu: float, D: float, steps: int):

@@ -50,7 +50,7 @@ import math
 
 import numpy as np
 
-from roughslip.errors import MemoryLimitError, NumericalError
+from roughslip.errors import InputError, MemoryLimitError, NumericalError
 from roughslip.friction.bonds import Bonds, PullOptions, decoupled_result
 from roughslip.friction.events import RATE_TIE, TIE, Curve, EventKind, plane_direction
 from roughslip.friction.result import PullResult
@@ -399,6 +399,27 @@ class ConeState:
         if not ok:
             raise NumericalError("Coulomb cone: a bordered Schur complement is not positive "
                                  "definite")
+
+    def run_to(self, force: float) -> float:
+        """Follow the events until the pull force along the drive reaches ``force`` (the
+        partial-slip state under a tangential load), and stop there: the state is affine in
+        the drive inside its last interval. Returns that drive (``D``); the bond forces
+        are :meth:`force` at it and the stick bonds those in :data:`STICK`. Raises
+        :class:`~roughslip.errors.InputError` when the load is not below the force at full
+        sliding."""
+        while True:
+            self.solve()
+            inc, i, mode, face = self.next_event()
+            F0 = float(self.force(self.D).sum(axis=0) @ self.e)
+            rate = float(self.Fa.sum(axis=0) @ self.e)
+            if i < 0 and F0 < force:  # full sliding: no event ahead
+                raise InputError(f"a tangential load of {force!r} is not below the force at "
+                                 f"full sliding, {F0!r}")
+            if i < 0 or F0 + rate * inc >= force:
+                self.D += (force - F0) / rate if force > F0 else 0.0
+                return self.D
+            self.D += inc
+            self.apply(i, mode, face)
 
     def signature(self) -> bytes:
         return self.mode.tobytes() + self.face.tobytes()
