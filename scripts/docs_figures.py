@@ -34,6 +34,9 @@ writes into ``OUT_DIR``:
 * ``coupled_events.png``: the coupled theory page's event path and stick/slip maps, from two
   coupled pulls of one 24 x 24 rough surface (H = 0.8, seed 7, depth 1.6 rms, lambda = 0.2,
   nu = 0.25 and 0.45, the ``bonded`` history) computed here (about a second).
+* ``coulomb_cone.png``: the partial-slip state of a Hertz contact under the Coulomb cone with
+  the traction vector (nu = 0.5, Q = 0.5 lambda P, a/h = 12, 64 facets): its traction along
+  and across the drive, the stick zone and Mindlin's circle, computed here (about a second).
 * ``histories.png``, ``histories_weakening.png``, ``hertz_exponents.png``, ``rough_exponents.png``,
   ``coupled_finite_size.png``, ``indentation.png``, ``traction_direction.png``,
   ``weakening_rough.png``, ``burst_exponents.png``: the studies of ``docs/results.md`` (the
@@ -505,6 +508,61 @@ def coupled_events(out: Path, n: int = 24, seed: int = 7, depth: float = 1.6,
                     fontsize=9)
     save(plt, fig, out / "coupled_events.png")
     (out / "coupled_events.txt").write_text("\n".join(lines) + "\n")
+
+
+def coulomb_cone(out: Path, a_over_h: int = 12, nu: float = 0.5, lam: float = 0.3,
+                 fraction: float = 0.5, facets: int = 64) -> None:
+    """The results page's partial-slip state of the Coulomb cone: a Hertz contact (R = 1,
+    approach 1/16) pulled along x to Q = ``fraction`` lambda P with the traction vector
+    (:meth:`~roughslip.friction.cone.ConeState.run_to`), its traction along the drive and
+    across it, the stick zone and Mindlin's circle (computed here, about a second)."""
+    from roughslip.analysis.plotting import pyplot, save
+    from roughslip.analysis.verify import hertz_scene
+    from roughslip.contact.squeeze import squeeze
+    from roughslip.friction.bonds import Bonds, PullOptions
+    from roughslip.friction.cone import STICK, ConeState
+
+    heights, h, depth, _ = hertz_scene(a_over_h, 1.0, 1 / 16)
+    normal = squeeze(heights, depth=depth, a=h, nu=nu, tol=1e-13)
+    b = Bonds(normal, lam, components=("x", "y"))
+    st = ConeState(b, PullOptions(slip_law="coulomb"), facets)
+    F = st.force(st.run_to(fraction * lam * normal.normal_force))
+    scale = lam * float(normal.fz.max())
+    qx, qy = b.field(F[:, 0]) / scale, b.field(F[:, 1]) / scale
+    stick = b.mask(np.flatnonzero(st.mode == STICK))
+    contact = normal.fz > 0
+    ny, nx = heights.shape
+    ext = (-nx / 2 / a_over_h, nx / 2 / a_over_h, -ny / 2 / a_over_h, ny / 2 / a_over_h)
+    centres = (np.arange(nx) - nx / 2 + 0.5) / a_over_h
+    c = (1 - fraction) ** (1 / 3)
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(8.0, 3.7), layout="constrained")
+    for ax, q, title, cmap, lim in (
+            (axes[0], qx, "$q_x$, along the drive", "viridis", (0.0, float(qx.max()))),
+            (axes[1], qy, "$q_y$, across it (zero in the x-only model)", "RdBu_r",
+             (-float(np.abs(qy).max()), float(np.abs(qy).max())))):
+        shown = np.where(contact, q, np.nan)
+        im = ax.imshow(shown, origin="lower", extent=ext, cmap=cmap, vmin=lim[0], vmax=lim[1],
+                       interpolation="nearest")
+        ax.contour(centres, centres, stick.astype(float), levels=[0.5], colors="k",
+                   linewidths=1.0)
+        t = np.linspace(0, 2 * np.pi, 200)
+        for r, style in ((1.0, ":"), (c, "--")):
+            ax.plot(r * np.cos(t), r * np.sin(t), style, color="0.3", lw=0.9)
+        ax.set_xlim(-1.15, 1.15)
+        ax.set_ylim(-1.15, 1.15)
+        ax.set_aspect("equal")
+        ax.set_xlabel("$x / a$", fontsize=8)
+        ax.set_ylabel("$y / a$", fontsize=8)
+        ax.tick_params(labelsize=8)
+        ax.set_title(title, fontsize=9)
+        bar = fig.colorbar(im, ax=ax, shrink=0.85)
+        bar.ax.tick_params(labelsize=7)
+        bar.set_label("traction / ($\\lambda\\, p_{\\max}$)", fontsize=8)
+    fig.suptitle(f"Hertz contact at $Q = {fraction:g}\\,\\lambda P$, $\\nu$ = {nu:g}, "
+                 f"$a/h$ = {a_over_h}, {facets} facets: stick zone (solid), Mindlin's "
+                 "(dashed), contact (dotted)", fontsize=9)
+    save(plt, fig, out / "coulomb_cone.png")
 
 
 def _markdown_table(page: Path, header: str) -> list[list[str]]:
@@ -1135,6 +1193,7 @@ def main(argv: list[str] | None = None) -> None:
     hertz_resolution(args.out)
     weakening_resolution(args.out)
     coupled_events(args.out)
+    coulomb_cone(args.out)
     results_figures(args.out)
     benchmarks(args.out)
     python_tutorial(args.out)
