@@ -115,6 +115,9 @@ class ConeState:
         self.cap = b.cap
         self.D = 0.0
         self.worst, self.refinements = 0.0, 0
+        #: events so far, and the most a pull may take before it is stopped unconverged
+        self.events, self.limit = 0, 40 * n * (facets // 4 + 4) + 100
+        self._seen: dict[bytes, int] = {}
         # a displacement scale: a bond's self-compliance times the largest strength
         g0 = float(b.entries(np.array([0]), np.array([0]))[0, 0])
         self.dscale = g0 * float(self.cap.max())
@@ -181,11 +184,11 @@ class ConeState:
         u = b.apply(field, np.empty((2, *b.shape)))
         return u.reshape(2, -1)[:, b.sites].T
 
-    def _forces(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        """Bond forces (n, 2) of the values ``x`` on the live ``rows`` of the inverse."""
-        _, bond, d = self._rows()
+    def _forces(self, x: np.ndarray) -> np.ndarray:
+        """Bond forces (n, 2) of the values ``x`` on the rows of the inverse (its live rows)."""
+        live, bond, d = self._rows()
         F = np.zeros((self.b.n, 2))
-        np.add.at(F, bond, x[rows, None] * d)
+        np.add.at(F, bond, x[live, None] * d)
         return F
 
     def _rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -210,21 +213,20 @@ class ConeState:
         r1 = np.zeros(inv.m)
         r0 = np.zeros(inv.m)
         r1[live] = d @ self.e
+        held = np.einsum("pa,pa->p", d, self.ref[bond])  # d . o: what the state must hold
         r0[live] = np.einsum("pa,pa->p", d, self.ref[bond] - self.uk[bond])
         X = inv.apply(np.column_stack([r1, r0]))
         X[~inv.live] = 0.0
         scale1 = max(float(np.linalg.norm(r1)), np.finfo(float).tiny)
-        scale0 = (float(np.linalg.norm(np.einsum("pa,pa->p", d, self.ref[bond])))
-                  + scale1 * max(abs(self.D), self.dscale))
+        scale0 = float(np.linalg.norm(held)) + scale1 * max(abs(self.D), self.dscale)
         U = []
         for c, scale in enumerate((scale1, scale0)):
             x = X[:, c]
             for it in range(REFINEMENTS + 1):
-                F = self._forces(x, live) + (self.known if c else 0.0)
+                F = self._forces(x) + (self.known if c else 0.0)
                 u = self._grid(F)
                 r = np.zeros(inv.m)
-                want = r1[live] if c == 0 else np.einsum("pa,pa->p", d, self.ref[bond])
-                r[live] = want - np.einsum("pa,pa->p", d, u[bond])
+                r[live] = (r1[live] if c == 0 else held) - np.einsum("pa,pa->p", d, u[bond])
                 res = float(np.linalg.norm(r)) / scale
                 if res <= self.opt.tol or it == REFINEMENTS:
                     break
@@ -239,19 +241,13 @@ class ConeState:
                     f"{self.opt.tol:g} after {REFINEMENTS} refinements at D = {self.D!r}")
             X[:, c] = x
             U.append(u)
-        self.Fa = self._forces(X[:, 0], live)
-        self.Fb = self._forces(X[:, 1], live) + self.known
+        self.Fa = self._forces(X[:, 0])
+        self.Fb = self._forces(X[:, 1]) + self.known
         self.Ua, self.Ub = U
 
     def force(self, D: float) -> np.ndarray:
         """The bond forces (n, 2) at the drive ``D`` in the current state."""
         return D * self.Fa + self.Fb
-
-    def slip(self, D: float) -> np.ndarray:
-        r"""The slip of each bond since its last change, :math:`D\hat{\mathbf e} +
-        \mathbf o_i - \mathbf u_i` (the rigid surface's displacement relative to the
-        half-space's: along the force it carries), at the drive ``D``."""
-        return D * (self.e - self.Ua) + self.ref - self.Ub
 
     # -- events --------------------------------------------------------------------------------
     def next_event(self) -> tuple[float, int, int, int]:
@@ -325,7 +321,7 @@ class ConeState:
         if not np.isfinite(best).any():
             return math.inf, -1, -1, -1
         low = float(best.min())
-        i = int(np.flatnonzero(best <= low + TIE * max(low, 1e-300) + 0.0)[0])
+        i = int(np.flatnonzero(best <= low + TIE * max(low, 1e-300))[0])  # ties: lowest
         return low, i, int(to[i]), int(where[i])
 
     def _leave_vertex(self, i: int, j: int, rate: np.ndarray) -> tuple[int, int]:
@@ -400,6 +396,26 @@ class ConeState:
             raise NumericalError("Coulomb cone: a bordered Schur complement is not positive "
                                  "definite")
 
+    def step(self) -> tuple[float, int, int, int]:
+        """Solve the state and find its next event (:meth:`next_event`), counting it and
+        guarding against a cycle: a discrete state met more than :data:`VISITS` times at one
+        drive (to the tie) raises :class:`~roughslip.errors.NumericalError`."""
+        self.solve()
+        inc, i, mode, face = self.next_event()
+        if i < 0:
+            return inc, i, mode, face
+        self.events += 1
+        if inc <= TIE * max(abs(self.D), self.dscale):  # at one drive, to the tie
+            sig = self.signature()
+            self._seen[sig] = self._seen.get(sig, 0) + 1
+            if self._seen[sig] > VISITS:
+                raise NumericalError(
+                    f"Coulomb cone: the state at D = {self.D + inc!r} repeats (a cycle of "
+                    f"events at constant drive on bond {int(self.b.sites[i])})")
+        else:
+            self._seen.clear()
+        return inc, i, mode, face
+
     def run_to(self, force: float) -> float:
         """Follow the events until the pull force along the drive reaches ``force`` (the
         partial-slip state under a tangential load), and stop there: the state is affine in
@@ -408,8 +424,10 @@ class ConeState:
         :class:`~roughslip.errors.InputError` when the load is not below the force at full
         sliding."""
         while True:
-            self.solve()
-            inc, i, mode, face = self.next_event()
+            inc, i, mode, face = self.step()
+            if self.events > self.limit:
+                raise NumericalError(f"Coulomb cone: no load of {force!r} after {self.limit} "
+                                     "events")
             F0 = float(self.force(self.D).sum(axis=0) @ self.e)
             rate = float(self.Fa.sum(axis=0) @ self.e)
             if i < 0 and F0 < force:  # full sliding: no event ahead
@@ -431,32 +449,16 @@ def cone_slide(b: Bonds, opt: PullOptions, t0: float, facets: int = FACETS) -> P
     holds every event; the friction force is the force along the drive at full sliding,
     :math:`\lambda F_n`."""
     st = ConeState(b, opt, facets)
-    n = b.n
     drives, forces, kinds, sites = [0.0], [np.zeros(2)], [str(EventKind.START)], [-1]
-    limit = 40 * n * (facets // 4 + 4) + 100
-    seen: dict[bytes, int] = {}
     message = ""
-    events = 0
     while True:
-        st.solve()
-        inc, i, mode, face = st.next_event()
+        inc, i, mode, face = st.step()
         if i < 0:
             break
-        events += 1
-        if events > limit:
-            message = f"stopped after {limit} events without reaching full sliding"
+        if st.events > st.limit:
+            message = f"stopped after {st.limit} events without reaching full sliding"
             break
-        D = st.D + inc
-        if inc <= TIE * max(abs(st.D), st.dscale):  # at one drive, to the tie
-            sig = st.signature()
-            seen[sig] = seen.get(sig, 0) + 1
-            if seen[sig] > VISITS:
-                raise NumericalError(
-                    f"Coulomb cone: the state at D = {D!r} repeats (a cycle of events at "
-                    f"constant drive on bond {int(b.sites[i])})")
-        else:
-            seen.clear()
-        st.D = D
+        D = st.D = st.D + inc
         kind = (EventKind.SLIP_PLUS if st.mode[i] == STICK
                 else EventKind.STICK if mode == STICK else EventKind.TURN)
         drives.append(D)
@@ -476,6 +478,6 @@ def cone_slide(b: Bonds, opt: PullOptions, t0: float, facets: int = FACETS) -> P
         t0=t0, method=opt.method_name, slip_law=opt.slip_law,
         converged=not message, residual=st.worst, solves=st.refinements,
         message=message or (f"exact event path of the Coulomb cone ({facets} facets) to "
-                            f"full sliding, {events} events"),
+                            f"full sliding, {st.events} events"),
         precision="double", peak_fy=b.field(F[:, 1]))
 
