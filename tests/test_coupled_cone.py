@@ -1,0 +1,173 @@
+"""The frictional indentation of the coupled model under the faceted Coulomb cone with the
+traction vector (roughslip/coupling/cone.py; docs/theory/coupled.rst#coupled-cone)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from roughslip.analysis.verify import hertz_scene
+from roughslip.contact.problem import Problem
+from roughslip.contact.squeeze import squeeze
+from roughslip.coupling import cone as cone_module
+from roughslip.coupling.cone import OUT, indent_cone
+from roughslip.elastic.green import pixel_kernel
+from roughslip.errors import InputError
+from roughslip.friction.cone import STICK, Cone
+from roughslip.surfaces.synthetic import sample_rng, self_affine
+
+NAMES = ("z", "x", "y")
+
+
+def _path(monkeypatch, problem, depth, **kw):
+    """The indentation and every state of its path: the forces and displacements on the
+    grid, (3, n) each, just before each event (recorded from the engine, checked by the
+    test)."""
+    states = []
+    apply = cone_module.ConeIndent.apply
+
+    def record(self, p, mode, face=0):
+        if hasattr(self, "F0"):
+            states.append((self.D, self.F0 + self.D * self.F1, self.U0 + self.D * self.U1))
+        apply(self, p, mode, face)
+
+    monkeypatch.setattr(cone_module.ConeIndent, "apply", record)
+    res = indent_cone(problem, depth, **kw)
+    return res, states
+
+
+def _dense(problem) -> np.ndarray:
+    """The full (3n, 3n) operator on the grid, component-major, from the point-evaluated
+    pixel kernels (not the operator's tables)."""
+    ny, nx = problem.shape
+    iy, ix = np.divmod(np.arange(ny * nx), nx)
+    L, M = ix[:, None] - ix[None, :], iy[:, None] - iy[None, :]
+    mat = problem.material
+    a = problem.grid.a
+    n = ny * nx
+    G = np.empty((3 * n, 3 * n))
+    for i, p in enumerate(NAMES):
+        for j, q in enumerate(NAMES):
+            G[i * n:(i + 1) * n, j * n:(j + 1) * n] = pixel_kernel(p + q, L, M, a=a, E=mat.E,
+                                                                  nu=mat.nu)
+    return G
+
+
+def _certify(problem, states, lam, facets):
+    r"""The path is the exact solution of the rate problem of the faceted cone: the
+    displacements are those of the forces; every contact holds its overlap, every other site
+    has no force and an open gap; every force is in its polygon; and between two states each
+    contact's slip increment :math:`\Delta\mathbf s = -\Delta\mathbf u_t` lies in the normal
+    cone of the polygon at the forces between them (maximum dissipation,
+    :math:`\Delta\mathbf s\cdot(\lambda f_z\mathbf v_g - \mathbf f_t) \le 0` for every
+    vertex :math:`\mathbf v_g`), and is zero where the force is inside."""
+    G = _dense(problem)
+    n = problem.base.size
+    base = problem.base.ravel()
+    cone = Cone(facets, 0.0)
+    prev = None
+    for D, F, U in states:
+        fscale = float(np.abs(F).max())
+        u = (G @ F.ravel()).reshape(3, n)
+        uscale = float(np.abs(u).max())
+        np.testing.assert_allclose(u, U, rtol=0, atol=1e-10 * uscale)
+        touch = F[0] > 0
+        assert F[0].min() >= -1e-12 * fscale
+        assert np.abs(F[:, F[0] <= 0]).max(initial=0.0) <= 1e-12 * fscale
+        gap = u[0] - (D + base)
+        assert np.abs(gap[touch]).max(initial=0.0) <= 1e-10 * uscale
+        assert gap.min() >= -1e-10 * uscale
+        over = (F[1:].T @ cone.normals.T).max(axis=1) - cone.rho * lam * F[0]
+        assert over.max() <= 1e-10 * fscale
+        if prev is not None and D > prev[0]:
+            _, F0, U0 = prev
+            mid = 0.5 * (F0 + F)
+            both = (F0[0] > 0) & touch
+            ds = -(U[1:] - U0[1:]).T[both]
+            ft, cap = mid[1:].T[both], lam * mid[0][both]
+            size = np.linalg.norm(ds, axis=1)
+            worst = ((cap[:, None, None] * cone.vertices[None] - ft[:, None, :])
+                     * ds[:, None, :]).sum(axis=2).max(axis=1)
+            floor = 1e-10 * uscale
+            assert (worst <= 1e-9 * fscale * size + floor * fscale).all()
+            inside = (ft @ cone.normals.T).max(axis=1) - cone.rho * cap < -1e-9 * fscale
+            if inside.any():
+                assert size[inside].max() <= floor
+        prev = (D, F, U)
+
+
+def _sphere(ah: int, nu: float) -> tuple[Problem, float]:
+    heights, h, depth, _ = hertz_scene(ah)
+    return Problem.from_arrays(heights, a=h, E=1.0, nu=nu), depth
+
+
+@pytest.mark.parametrize("scene,nu,lam,facets", [("sphere", 0.0, 0.3, 16),
+                                                  ("rough", 0.25, 0.2, 12)])
+def test_the_event_path_solves_the_rate_problem(monkeypatch, scene, nu, lam, facets):
+    if scene == "sphere":
+        problem, depth = _sphere(4, nu)
+    else:
+        heights = self_affine((14, 14), hurst=0.8, rms_height=1.0, rng=sample_rng(3, 0))
+        problem, depth = Problem.from_arrays(heights, nu=nu), 1.5
+    res, states = _path(monkeypatch, problem, depth, lam=lam, facets=facets)
+    assert res.residual < 1e-10 and res.events == len(states) > 20
+    _certify(problem, states, lam, facets)
+    # the slip zone carries tangential forces, and some contact still sticks
+    assert res.stick.any() and (res.contact & ~res.stick).any()
+
+
+def test_at_nu_one_half_the_indentation_is_frictionless_and_stuck():
+    """At nu = 1/2 nothing couples: the normal forces are the frictionless squeeze's, no
+    tangential force appears, and every contact sticks."""
+    problem, depth = _sphere(5, 0.5)
+    res = indent_cone(problem, depth, lam=0.3, facets=16)
+    normal = squeeze(problem, depth=depth, tol=1e-13)
+    scale = float(normal.fz.max())
+    np.testing.assert_allclose(res.fz, normal.fz, rtol=0, atol=1e-10 * scale)
+    assert np.abs(res.fx).max() == 0.0 and np.abs(res.fy).max() == 0.0
+    assert (res.stick == (normal.fz > 0)).all()
+
+
+def test_spence_sphere_stick_ratio():
+    """Spence's sphere at nu = 0 (beta = 1/2): at lam = 0.2986 the continuum stick radius is
+    half the contact radius. At a/h = 8 (208 contact sites) the model's c/a, averaged over
+    the second half of the loading in depth, is within 0.02 of 0.5; the pixel rings of the
+    stick zone move it by about 1/(a/h) (docs/results.md: 0.5 within 0.01 from a/h = 12). It
+    stays within a ring of pixels over that half (self-similarity), the slip zone's tractions
+    point outwards, and nearly along the radius."""
+    problem, depth = _sphere(8, 0.0)
+    res = indent_cone(problem, depth, lam=0.2986, facets=32)
+    ratio, low, high = res.loading_ratio(depth / 2)
+    assert abs(ratio - 0.5) < 0.02
+    assert high - low < 2.0 / 8
+    slip = res.contact & ~res.stick
+    ny, nx = problem.shape
+    y, x = np.mgrid[:ny, :nx] - (np.array([ny, nx])[:, None, None] - 1) / 2
+    r = np.hypot(x, y)[slip]
+    ft = np.stack([res.fx[slip], res.fy[slip]])
+    cos = (ft[0] * x[slip] + ft[1] * y[slip]) / (r * np.hypot(*ft))
+    assert cos.min() > 0.9
+    # the slip zone carries the full friction of its polygon
+    assert (np.hypot(*ft) >= math.cos(math.pi / 32) * 0.2986 * res.fz[slip] * (1 - 1e-9)).all()
+
+
+def test_mode_and_fields_agree():
+    problem, depth = _sphere(4, 0.2)
+    res = indent_cone(problem, depth, lam=0.25, facets=8)
+    assert ((res.mode == OUT) == (res.fz == 0)).all()
+    assert res.stick.sum() == int((res.mode == STICK).sum())
+    assert res.path_depth[0] == 0.0 and res.path_depth[-1] <= depth
+
+
+@pytest.mark.parametrize("kw,match", [({"lam": 0.0}, "lam = 0.0"),
+                                      ({"facets": 3}, "facets = 3"),
+                                      ({"facets": 8.0}, "facets = 8.0")])
+def test_bad_input_is_refused_in_one_line(kw, match):
+    problem, depth = _sphere(3, 0.0)
+    with pytest.raises(InputError, match=match) as err:
+        indent_cone(problem, depth, **kw)
+    assert "\n" not in str(err.value)
+    with pytest.raises(InputError, match="depth = -1"):
+        indent_cone(problem, -1.0)
