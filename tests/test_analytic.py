@@ -58,3 +58,32 @@ def test_plane_indentation_stick_ratio_converges_and_spans_no_stick_to_full_stic
     assert plane_indentation_stick_ratio(3.0) == 1.0
     with pytest.raises(ValueError, match="lam_over_beta"):
         plane_indentation_stick_ratio(-1.0)
+
+
+def test_sphere_indentation_reference():
+    """Spence's sphere by ring elements: without the shear's feedback on the pressure it is
+    Goodman's closed form, lam/beta = artanh(k) / (k K'(k)), to 2e-5 at k = 0.2 and 0.5;
+    with it, c/a = 1/2 needs lam = 0.2986 at nu = 0 (Spence's value, quoted to four
+    figures), and the extrapolations from 20 and 40 elements agree to 2e-4."""
+    from scipy.special import ellipk
+
+    from roughslip.contact.analytic import (
+        sphere_indentation_friction,
+        sphere_indentation_stick_ratio,
+    )
+
+    for k in (0.2, 0.5):
+        goodman = 0.5 * math.atanh(k) / (k * float(ellipk(1 - k * k)))
+        assert sphere_indentation_friction(k, feedback=False) == pytest.approx(goodman,
+                                                                              abs=2e-5)
+    lam = sphere_indentation_friction(0.5)
+    assert lam == pytest.approx(0.2986, abs=2e-4)
+    assert sphere_indentation_friction(0.5, n=20) == pytest.approx(lam, abs=2e-4)
+    assert sphere_indentation_stick_ratio(lam) == pytest.approx(0.5, abs=1e-6)
+    # more friction, a larger stick zone; a less compressible solid, less shear
+    assert sphere_indentation_friction(0.7) > lam > sphere_indentation_friction(0.3)
+    assert sphere_indentation_friction(0.5, nu=0.3) < lam
+    with pytest.raises(ValueError, match="stick_ratio"):
+        sphere_indentation_friction(1.0)
+    with pytest.raises(ValueError, match=r"nu = 0\.5"):
+        sphere_indentation_friction(0.5, nu=0.5)

@@ -4,7 +4,9 @@ The scenes ``roughslip verify``, the tests and the scripts compare with
 (docs/methods.rst#exact-solutions). Each closed form was checked by integrating the
 point-force solution over its traction; the stick fraction of frictional plane indentation
 (:func:`plane_indentation_stick_ratio`) is the numerical solution of a singular integral
-equation, converged to about 1e-5. ``E`` is Young's modulus, ``nu`` Poisson's ratio,
+equation, converged to about 1e-5, and that of the frictional sphere
+(:func:`sphere_indentation_friction`) an axisymmetric ring-element solution, to about 2e-5.
+``E`` is Young's modulus, ``nu`` Poisson's ratio,
 :math:`E^* = E/(1-\nu^2)` and :math:`\mu = E/(2(1+\nu))`.
 """
 
@@ -197,3 +199,157 @@ def plane_indentation_stick_ratio(lam_over_beta: float, n: int = 80) -> float:
     if k1 in (0.0, 1.0) or k2 in (0.0, 1.0):
         return k2
     return 2.0 * k2 - k1
+
+
+# --------------------------------------------------------------------------------------------
+# Spence's frictional sphere: an axisymmetric ring-element solution
+# --------------------------------------------------------------------------------------------
+
+_GAUSS = np.polynomial.legendre.leggauss(16)
+
+
+def _rings(r: float, lo: np.ndarray, hi: np.ndarray, near: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray]:
+    r""":math:`\int s\,I_{00}(r, s)\,ds` and :math:`\int s\,I_{11}(r, s)\,ds` over the
+    elements ``[lo, hi]``: the ring kernels of the normal and the radial response,
+    :math:`I_{nn}(r, s) = \int_0^\infty J_n(tr)J_n(ts)\,dt` (closed forms in complete elliptic
+    integrals of modulus :math:`k^2 = 4rs/(r+s)^2`). Their logarithmic singularity at
+    :math:`s = r` is integrated on pieces that shrink geometrically towards it in the
+    elements flagged ``near``."""
+    from scipy.special import ellipe, ellipkm1
+
+    x, w = _GAUSS
+
+    def kernels(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p = ((r - s) / (r + s)) ** 2  # 1 - k^2
+        K, E = ellipkm1(p), ellipe(1.0 - p)
+        k = np.sqrt(1.0 - p)
+        i00 = 2.0 * K / (math.pi * (r + s))
+        i11 = 2.0 / (math.pi * k * np.sqrt(r * s)) * ((1.0 - (1.0 - p) / 2.0) * K - E)
+        return s * i00, s * i11
+
+    def gauss(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        s = 0.5 * (b - a)[:, None] * x + 0.5 * (b + a)[:, None]
+        f0, f1 = kernels(s)
+        half = 0.5 * (b - a)
+        return half * (f0 @ w), half * (f1 @ w)
+
+    zz, rr = gauss(lo, hi)
+    for j in np.flatnonzero(near):
+        a, b = float(lo[j]), float(hi[j])
+        pieces = [(a, b)] if not a < r < b else [(a, r), (r, b)]
+        z = t = 0.0
+        for pa, pb in pieces:
+            toward_a = abs(pa - r) < abs(pb - r)  # the singular end
+            cuts = (pb - pa) * 0.2 ** np.arange(10, -1, -1)  # 0.2^10 ... 1 of the length
+            ends = np.concatenate([[0.0], cuts])
+            e0, e1 = ends[:-1], ends[1:]
+            sa, sb = (pa + e0, pa + e1) if toward_a else (pb - e1, pb - e0)
+            g0, g1 = gauss(sa, sb)
+            z, t = z + g0.sum(), t + g1.sum()
+        zz[j], rr[j] = z, t
+    return zz, rr
+
+
+def _punch_mesh(k: float, n: int) -> np.ndarray:
+    """Ring-element nodes on the unit disc: ``n`` elements in the stick zone ``r < k``,
+    finer towards ``k``, and ``2n`` in the slip zone, finer towards both of its ends."""
+    t = np.linspace(0.0, 1.0, n + 1)
+    stick = k * np.sin(0.5 * math.pi * t)
+    t = np.linspace(0.0, 1.0, 2 * n + 1)
+    slip = k + (1.0 - k) * (1.0 - np.cos(math.pi * t)) / 2.0
+    return np.concatenate([stick, slip[1:]])
+
+
+def _punch_slip_start(k: float, lam: float, nu: float, n: int,
+                      feedback: bool = True, mats: tuple | None = None) -> float:
+    """The radial displacement rate just outside the stick zone ``r < k`` of the incremental
+    flat-punch problem (:func:`sphere_indentation_friction`), for friction ``lam``."""
+    nodes = _punch_mesh(k, n) if mats is None else mats[0]
+    A = _punch_matrices(nodes, nu, feedback) if mats is None else mats[1]
+    Azz, Azr, Arz, Arr = A
+    m = nodes.size - 1
+    M = np.zeros((2 * m, 2 * m))
+    rhs = np.zeros(2 * m)
+    M[:m, :m], M[:m, m:], rhs[:m] = Azz, Azr, 1.0
+    M[m:m + n, :m], M[m:m + n, m:] = Arz[:n], Arr[:n]  # stick: no radial displacement
+    slip = np.arange(n, m)
+    M[m + slip, m + slip], M[m + slip, slip] = 1.0, -lam  # slip: q = lam p
+    x = np.linalg.solve(M, rhs)
+    return float(Arz[n] @ x[:m] + Arr[n] @ x[m:])
+
+
+def _punch_matrices(nodes: np.ndarray, nu: float, feedback: bool = True) -> tuple:
+    r"""Collocation matrices (element centres, piecewise constant tractions, :math:`G = 1`)
+    of the axisymmetric half-space: :math:`u_z` and :math:`u_r` from the pressure :math:`p`
+    and the outward shear :math:`q`. The normal and the radial responses are
+    :math:`u_z = \frac{1-\nu}{G}\int s\,p\,I_{00}\,ds`, :math:`u_r = \frac{1-\nu}{G}\int
+    s\,q\,I_{11}\,ds`: Cerruti's symbol is :math:`(\delta_{ij} - \nu k_ik_j/k^2)/(Gk)`, so a
+    radial load, parallel to :math:`\mathbf k`, feels :math:`(1-\nu)/(Gk)`, as the pressure
+    does. The coupling is :math:`u_z(r) = -\frac{1-2\nu}{2G}\int_r^\infty q\,ds` and
+    :math:`u_r(r) = -\frac{1-2\nu}{2G}\,\frac1r\int_0^r s\,p\,ds` (the axisymmetric
+    Boussinesq and Cerruti solutions, [Johnson1985] ch. 3; ``feedback=False`` drops the
+    first, Goodman's approximation)."""
+    lo, hi = nodes[:-1], nodes[1:]
+    rc = 0.5 * (lo + hi)
+    m = rc.size
+    c1, c2 = 1.0 - nu, (1.0 - 2.0 * nu) / 2.0
+    Azz, Arr = np.empty((m, m)), np.empty((m, m))
+    for i, r in enumerate(rc):
+        near = np.maximum(np.maximum(lo - r, r - hi), 0.0) < 2.0 * (hi - lo)
+        zz, rr = _rings(float(r), lo, hi, near)
+        Azz[i], Arr[i] = c1 * zz, c1 * rr
+    Azr = -c2 * np.maximum(hi[None, :] - np.maximum(lo[None, :], rc[:, None]), 0.0)
+    Arz = -c2 / rc[:, None] * np.maximum(np.minimum(hi[None, :], rc[:, None]) ** 2
+                                         - lo[None, :] ** 2, 0.0) / 2.0
+    return Azz, (Azr if feedback else 0.0 * Azr), Arz, Arr
+
+
+def sphere_indentation_friction(stick_ratio: float, nu: float = 0.0, n: int = 40,
+                                feedback: bool = True) -> float:
+    r"""The friction coefficient at which a rigid sphere pressed monotonically into an
+    elastic half-space keeps a stick zone of radius ``stick_ratio`` times the contact radius
+    (Spence's frictional Hertz problem, [Spence1975]), with the shear's feedback on the
+    pressure.
+
+    Self-similarity makes the loading increment the problem of a flat circular punch
+    ([Spence1975]): under a uniform normal displacement increment on the unit disc, the
+    stick zone :math:`r < c` has no radial displacement increment and the slip annulus
+    carries :math:`q = \lambda p` outwards. Among the stick radii, the one that meets the slip
+    zone without a singular shear is the one whose slip starts from zero at :math:`r = c`;
+    for a given :math:`c` that fixes :math:`\lambda`. Here the punch is solved by axisymmetric
+    ring elements (:func:`_punch_matrices`; ``n`` piecewise constant elements in the stick
+    zone and ``2n`` in the slip zone, collocated at their centres), the root in
+    :math:`\lambda` found by bisection, and the values at ``n`` and ``2n`` extrapolated
+    (the root converges as :math:`1/n`). At :math:`\nu = 0` and :math:`c/a = 1/2` it gives
+    0.29871 (Spence's 0.2986); without the feedback it gives Goodman's closed form
+    :math:`\lambda/\beta = \operatorname{artanh}(k)/(k K(\sqrt{1-k^2}))` to :math:`10^{-5}`
+    (a test), :math:`\beta = (1-2\nu)/(2(1-\nu))`.
+    """
+    from scipy import optimize
+
+    k = float(stick_ratio)
+    if not (0.0 < k < 1.0):
+        raise ValueError(f"stick_ratio = {stick_ratio!r}: must lie strictly between 0 and 1")
+    if not (-1.0 < nu < 0.5):
+        raise ValueError(f"nu = {nu!r}: needs -1 < nu < 1/2 (at 1/2 nothing couples)")
+
+    def root(m: int) -> float:
+        nodes = _punch_mesh(k, m)
+        mats = (nodes, _punch_matrices(nodes, nu, feedback))
+        return optimize.brentq(lambda lam: _punch_slip_start(k, lam, nu, m, mats=mats),
+                               1e-4, 20.0, xtol=1e-13)
+
+    l1, l2 = root(n), root(2 * n)
+    return 2.0 * l2 - l1
+
+
+def sphere_indentation_stick_ratio(lam: float, nu: float = 0.0, n: int = 40) -> float:
+    r"""The stick fraction :math:`c/a` of Spence's frictional sphere at friction ``lam``
+    (the inverse of :func:`sphere_indentation_friction`, by bisection in :math:`c/a`)."""
+    from scipy import optimize
+
+    if not (math.isfinite(lam) and lam > 0):
+        raise ValueError(f"lam = {lam!r}: must be a finite number > 0")
+    return optimize.brentq(lambda k: sphere_indentation_friction(k, nu, n) - lam, 1e-3,
+                           0.99, xtol=1e-7)
