@@ -30,11 +30,13 @@ def _path(monkeypatch, problem, depth, **kw):
 
     def record(self, p, mode, face=0):
         if hasattr(self, "F0"):
-            states.append((self.D, self.F0 + self.D * self.F1, self.U0 + self.D * self.U1))
+            e = None if self.e is None else self.e.copy()
+            states.append((e, self.D, self.F0 + self.D * self.F1, self.U0 + self.D * self.U1))
         apply(self, p, mode, face)
 
     monkeypatch.setattr(cone_module.ConeIndent, "apply", record)
-    res = indent_cone(problem, depth, **kw)
+    res = (indent_cone(problem, depth, **kw) if "direction" not in kw
+           else cone_module.couple_cone(problem, depth, gained="bonded", **kw))
     return res, states
 
 
@@ -55,20 +57,22 @@ def _dense(problem) -> np.ndarray:
     return G
 
 
-def _certify(problem, states, lam, facets):
+def _certify(problem, states, lam, facets, depth=None, direction=0.0):
     r"""The path is the exact solution of the rate problem of the faceted cone: the
     displacements are those of the forces; every contact holds its overlap, every other site
     has no force and an open gap; every force is in its polygon; and between two states each
     contact's slip increment :math:`\Delta\mathbf s = -\Delta\mathbf u_t` lies in the normal
     cone of the polygon at the forces between them (maximum dissipation,
     :math:`\Delta\mathbf s\cdot(\lambda f_z\mathbf v_g - \mathbf f_t) \le 0` for every
-    vertex :math:`\mathbf v_g`), and is zero where the force is inside."""
+    vertex :math:`\mathbf v_g`), and is zero where the force is inside. While pulling along
+    :math:`\hat{\mathbf e}` at ``depth`` the slip is :math:`D\hat{\mathbf e} - \mathbf
+    u_t` plus a constant."""
     G = _dense(problem)
     n = problem.base.size
     base = problem.base.ravel()
-    cone = Cone(facets, 0.0)
+    cone = Cone(facets, direction)
     prev = None
-    for D, F, U in states:
+    for e, D, F, U in states:
         fscale = float(np.abs(F).max())
         u = (G @ F.ravel()).reshape(3, n)
         uscale = float(np.abs(u).max())
@@ -76,16 +80,18 @@ def _certify(problem, states, lam, facets):
         touch = F[0] > 0
         assert F[0].min() >= -1e-12 * fscale
         assert np.abs(F[:, F[0] <= 0]).max(initial=0.0) <= 1e-12 * fscale
-        gap = u[0] - (D + base)
+        gap = u[0] - ((D if e is None else depth) + base)
         assert np.abs(gap[touch]).max(initial=0.0) <= 1e-10 * uscale
         assert gap.min() >= -1e-10 * uscale
         over = (F[1:].T @ cone.normals.T).max(axis=1) - cone.rho * lam * F[0]
         assert over.max() <= 1e-10 * fscale
-        if prev is not None and D > prev[0]:
-            _, F0, U0 = prev
+        if prev is not None and D > prev[1] and (e is None) == (prev[0] is None):
+            _, D0, F0, U0 = prev
             mid = 0.5 * (F0 + F)
             both = (F0[0] > 0) & touch
             ds = -(U[1:] - U0[1:]).T[both]
+            if e is not None:
+                ds += (D - D0) * e
             ft, cap = mid[1:].T[both], lam * mid[0][both]
             size = np.linalg.norm(ds, axis=1)
             worst = ((cap[:, None, None] * cone.vertices[None] - ft[:, None, :])
@@ -95,7 +101,7 @@ def _certify(problem, states, lam, facets):
             inside = (ft @ cone.normals.T).max(axis=1) - cone.rho * cap < -1e-9 * fscale
             if inside.any():
                 assert size[inside].max() <= floor
-        prev = (D, F, U)
+        prev = (e, D, F, U)
 
 
 def _sphere(ah: int, nu: float) -> tuple[Problem, float]:
@@ -171,3 +177,56 @@ def test_bad_input_is_refused_in_one_line(kw, match):
     assert "\n" not in str(err.value)
     with pytest.raises(InputError, match="depth = -1"):
         indent_cone(problem, -1.0)
+
+
+def test_the_pull_solves_the_rate_problem(monkeypatch):
+    """The indentation, then the pull along 30 degrees at nu = 0.3 to full sliding: the whole
+    path is the rate problem's solution (dense point-evaluated kernels), and at full
+    sliding every contact carries lam f_z along the drive (a vertex is on it)."""
+    problem, depth = _sphere(4, 0.3)
+    res, states = _path(monkeypatch, problem, depth, lam=0.3, facets=12, direction=30.0)
+    assert res.converged and res.residual < 1e-10
+    pulled = [s for s in states if s[0] is not None]
+    assert len(pulled) == res.curve.drive.size - 1 > 20
+    _certify(problem, states, 0.3, 12, depth=depth, direction=30.0)
+    e = np.array([math.cos(math.radians(30)), math.sin(math.radians(30))])
+    end = res.curve.force[-1]
+    assert end @ e == pytest.approx(0.3 * res.curve.fz[-1], rel=1e-10)
+    assert abs(end @ np.array([-e[1], e[0]])) < 1e-10 * res.friction_force
+
+
+def test_at_nu_one_half_the_coupled_pull_is_the_decoupled_one():
+    """At nu = 1/2 the coupled pull with the traction vector is the decoupled Coulomb cone's
+    from the frictionless squeeze: the same curve (interpolated at its events) and the same
+    friction force, lam F_n."""
+    from roughslip import couple, pull
+
+    problem, depth = _sphere(5, 0.5)
+    res = couple(problem, depth=depth, lam=0.3, slip_law="coulomb", history="indent",
+                 components="xy", direction=40.0, facets=16)
+    normal = squeeze(problem, depth=depth, tol=1e-13)
+    ref = pull(normal, lam=0.3, slip_law="coulomb", components="xy", direction=40.0,
+               facets=16)
+    assert res.friction_force == pytest.approx(ref.friction_force, rel=1e-12)
+    scale = ref.friction_force
+    for c in (0, 1):
+        mine = np.interp(ref.curve.drive, res.curve.drive, res.curve.force[:, c])
+        np.testing.assert_allclose(mine, ref.curve.force[:, c], rtol=0, atol=1e-10 * scale)
+    np.testing.assert_allclose(res.start.fz, normal.fz, rtol=0, atol=1e-10 * normal.fz.max())
+
+
+@pytest.mark.parametrize("kw,key", [({"slip_law": "break"}, "slip_law = 'break'"),
+                                    ({"history": "bonded"}, "history = 'bonded'"),
+                                    ({"pull_control": "force"}, "pull_control = 'force'"),
+                                    ({"method": "cg"}, "method = 'cg'"),
+                                    ({"components": "x", "direction": 30.0}, "direction = 30"),
+                                    ({"components": "z"}, "components = 'z'")])
+def test_the_coupled_vector_pull_refuses_in_one_line(kw, key):
+    from roughslip import couple
+
+    problem, depth = _sphere(3, 0.3)
+    args = {"depth": depth, "lam": 0.3, "slip_law": "coulomb", "history": "indent",
+            "components": "xy", **kw}
+    with pytest.raises(InputError) as err:
+        couple(problem, **args)
+    assert str(err.value).startswith(key) and "\n" not in str(err.value)

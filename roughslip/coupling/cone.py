@@ -42,6 +42,7 @@ The inscribed polygon's strength differs from the disc's by at most :math:`1 - \
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,18 +52,22 @@ from roughslip.contact.problem import Problem, finite
 from roughslip.elastic.tables import gather_pairs
 from roughslip.errors import InputError, MemoryLimitError, NumericalError
 from roughslip.friction.cone import FACET, FACETS, MAX_FACETS, MIN_FACETS, STICK, VERTEX, Cone
-from roughslip.friction.events import RATE_TIE, TIE
+from roughslip.friction.events import RATE_TIE, TIE, Curve, EventKind, plane_direction
+from roughslip.friction.result import CoupledDetails, PullResult, PullState
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.threads import blas_threads
 
-#: a site out of contact
-OUT = 3
+#: a site out of contact, and a contact without a bond (no tangential force; contacts gained
+#: during a pull with ``gained = "unbonded"``)
+OUT, FREE = 3, 4
 #: the displacement (rows) and force (columns) components, in the order of a site's unknowns
 NAMES = ("z", "x", "y")
 #: refinements of a solution before the inverse is computed afresh
 REFINEMENTS = 3
 #: visits of one discrete state at one depth before the path is declared to cycle
 VISITS = 3
+#: rows of the inverse per block of an update (a block and its products stay in cache)
+ROWS = 256
 
 
 @dataclass(frozen=True)
@@ -179,10 +184,10 @@ class ConeIndent:
     them."""
 
     def __init__(self, problem: Problem, depth: float, lam: float, facets: int,
-                 tol: float, max_events: int | None) -> None:
+                 tol: float, max_events: int | None, direction: float = 0.0) -> None:
         self.problem, self.lam, self.tol = problem, float(lam), float(tol)
         self.end = float(depth)
-        self.cone = Cone(facets, 0.0)
+        self.cone = Cone(facets, direction)  # a vertex on the drive
         self.k = _Sites(problem)
         self.base = problem.base.ravel()
         # the sites that may touch: the overlap at the end, widened by two pixels (the
@@ -207,7 +212,11 @@ class ConeIndent:
         self.P = np.zeros((cap, 3, 3))
         self.Q = np.zeros((cap, 3, 3))
         self.E = np.zeros((cap, 3, 3))
-        self.D = 0.0
+        self.D = 0.0  # the depth while indenting, the tangential drive while pulling
+        #: the drive's direction while pulling (None while indenting), and the mode a contact
+        #: gained while pulling enters (STICK, bonded where it touches, or FREE)
+        self.e: np.ndarray | None = None
+        self.gained = STICK
         self.events, self.refreshes, self.worst = 0, 0, 0.0
         self.limit = (max_events if max_events is not None
                       else 40 * cap * (facets // 4 + 4) + 100)
@@ -239,6 +248,9 @@ class ConeIndent:
         c, lam = self.cone, self.lam
         if mode == OUT:
             E[:] = np.eye(3)
+        elif mode == FREE:
+            P[0, 0], Q[0, 0] = 1.0, 1.0
+            E[1, 1] = E[2, 2] = 1.0
         elif mode == STICK:
             P[:], Q[:] = np.eye(3), np.eye(3)
         elif mode == FACET:
@@ -279,8 +291,15 @@ class ConeIndent:
         dC = cols1 - cols0
         inv = self.inv[:m, :m]
         with blas_threads(1):
-            AU = np.concatenate([inv[:, R], inv @ dC], axis=1)  # (m, 6)
-            VA = np.concatenate([dR @ inv, inv[R, :]], axis=0)  # (6, m)
+            # one pass over the rows of the inverse for both products, one for the update
+            AU = np.empty((m, 6))  # A^-1 U
+            VA = np.zeros((6, m))  # V^T A^-1
+            AU[:, :3] = inv[:, R]
+            VA[3:] = inv[R, :]
+            for i in range(0, m, ROWS):
+                blk = inv[i:i + ROWS]
+                AU[i:i + ROWS, 3:] = blk @ dC
+                VA[:3] += dR[:, i:i + ROWS] @ blk
             S = np.eye(6)
             S[:3] += dR @ AU
             S[3:] += AU[R]
@@ -292,12 +311,13 @@ class ConeIndent:
                 self._set(p, mode, face, P1, Q1, E1)
                 self.refresh()
                 return
-            inv -= AU @ W
+            for i in range(0, m, ROWS):
+                inv[i:i + ROWS] -= AU[i:i + ROWS] @ W
         self._set(p, mode, face, P1, Q1, E1)
 
     def _set(self, p, mode, face, P1, Q1, E1) -> None:
         if mode != self.mode[p] or face != self.face[p]:
-            self.ref[p] = self._ut(p)
+            self.ref[p] = self._ut(p) - (0.0 if self.e is None else self.D * self.e)
         self.mode[p], self.face[p] = mode, face
         self.P[p], self.Q[p], self.E[p] = P1, Q1, E1
 
@@ -332,13 +352,17 @@ class ConeIndent:
         inn = mode != OUT
         r1 = np.zeros((u, 3))
         r0 = np.zeros((u, 3))
-        r1[inn, 0] = 1.0
-        r0[inn, 0] = self.base[self.sites[:u][inn]]
-        st = mode == STICK
+        st, fa = mode == STICK, mode == FACET
+        t = self.cone.tangents[self.face[:u][fa]]
         r0[st, 1:] = self.ref[:u][st]
-        fa = mode == FACET
-        r0[fa, 1] = np.einsum("pa,pa->p", self.cone.tangents[self.face[:u][fa]],
-                              self.ref[:u][fa])
+        r0[fa, 1] = np.einsum("pa,pa->p", t, self.ref[:u][fa])
+        if self.e is None:  # indenting: the overlap moves with the depth
+            r1[inn, 0] = 1.0
+            r0[inn, 0] = self.base[self.sites[:u][inn]]
+        else:  # pulling: the bonds move with the drive
+            r0[inn, 0] = self.base[self.sites[:u][inn]] + self.end
+            r1[st, 1:] = self.e
+            r1[fa, 1] = t @ self.e
         return r1, r0
 
     def _fields(self, y: np.ndarray) -> np.ndarray:
@@ -413,18 +437,21 @@ class ConeIndent:
         inside = np.zeros(self.base.size, bool)
         inside[self.sites[:u][self.mode[:u] != OUT]] = True
         out_sites = np.flatnonzero(~inside)
-        g = self.U0[0, out_sites] + D * self.U1[0, out_sites] - (D + self.base[out_sites])
-        gr = self.U1[0, out_sites] - 1.0
-        gtie = TIE * max(abs(D), self.g0 * fscale)
+        depth, moving = (D, 1.0) if self.e is None else (self.end, 0.0)
+        g = self.U0[0, out_sites] + D * self.U1[0, out_sites] - (depth + self.base[out_sites])
+        gr = self.U1[0, out_sites] - moving
+        gtie = TIE * max(depth, self.g0 * fscale)
         with np.errstate(divide="ignore", invalid="ignore"):
             inc = np.where(gr < 0, np.maximum(g, 0.0) / -gr, np.inf)
         inc = np.where(g < -gtie, 0.0, inc)
-        take(inc, -1 - out_sites, STICK, 0)
+        take(inc, -1 - out_sites, STICK if self.e is None else self.gained, 0)
         slots = np.arange(u)
         sites = self.sites[:u]
         fz, fr = F[0, sites], Fr[0, sites]
         ft, ftr = F[1:, sites].T, Fr[1:, sites].T
         sr = -self.U1[1:, sites].T  # slip rates
+        if self.e is not None:
+            sr += self.e
         mode = self.mode[:u]
         # normal forces that reach zero
         c = mode != OUT
@@ -496,19 +523,64 @@ class ConeIndent:
             if self.events > self.limit:
                 raise NumericalError(f"frictional indentation: more than {self.limit} events "
                                      f"before depth {self.end!r}")
-            if inc <= TIE * max(abs(self.D), 1e-300):
-                sig = self.mode[:self.used].tobytes() + self.face[:self.used].tobytes()
-                self._seen[sig] = self._seen.get(sig, 0) + 1
-                if self._seen[sig] > VISITS:
-                    raise NumericalError(
-                        f"frictional indentation: the state at depth {self.D!r} repeats (a "
-                        "cycle of events at constant depth)")
-            else:
-                self._seen.clear()
+            self._guard(inc, "depth")
             self.D += inc
             p = self._slot_of(-1 - who) if who < 0 else who
             self.apply(p, mode, face)
             self.path.append(self._record())
+
+    def pull(self, direction: float, gained: str) -> tuple[list, str]:
+        """Pull from the indented state along ``direction`` (degrees) at its depth until no
+        event is ahead (full sliding). Returns the curve's rows (drive, force vector,
+        :math:`F_z`, kind, site), each taken just before its event, and a message when the
+        event limit stopped the pull. The state at the largest force along the drive is kept
+        in :attr:`peak` (its row, forces and modes)."""
+        self.e = np.array(plane_direction(direction))
+        self.gained = STICK if gained == "bonded" else FREE
+        self.D = 0.0
+        self._seen.clear()
+        self.solve()
+        rows = [(0.0, self._force(), self._fz(), str(EventKind.START), -1)]
+        self.peak = (0, self.fields(), _grid_modes(self))
+        while True:
+            inc, who, mode, face = self.next_event()
+            if not math.isfinite(inc):
+                return rows, ""
+            self.events += 1
+            if self.events > self.limit:
+                return rows, f"stopped after {self.limit} events before full sliding"
+            self._guard(inc, "drive")
+            self.D += inc
+            p = self._slot_of(-1 - who) if who < 0 else who
+            rows.append((self.D, self._force(), self._fz(), _kind(int(self.mode[p]), mode),
+                         int(self.sites[p])))
+            if rows[-1][1] @ self.e > rows[self.peak[0]][1] @ self.e:  # the state there
+                self.peak = (len(rows) - 1, self.fields(), _grid_modes(self))
+            self.apply(p, mode, face)
+            self.solve()
+
+    def _guard(self, inc: float, what: str) -> None:
+        """A discrete state met more than :data:`VISITS` times at one value of the driver
+        (to the tie) is a cycle: an error."""
+        if inc <= TIE * max(abs(self.D), 1e-300):
+            sig = self.mode[:self.used].tobytes() + self.face[:self.used].tobytes()
+            self._seen[sig] = self._seen.get(sig, 0) + 1
+            if self._seen[sig] > VISITS:
+                raise NumericalError(
+                    f"Coulomb cone under coupling: the state at {what} {self.D!r} repeats (a "
+                    f"cycle of events at constant {what})")
+        else:
+            self._seen.clear()
+
+    def _force(self) -> np.ndarray:
+        return (self.F0[1:] + self.D * self.F1[1:]).sum(axis=1)
+
+    def _fz(self) -> float:
+        return float(self.F0[0].sum() + self.D * self.F1[0].sum())
+
+    def fields(self) -> np.ndarray:
+        """The forces (3, ny, nx) at the current driver."""
+        return (self.F0 + self.D * self.F1).reshape(3, *self.problem.shape)
 
     def _record(self) -> tuple[float, float, int, int]:
         Fz = (float(self.F0[0].sum() + self.D * self.F1[0].sum()) if hasattr(self, "F0")
@@ -517,12 +589,39 @@ class ConeIndent:
         return self.D, Fz, int((m != OUT).sum()), int((m == STICK).sum())
 
 
+def _kind(old: int, new: int) -> str:
+    """The curve's kind of event of a site that goes from ``old`` to ``new``."""
+    if old == OUT:
+        return str(EventKind.GAINED)
+    if new == OUT:
+        return str(EventKind.LOST)
+    if old == STICK:
+        return str(EventKind.SLIP_PLUS)
+    return str(EventKind.STICK if new == STICK else EventKind.TURN)
+
+
 def _blockdiag(E: np.ndarray) -> np.ndarray:
     n = E.shape[0]
     out = np.zeros((3 * n, 3 * n))
     for p in range(n):
         out[3 * p:3 * p + 3, 3 * p:3 * p + 3] = E[p]
     return out
+
+
+def _checked(problem: Problem, depth: float, lam: float, facets: int
+             ) -> tuple[float, float, int]:
+    depth = finite(depth, "depth")
+    if not depth > 0:
+        raise InputError(f"depth = {depth!r}: the indentation needs depth > 0")
+    lam = finite(lam, "lam")
+    if not lam > 0:
+        raise InputError(f"lam = {lam!r}: the cone needs a friction coefficient > 0")
+    if isinstance(facets, bool) or not isinstance(facets, int | np.integer) or not (
+            MIN_FACETS <= facets <= MAX_FACETS):
+        raise InputError(f"facets = {facets!r}: must be an integer from {MIN_FACETS} to "
+                         f"{MAX_FACETS}")
+    problem.check_depth(depth)
+    return depth, lam, int(facets)
 
 
 def indent_cone(problem: Problem, depth: float, *, lam: float = 0.2, facets: int = FACETS,
@@ -558,18 +657,8 @@ def indent_cone(problem: Problem, depth: float, *, lam: float = 0.2, facets: int
     :math:`c/a` of the contact radius, set by :math:`\lambda` and
     :math:`\beta = (1 - 2\nu)/(2 - 2\nu)` (docs/results.md).
     """
-    depth = finite(depth, "depth")
-    if not depth > 0:
-        raise InputError(f"depth = {depth!r}: the indentation needs depth > 0")
-    lam = finite(lam, "lam")
-    if not lam > 0:
-        raise InputError(f"lam = {lam!r}: the cone needs a friction coefficient > 0")
-    if isinstance(facets, bool) or not isinstance(facets, int | np.integer) or not (
-            MIN_FACETS <= facets <= MAX_FACETS):
-        raise InputError(f"facets = {facets!r}: must be an integer from {MIN_FACETS} to "
-                         f"{MAX_FACETS}")
-    problem.check_depth(depth)
-    st = ConeIndent(problem, depth, lam, int(facets), tol, max_events)
+    depth, lam, facets = _checked(problem, depth, lam, facets)
+    st = ConeIndent(problem, depth, lam, facets, tol, max_events)
     st.run()
     shape = problem.shape
     F = (st.F0 + st.D * st.F1).reshape(3, *shape)
@@ -581,3 +670,63 @@ def indent_cone(problem: Problem, depth: float, *, lam: float = 0.2, facets: int
         mode=mode.reshape(shape), events=st.events, residual=st.worst,
         refreshes=st.refreshes, path_depth=path[:, 0], path_force=path[:, 1],
         path_contact=path[:, 2].astype(np.int64), path_stick=path[:, 3].astype(np.int64))
+
+
+def couple_cone(problem: Problem, depth: float, *, lam: float = 0.2, direction: float = 0.0,
+                facets: int = FACETS, gained: str = "unbonded", tol: float = 1e-10,
+                max_events: int | None = None) -> PullResult:
+    r"""The coupled model with the traction vector under the faceted Coulomb cone: the
+    frictional indentation from first touch to ``depth`` (:func:`indent_cone`), then the pull
+    along ``direction`` (degrees from x) at that depth, by exact events, to full sliding.
+
+    The friction force is the largest pull force along the drive on the path; with the depth
+    held, :math:`F_z` changes as the contact changes. A contact gained during the pull enters
+    bonded where it touches (``gained = "bonded"``) or without a bond, carrying a normal force
+    alone (``"unbonded"``). The result is :func:`~roughslip.coupling.coupled.couple`'s, with
+    the history ``"indent"`` and the y forces of both states.
+    """
+    t0 = time.perf_counter()
+    direction = finite(direction, "direction")
+    st = _indented(problem, depth, lam, facets, tol, max_events, direction)
+    start_F = st.fields()
+    start_mode = _grid_modes(st)
+    t_squeeze = time.perf_counter() - t0
+    if gained not in ("bonded", "unbonded"):
+        raise InputError(f"gained = {gained!r}: must be 'bonded' or 'unbonded'")
+    rows, message = st.pull(direction, gained)
+    drive = np.array([r[0] for r in rows])
+    force = np.array([r[1] for r in rows]).reshape(-1, 2)
+    e = st.e
+    along = force @ e
+    peak, peak_F, peak_mode = st.peak
+    curve = Curve(drive, force, np.array([r[2] for r in rows]), np.full(drive.size, depth),
+                  tuple(r[3] for r in rows), np.array([r[4] for r in rows], dtype=np.int64),
+                  direction=tuple(float(c) for c in e))
+    start = PullState(start_F[0], start_F[1], start_mode != OUT, start_mode == STICK,
+                      start_F[2])
+    at_peak = PullState(peak_F[0], peak_F[1], peak_mode != OUT, peak_mode == STICK, peak_F[2])
+    return PullResult(
+        friction_force=float(along[peak]), normal_force_at_peak=float(curve.fz[peak]),
+        normal_force=float(start_F[0].sum()), curve=curve, peak_event=peak, peak=at_peak,
+        start=start, converged=not message, seconds=time.perf_counter() - t0, method="dense",
+        slip_law="coulomb", residual=st.worst, solves=st.events, message=message or (
+            f"exact event path of the Coulomb cone under coupling ({facets} facets): "
+            f"{st.events} events, indentation and pull"),
+        details=CoupledDetails(contact_area=float((start_mode != OUT).mean()),
+                               released=int(((start_mode != OUT) & (start_mode != STICK)).sum()),
+                               depth=float(depth), pull_control="depth", history="indent",
+                               squeeze_seconds=t_squeeze))
+
+
+def _indented(problem: Problem, depth: float, lam: float, facets: int, tol: float,
+              max_events: int | None, direction: float) -> ConeIndent:
+    depth, lam, facets = _checked(problem, depth, lam, facets)
+    st = ConeIndent(problem, depth, lam, facets, tol, max_events, direction)
+    st.run()
+    return st
+
+
+def _grid_modes(st: ConeIndent) -> np.ndarray:
+    mode = np.full(st.base.size, OUT, dtype=np.int8)
+    mode[st.sites[:st.used]] = st.mode[:st.used]
+    return mode.reshape(st.problem.shape)

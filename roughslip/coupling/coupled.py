@@ -148,6 +148,9 @@ def couple(
     history: str = "bonded",
     lam_dynamic: float | None = None,
     slip_distance: float | None = None,
+    components: str = "x",
+    direction: float = 0.0,
+    facets: int | None = None,
 ) -> PullResult:
     r"""Squeeze a problem with bonded contacts and pull it with the coupled model until every
     bond has broken (module docstring; [Report2003] §6.1 with errata T25 and T26).
@@ -210,6 +213,16 @@ def couple(
         docs/theory/coupled.rst#squeeze-histories.
     lam_dynamic, slip_distance : float, optional
         The slip-weakening law's :math:`\lambda_d` and :math:`d_c` (that law only).
+    components : {"x", "xy"}
+        The tangential force of each site: :math:`f_x` alone (the report's model), or the
+        vector :math:`(f_x, f_y)` (:func:`~roughslip.coupling.cone.couple_cone`: the
+        Coulomb law's faceted cone, the ``"indent"`` history, a depth, the depth held;
+        other choices are refused in one line).
+    direction : float
+        The drive's angle from x in degrees (``components = "xy"`` only).
+    facets : int, optional
+        The facets of the cone (``components = "xy"``; default
+        :data:`~roughslip.friction.cone.FACETS`).
 
     Returns
     -------
@@ -220,6 +233,14 @@ def couple(
     """
     t0 = time.perf_counter()
     _check_couple(problem, depth, force, lam, pull_control, gained, slip_law, squeeze_method)
+    if components != "x" or direction != 0 or facets is not None:
+        _check_vector(components, direction, slip_law, history, depth, pull_control, method,
+                      record_states)
+        from roughslip.coupling.cone import FACETS, couple_cone
+
+        return couple_cone(problem, finite(depth, "depth"), lam=lam, direction=direction,
+                           facets=FACETS if facets is None else facets, gained=gained,
+                           tol=max(tol, 1e-14), max_events=max_events)
     law = LAWS.get(slip_law, "slip_law").bind(lam, lam_dynamic=lam_dynamic,
                                                 slip_distance=slip_distance)
     run_history = HISTORIES.get(history, "history")
@@ -339,6 +360,34 @@ def _check_couple(problem: Problem, depth: float | None, force: float | None, la
     force = finite(force, "force")
     if force < 0:
         raise InputError(f"force = {force:g}: must be >= 0")
+
+
+def _check_vector(components: str, direction: float, slip_law: str, history: str,
+                  depth: float | None, pull_control: str, method: str,
+                  record_states: bool) -> None:
+    """The choices :func:`couple` takes with the traction vector; each other one refused in
+    one line that names it."""
+    if components not in ("x", "xy"):
+        raise InputError(f"components = {components!r}: must be 'x' or 'xy'")
+    if components == "x":
+        raise InputError(f"direction = {direction!r}: the x-only model (components = 'x') "
+                         "pulls along x alone, with the default facets; use components = 'xy'")
+    vector = "components = 'xy' (the coupled model with the traction vector)"
+    if slip_law != "coulomb":
+        raise InputError(f"slip_law = {slip_law!r}: {vector} holds the Coulomb cone only; "
+                         "use components = 'x'")
+    if history != "indent":
+        raise InputError(f"history = {history!r}: {vector} starts from the frictional "
+                         "indentation; use history = 'indent'")
+    if depth is None:
+        raise InputError(f"force: {vector} squeezes to a depth; give depth instead")
+    if pull_control != "depth":
+        raise InputError(f"pull_control = {pull_control!r}: {vector} holds the depth")
+    if method not in ("auto", "dense"):
+        raise InputError(f"method = {method!r}: {vector} is solved dense; use 'auto' or "
+                         "'dense'")
+    if record_states:
+        raise InputError(f"record_states = True: {vector} does not record its states")
 
 
 @dataclass(frozen=True)
