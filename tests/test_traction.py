@@ -241,8 +241,16 @@ def _config(tmp_path, sets):
 
 @pytest.mark.parametrize("sets,match", [
     (["pull.direction=30"], r"pull\.direction = 30\.0: the x-only model"),
-    (["pull.components='xy'", "coupling.enabled=true"],
-     r"pull\.components = \"xy\": the coupled model carries f_x alone"),
+    (["pull.components='xy'", "coupling.enabled=true", "coupling.history='indent'"],
+     r"pull\.components = \"xy\": the coupled model with the traction vector holds "
+     r"slip_law = 'coulomb'"),
+    (["pull.components='xy'", "coupling.enabled=true", "pull.slip_law='coulomb'"],
+     r"coupling\.history = \"bonded\": the coupled model with the traction vector starts "
+     r"from the frictional indentation"),
+    (["pull.components='xy'", "coupling.enabled=true", "pull.slip_law='coulomb'",
+      "coupling.history='indent'", "coupling.pull_control='force'"],
+     r"coupling\.pull_control = \"force\": the coupled model with the traction vector "
+     r"holds the depth"),
     (["pull.components='xy'", "pull.slip_law='slip-weakening'", "pull.lam_dynamic=0.1",
       "pull.slip_distance=0.05"],
      r"pull\.components = \"xy\": slip_law = 'slip-weakening' has no pull of the traction "
@@ -287,6 +295,36 @@ def test_a_run_stores_the_force_vector(tmp_path):
     cfg = _config(tmp_path, ["ensemble.samples=1"])
     run(cfg, tmp_path / "x.h5", workers=1)
     assert "friction_force_x" not in read_run(tmp_path / "x.h5").scalars
+
+
+def test_a_coupled_run_stores_the_force_vector(tmp_path):
+    """The coupled model with the traction vector in a run: the Coulomb cone from the
+    frictional indentation; the run stores the force vector and its projection, and the same
+    numbers as the API."""
+    from roughslip import Problem, couple
+    from roughslip.run.executor import run
+    from roughslip.run.scene import Scene
+    from roughslip.run.store import read_run
+
+    cfg = _config(tmp_path, ["grid.n=16", "pull.components='xy'", "pull.direction=30",
+                             "pull.slip_law='coulomb'", "pull.facets=16",
+                             "coupling.enabled=true", "coupling.history='indent'",
+                             "output.fields=['fy', 'ux', 'uz']", "ensemble.samples=1"])
+    run(cfg, tmp_path / "c.h5", workers=1)
+    r = read_run(tmp_path / "c.h5")
+    F = r.scalars["friction_force"]
+    Fx, Fy = r.scalars["friction_force_x"], r.scalars["friction_force_y"]
+    e = plane_direction(30.0)
+    np.testing.assert_allclose(e[0] * Fx + e[1] * Fy, F, rtol=1e-12)
+    scene = Scene.from_config(cfg)
+    problem = Problem.from_arrays(scene.surfaces(0).composite, a=scene.grid.a,
+                                  E=scene.material.E, nu=scene.material.nu)
+    api = couple(problem, depth=float(r.scalars["depth_length"][0, 1]), lam=0.2,
+                 slip_law="coulomb", history="indent", components="xy", direction=30.0,
+                 facets=16, tol=1e-10)
+    assert F[0, 1] == pytest.approx(api.friction_force, rel=1e-12)
+    np.testing.assert_allclose(r.field(0, 1, "fy"), api.peak.fy, rtol=0,
+                               atol=1e-12 * float(np.abs(api.peak.fy).max()))
 
 
 @pytest.mark.parametrize("direction", [0.0, 30.0, 45.0])

@@ -31,9 +31,20 @@ def check_pull(cfg: RunConfig, errors: Errors) -> None:
     # on an isotropic half-space (nu = 0) the traction vector is the x-only model turned, which
     # every law, method and precision runs; at nu > 0 it needs its own engine
     engine = comps != "x" and cfg.material.nu != 0
-    if comps != "x" and cfg.coupling.enabled:
-        errors.add("pull.components", comps, "the coupled model carries f_x alone; needs "
-                   "coupling.enabled = false")
+    if comps != "x" and cfg.coupling.enabled:  # the coupled cone: one history and control
+        vector = "the coupled model with the traction vector"
+        if cfg.pull.slip_law != "coulomb":
+            errors.add("pull.components", comps, f"{vector} holds slip_law = 'coulomb' "
+                       "(the faceted cone) only; needs components = 'x'")
+        if cfg.coupling.history != "indent":
+            errors.add("coupling.history", cfg.coupling.history, f"{vector} starts from the "
+                       "frictional indentation; needs history = 'indent'")
+        if cfg.control != "depth":
+            errors.add("squeeze.forces", cfg.squeeze.forces, f"{vector} squeezes to "
+                       "depths; use squeeze.depths")
+        if cfg.coupling.pull_control != "depth":
+            errors.add("coupling.pull_control", cfg.coupling.pull_control,
+                       f"{vector} holds the depth; needs pull_control = 'depth'")
     if comps == "x" and cfg.pull.direction != 0:
         errors.add("pull.direction", cfg.pull.direction, "the x-only model (pull.components "
                    "= 'x') pulls along x alone; use components = 'xy'")

@@ -181,7 +181,8 @@ class Scene:
         """Green function components the run builds, with those of both tangential directions
         for the traction vector (``pull.components = "xy"``) at nu > 0."""
         if self.coupled:
-            return ("zz", "zx", "xx")
+            return (("zz", "zx", "xx") if self.config.pull.components == "x"
+                    else ("zz", "zx", "zy", "xx", "xy", "yy"))
         if self.pull and self.config.pull.components != "x" and self.material.nu != 0:
             return ("zz", "xx", "xy", "yy")
         return ("zz", "xx") if self.pull else ("zz",)

@@ -26,7 +26,7 @@ from roughslip.coupling.coupled import COUPLED_TOL, couple
 from roughslip.errors import ConvergenceError, NumericalError
 from roughslip.friction.laws import LAWS
 from roughslip.friction.pull import pull
-from roughslip.friction.result import PullResult
+from roughslip.friction.result import PullResult, PullState
 from roughslip.run.scene import Scene
 
 
@@ -161,12 +161,16 @@ class _CoupledSample:
         cfg, want = self.stage.config, self.stage.want
         pb = self.problem
         by = {"force": target} if cfg.control == "force" else {"depth": target}
+        pl = cfg.pull
+        vector = ({"components": pl.components, "direction": pl.direction,
+                   "facets": pl.facets} if pl.components != "x" else {})
         try:
-            r = couple(pb, **by, lam=cfg.pull.lam, pull_control=cfg.coupling.pull_control,
+            r = couple(pb, **by, lam=pl.lam, pull_control=cfg.coupling.pull_control,
                        gained=cfg.coupling.gained, history=cfg.coupling.history,
-                       slip_law=cfg.pull.slip_law, lam_dynamic=cfg.pull.lam_dynamic,
-                       slip_distance=cfg.pull.slip_distance,
-                       tol=min(cfg.pull.tol, COUPLED_TOL), squeeze_method=cfg.squeeze.method)
+                       slip_law=pl.slip_law, lam_dynamic=pl.lam_dynamic,
+                       slip_distance=pl.slip_distance,
+                       tol=min(pl.tol, COUPLED_TOL), squeeze_method=cfg.squeeze.method,
+                       **vector)
         except NumericalError as exc:
             raise NumericalError(f"{where}: {exc}") from None
         if cfg.execution.strict and not r.converged:
@@ -189,16 +193,30 @@ class _CoupledSample:
             f["fz"] = r.start.fz
         if "contact" in want:
             f["contact"] = r.start.contact
-        op = pb.operator("zz", "zx", "xx")
         if "uz" in want or "gap" in want:
-            uz = op.apply_block(r.start.fz, r.start.fx)[0]
+            uz = _displacement(pb, "z", r.start)
             if "uz" in want:
                 f["uz"] = uz
             if "gap" in want:
                 f["gap"] = uz - pb.overlap(d.depth)
-        add_pull(rec, r, want, lambda: op.apply_block(r.peak.fz, r.peak.fx)[1],
+        add_pull(rec, r, want, lambda: _displacement(pb, "x", r.peak),
                  estimate=False, what="coupled solve", with_start=True)
+        if r.peak.fy is not None:
+            fx, fy = r.friction_vector
+            rec.scalars.update(friction_force_x=fx, friction_force_y=fy)
+            if "fy" in want:
+                f["fy"] = r.peak.fy
         return rec
+
+
+def _displacement(pb: Problem, c: str, state: PullState) -> np.ndarray:
+    """The displacement component ``c`` of a coupled state's forces, by FFT: its
+    :math:`f_z` and :math:`f_x`, and its :math:`f_y` when it has one."""
+    if state.fy is None:
+        return pb.operator("zz", "zx", "xx").apply_block(state.fz, state.fx)["zx".index(c)]
+    forces = {"z": state.fz, "x": state.fx, "y": state.fy}
+    op = pb.operator(*(c + n for n in "zxy"))
+    return sum(op.apply(c + n, forces[n]) for n in "zxy")
 
 
 def add_pull(rec: Record, r: PullResult, want: set[str], ux: Callable[[], np.ndarray], *,
