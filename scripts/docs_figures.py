@@ -37,6 +37,10 @@ writes into ``OUT_DIR``:
 * ``coulomb_cone.png``: the partial-slip state of a Hertz contact under the Coulomb cone with
   the traction vector (nu = 0.5, Q = 0.5 lambda P, a/h = 12, 64 facets): its traction along
   and across the drive, the stick zone and Mindlin's circle, computed here (about a second).
+* ``spence_sphere.png``: Spence's frictional sphere at nu = 0: the stick fraction against the
+  friction, the ring-element solution (computed here) and the pixel model from the results
+  page's table, and one indentation's stick zone and tractions at a/h = 8 (computed here,
+  about 10 s in all).
 * ``histories.png``, ``histories_weakening.png``, ``hertz_exponents.png``, ``rough_exponents.png``,
   ``coupled_finite_size.png``, ``indentation.png``, ``traction_direction.png``,
   ``weakening_rough.png``, ``burst_exponents.png``: the studies of ``docs/results.md`` (the
@@ -563,6 +567,71 @@ def coulomb_cone(out: Path, a_over_h: int = 12, nu: float = 0.5, lam: float = 0.
                  f"$a/h$ = {a_over_h}, {facets} facets: stick zone (solid), Mindlin's "
                  "(dashed), contact (dotted)", fontsize=9)
     save(plt, fig, out / "coulomb_cone.png")
+
+
+def spence_sphere(out: Path, a_over_h: int = 8, lam: float = 0.2986, facets: int = 32) -> None:
+    """The results page's Spence sphere: the stick fraction c/a against lambda, the
+    ring-element solution (computed here, about 5 s) and the pixel model from the page's
+    table; and the state of one indentation at ``a_over_h`` (computed here, about 5 s): the
+    stick zone and the tangential tractions."""
+    from roughslip.analysis.plotting import pyplot, save
+    from roughslip.analysis.verify import hertz_scene
+    from roughslip.contact.analytic import sphere_indentation_friction
+    from roughslip.contact.problem import Problem
+    from roughslip.coupling.cone import indent_cone
+
+    rows = _markdown_table(RESULTS, "| $\\lambda$ | ring elements")
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(8.6, 3.9), layout="constrained")
+    ax = axes[0]
+    k = np.linspace(0.04, 0.96, 24)
+    ax.plot([sphere_indentation_friction(float(x), n=20) for x in k], k, "-", color="0.3",
+            lw=2.5, alpha=0.5, label="ring elements (the continuum)")
+    heads = ["8", "12", "16"]
+    for j, head in enumerate(heads):
+        pts = [(_number(r[0]), _number(r[2 + j])) for r in rows if _numbers(r[2 + j])]
+        x, y = (np.array(v) for v in zip(*pts, strict=True))
+        ax.plot(x, y, "osD^"[j] + ("-" if len(pts) > 1 else ""), color=f"C{j}", ms=4, lw=1,
+                label=f"pixel model, $a/h$ = {head}", zorder=3)
+    ax.plot([0.2986], [0.5], "+", color="k", ms=12, mew=1.0, label="Spence: 0.5 at 0.2986",
+            zorder=2)
+    ax.set_xlabel("friction coefficient $\\lambda$", fontsize=8)
+    ax.set_ylabel("stick fraction $c/a$ (over the loading's second half)", fontsize=8)
+    ax.set_xlim(0.1, 0.55)
+    ax.set_ylim(0, 1)
+    _style(ax)
+    ax.legend(fontsize=7)
+    ax.set_title("stick fraction against the friction, $\\nu$ = 0", fontsize=9)
+
+    heights, h, depth, ac = hertz_scene(a_over_h)
+    res = indent_cone(Problem.from_arrays(heights, a=h, E=1.0, nu=0.0), depth, lam=lam,
+                      facets=facets)
+    nx = heights.shape[1]
+    centres = (np.arange(nx) - (nx - 1) / 2) * h / ac
+    X, Y = np.meshgrid(centres, centres)
+    ax = axes[1]
+    state = np.where(res.contact, np.where(res.stick, 1.0, 0.0), np.nan)
+    ext = (centres[0] - 0.5 * h / ac, centres[-1] + 0.5 * h / ac) * 2
+    from matplotlib.colors import ListedColormap
+
+    ax.imshow(state, origin="lower", extent=ext, cmap=ListedColormap(["#f3e3bd", "#9ecae1"]),
+              vmin=0, vmax=1, interpolation="nearest")
+    c = res.contact
+    scale = lam * float(res.fz.max())
+    ax.quiver(X[c], Y[c], res.fx[c] / scale, res.fy[c] / scale, angles="xy",
+              scale_units="xy", scale=4.0, width=0.006, color="k")
+    t = np.linspace(0, 2 * np.pi, 200)
+    for r, style in ((1.0, ":"), (0.5, "--")):
+        ax.plot(r * np.cos(t), r * np.sin(t), style, color="0.3", lw=0.9)
+    ax.set_xlim(-1.2, 1.2)
+    ax.set_ylim(-1.2, 1.2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("$x / a$", fontsize=8)
+    ax.set_ylabel("$y / a$", fontsize=8)
+    ax.tick_params(labelsize=8)
+    ax.set_title(f"$a/h$ = {a_over_h}, $\\lambda$ = {lam:g}: stick (blue), slip (sand),\n"
+                 "traction on the half-space (arrows), $c = a/2$ (dashed)", fontsize=9)
+    save(plt, fig, out / "spence_sphere.png")
 
 
 def _markdown_table(page: Path, header: str) -> list[list[str]]:
@@ -1194,6 +1263,7 @@ def main(argv: list[str] | None = None) -> None:
     weakening_resolution(args.out)
     coupled_events(args.out)
     coulomb_cone(args.out)
+    spence_sphere(args.out)
     results_figures(args.out)
     benchmarks(args.out)
     python_tutorial(args.out)

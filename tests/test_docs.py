@@ -133,7 +133,7 @@ def test_the_generated_guide_output_is_what_the_script_writes():
                | {"hurst_loop.txt", "hurst_fit.png", "hertz_resolution.png",
                   "hertz_resolution.txt", "weakening_resolution.png",
                   "weakening_resolution.txt", "index_pull.png", "coupled_events.png",
-                  "coupled_events.txt", "coulomb_cone.png", "histories.png",
+                  "coupled_events.txt", "coulomb_cone.png", "spence_sphere.png", "histories.png",
                   "histories_weakening.png",
                   "bench_scaling.png",
                   "hertz_exponents.png", "rough_exponents.png", "coupled_finite_size.png",
