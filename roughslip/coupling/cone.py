@@ -75,8 +75,9 @@ class ConeIndentation:
     r"""The state at the end of a frictional indentation under the faceted cone
     (:func:`indent_cone`), and its path.
 
-    Fields are grids of the problem's shape; ``mode`` holds :data:`STICK`, :data:`FACET`,
-    :data:`VERTEX` or :data:`OUT` per site. The path lists, at the start and after every
+    Fields are grids of the problem's shape; ``mode`` holds
+    :data:`~roughslip.friction.cone.STICK`, ``FACET``, ``VERTEX`` (the decoupled cone's
+    states) or :data:`OUT` per site. The path lists, at the start and after every
     event, the depth, :math:`F_z`, and the sites in contact and sticking."""
 
     depth: float
