@@ -160,23 +160,8 @@ class _Sites:
 
     def displacements(self, F: np.ndarray) -> np.ndarray:
         """:math:`\\mathbf u = G\\mathbf f` on the grid for force fields ``F`` (3, ny, nx), by
-        FFT (the kernels the material leaves at zero are skipped)."""
-        U = np.zeros_like(F)
-        tmp = np.empty(F.shape[1:])
-        for a in range(3):
-            for b in range(3):
-                if not F[b].any():
-                    continue
-                name = NAMES[a] + NAMES[b]
-                if not self._nonzero(name):
-                    continue
-                U[a] += self.op.apply(name, F[b], out=tmp)
-        return U
-
-    def _nonzero(self, name: str) -> bool:
-        nu = self.op.material.nu
-        return not ((name in ("xy", "yx") and nu == 0.0)
-                    or (name in ("zx", "xz", "zy", "yz") and nu == 0.5))
+        FFT (:meth:`~roughslip.elastic.operators.ElasticOperator.apply_full`)."""
+        return self.op.apply_full(F, np.empty_like(F))
 
 
 class ConeIndent:

@@ -172,6 +172,7 @@ class ElasticOperator:
         self._out = self.fft.real_buffer()
         self._spec = [self.fft.spectrum_buffer() for _ in range(2)]
         self._work = None
+        self._full: list[np.ndarray] = []  # the spectra of :meth:`apply_full`, when used
         #: the :meth:`work_buffer` arrays by name, and the addresses of those that
         #: :meth:`apply` transforms directly
         self._work_buffers: dict[str, np.ndarray] = {}
@@ -296,6 +297,7 @@ class ElasticOperator:
             view._out = view.fft.real_buffer()
             view._spec = [view.fft.spectrum_buffer() for _ in range(2)]
             view._work = None
+            view._full = []
             view.fft_seconds = 0.0
             view.applications = 0
             view.__dict__["_views"] = {}
@@ -467,6 +469,41 @@ class ElasticOperator:
         np.add(sx, sy, out=sx)
         self.applications += 2
         return self._unload(w, out_x), self._unload(sx, out_y)
+
+    def apply_full(self, F: np.ndarray, out: np.ndarray) -> np.ndarray:
+        r"""All three displacement components of all three force components,
+        :math:`u_a = \sum_b G_{ab} f_b` for ``F`` and ``out`` stacked as :math:`(z, x, y)`,
+        shape ``(3, ny, nx)``, the sums taken in Fourier space: one forward FFT per nonzero
+        force component and three backward ones. Needs the spectra of ``zz``, ``zx``, ``zy``,
+        ``xx``, ``xy`` and ``yy``."""
+        names = "zxy"
+        if len(self._full) < 5:
+            self._full = [self.fft.spectrum_buffer() for _ in range(5)]
+        spec, acc, tmp = self._full[:3], self._full[3], self._full[4]
+        loaded = []
+        for b in range(3):
+            self._check_field(F[b], "f" + names[b])
+            if F[b].any():
+                self._load(F[b], spec[b])
+                loaded.append(b)
+        for a in range(3):
+            if not loaded:
+                out[a] = 0.0
+                continue
+            for i, b in enumerate(loaded):
+                k, sign = self._khat_signed(names[a] + names[b])
+                target = acc if i == 0 else tmp
+                np.multiply(spec[b], k, out=target)
+                if i == 0:
+                    if sign < 0:
+                        np.negative(acc, out=acc)
+                elif sign < 0:
+                    np.subtract(acc, tmp, out=acc)
+                else:
+                    np.add(acc, tmp, out=acc)
+            self._unload(acc, out[a])
+        self.applications += 3
+        return out
 
     def apply_stacked(self, v: np.ndarray, out: np.ndarray) -> np.ndarray:
         """:meth:`apply_block` on stacked fields ``v = [f_z, f_x]`` of shape ``(2, ny, nx)``."""
