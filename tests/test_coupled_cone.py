@@ -145,7 +145,7 @@ def test_spence_sphere_stick_ratio(nu, lam):
     the second half of the loading in depth, is within h/(5a) = 0.025 of it (0.017 and 0.019
     off; docs/results.md: the resolution study). Over that half it stays within a ring of
     pixels at each edge of the stick zone (self-similarity), and the slip zone's tractions
-    point outwards, nearly along the radius."""
+    point outwards, within two facets' angle of the radius (4.1 degrees at most at nu = 0)."""
     from roughslip.contact.analytic import sphere_indentation_stick_ratio
 
     problem, depth = _sphere(8, nu)
@@ -159,7 +159,7 @@ def test_spence_sphere_stick_ratio(nu, lam):
     r = np.hypot(x, y)[slip]
     ft = np.stack([res.fx[slip], res.fy[slip]])
     cos = (ft[0] * x[slip] + ft[1] * y[slip]) / (r * np.hypot(*ft))
-    assert cos.min() > 0.9
+    assert cos.min() > math.cos(2 * math.pi / 32)  # a vertex is within pi/m of its slip
     # the slip zone carries the full friction of its polygon
     assert (np.hypot(*ft) >= math.cos(math.pi / 32) * lam * res.fz[slip] * (1 - 1e-9)).all()
 

@@ -318,13 +318,16 @@ def sphere_indentation_friction(stick_ratio: float, nu: float = 0.0, n: int = 40
     carries :math:`q = \lambda p` outwards. Among the stick radii, the one that meets the slip
     zone without a singular shear is the one whose slip starts from zero at :math:`r = c`;
     for a given :math:`c` that fixes :math:`\lambda`. Here the punch is solved by axisymmetric
-    ring elements (:func:`_punch_matrices`; ``n`` piecewise constant elements in the stick
-    zone and ``2n`` in the slip zone, collocated at their centres), the root in
+    ring elements (``n`` piecewise constant elements in the stick zone and ``2n`` in the slip
+    zone, collocated at their centres; the normal and radial responses from ring kernels in
+    complete elliptic integrals, and the exact axisymmetric coupling terms), the root in
     :math:`\lambda` found by bisection, and the values at ``n`` and ``2n`` extrapolated
     (the root converges as :math:`1/n`). At :math:`\nu = 0` and :math:`c/a = 1/2` it gives
     0.29871 (Spence's 0.2986); without the feedback it gives Goodman's closed form
-    :math:`\lambda/\beta = \operatorname{artanh}(k)/(k K(\sqrt{1-k^2}))` to :math:`10^{-5}`
-    (a test), :math:`\beta = (1-2\nu)/(2(1-\nu))`.
+    :math:`\lambda/\beta = \operatorname{artanh}(k)/(k K(\sqrt{1-k^2}))` to
+    :math:`2\times 10^{-5}` (a test), with :math:`k = c/a`, :math:`K(m)` the complete
+    elliptic integral of the first kind of modulus :math:`m`, and
+    :math:`\beta = (1-2\nu)/(2(1-\nu))`.
     """
     from scipy import optimize
 

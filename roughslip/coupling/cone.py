@@ -57,9 +57,11 @@ from roughslip.friction.result import CoupledDetails, PullResult, PullState
 from roughslip.linalg.memory import available_bytes
 from roughslip.linalg.threads import blas_threads
 
-#: a site out of contact, and a contact without a bond (no tangential force; contacts gained
-#: during a pull with ``gained = "unbonded"``)
-OUT, FREE = 3, 4
+#: a site out of contact
+OUT = 3
+#: a contact without a bond, carrying no tangential force (a contact gained during a pull with
+#: ``gained = "unbonded"``)
+FREE = 4
 #: the displacement (rows) and force (columns) components, in the order of a site's unknowns
 NAMES = ("z", "x", "y")
 #: refinements of a solution before the inverse is computed afresh
@@ -75,10 +77,12 @@ class ConeIndentation:
     r"""The state at the end of a frictional indentation under the faceted cone
     (:func:`indent_cone`), and its path.
 
-    Fields are grids of the problem's shape; ``mode`` holds
+    ``fz``, ``fx``, ``fy`` and ``mode`` are grids of the problem's shape; ``mode`` holds
     :data:`~roughslip.friction.cone.STICK`, ``FACET``, ``VERTEX`` (the decoupled cone's
-    states) or :data:`OUT` per site. The path lists, at the start and after every
-    event, the depth, :math:`F_z`, and the sites in contact and sticking."""
+    states) or :data:`OUT` per site. ``events`` counts the events, ``residual`` is the worst
+    certified relative residual and ``refreshes`` the inverses computed afresh. The
+    ``path_*`` arrays list, at the start and after every event, the depth, :math:`F_z`, and
+    the sites in contact and sticking."""
 
     depth: float
     lam: float
@@ -199,9 +203,10 @@ class ConeIndent:
         self.Q = np.zeros((cap, 3, 3))
         self.E = np.zeros((cap, 3, 3))
         self.D = 0.0  # the depth while indenting, the tangential drive while pulling
-        #: the drive's direction while pulling (None while indenting), and the mode a contact
-        #: gained while pulling enters (STICK, bonded where it touches, or FREE)
+        #: the drive's unit vector while pulling (None while indenting)
         self.e: np.ndarray | None = None
+        #: the state a contact gained while pulling enters: STICK (bonded where it touches)
+        #: or FREE
         self.gained = STICK
         self.events, self.refreshes, self.worst = 0, 0, 0.0
         self.limit = (max_events if max_events is not None
@@ -638,10 +643,10 @@ def indent_cone(problem: Problem, depth: float, *, lam: float = 0.2, facets: int
 
     Notes
     -----
-    Spence's frictional indentation of a sphere (D. A. Spence, J. Elasticity 5 (1975) 297) is
-    the outside truth: under monotonic loading the stick radius is a fixed fraction
-    :math:`c/a` of the contact radius, set by :math:`\lambda` and
-    :math:`\beta = (1 - 2\nu)/(2 - 2\nu)` (docs/results.md).
+    Spence's frictional indentation of a sphere (D. A. Spence, J. Elasticity 5 (1975) 297)
+    checks it: under monotonic loading the stick radius is a fixed fraction :math:`c/a` of
+    the contact radius, set by :math:`\lambda` and :math:`\beta = (1 - 2\nu)/(2 - 2\nu)`
+    (docs/results.md).
     """
     depth, lam, facets = _checked(problem, depth, lam, facets)
     st = ConeIndent(problem, depth, lam, facets, tol, max_events)
