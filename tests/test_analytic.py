@@ -79,7 +79,10 @@ def test_sphere_indentation_reference():
     lam = sphere_indentation_friction(0.5)
     assert lam == pytest.approx(0.2986, abs=2e-4)
     assert sphere_indentation_friction(0.5, n=20) == pytest.approx(lam, abs=2e-4)
-    assert sphere_indentation_stick_ratio(lam) == pytest.approx(0.5, abs=1e-6)
+    coarse = sphere_indentation_friction(0.5, n=10)
+    assert sphere_indentation_stick_ratio(coarse, n=10) == pytest.approx(0.5, abs=1e-6)
+    with pytest.raises(ValueError, match=r"lam = 5\.0: c/a lies outside"):
+        sphere_indentation_stick_ratio(5.0, n=10)
     # more friction, a larger stick zone; a less compressible solid, less shear
     assert sphere_indentation_friction(0.7) > lam > sphere_indentation_friction(0.3)
     assert sphere_indentation_friction(0.5, nu=0.3) < lam

@@ -354,5 +354,9 @@ def sphere_indentation_stick_ratio(lam: float, nu: float = 0.0, n: int = 40) -> 
 
     if not (math.isfinite(lam) and lam > 0):
         raise ValueError(f"lam = {lam!r}: must be a finite number > 0")
+    lo, hi = (sphere_indentation_friction(k, nu, n) for k in (1e-3, 0.99))
+    if not lo < lam < hi:
+        raise ValueError(f"lam = {lam!r}: c/a lies outside 0.001 to 0.99 (lam from {lo:.4g} "
+                         f"to {hi:.4g} at nu = {nu:g})")
     return optimize.brentq(lambda k: sphere_indentation_friction(k, nu, n) - lam, 1e-3,
                            0.99, xtol=1e-7)

@@ -180,28 +180,14 @@ class ConeIndent:
         self.cone = Cone(facets, direction)  # a vertex on the drive
         self.k = _Sites(problem)
         self.base = problem.base.ravel()
-        # the sites that may touch: the overlap at the end, widened by two pixels (the
-        # coupling can lift or lower a gap near the edge; a gap closing outside is an error)
-        cand = ndimage.binary_dilation(problem.overlap(self.end) >= 0, iterations=2)
-        self.candidates = cand.ravel()
-        cap = int(cand.sum())
-        need = 8 * (3 * cap) ** 2 + 8 * 64 * 3 * cap
-        if need > available_bytes():
-            raise MemoryLimitError(
-                f"the frictional indentation under the cone on up to {cap} sites needs "
-                f"~{need / 2**30:.2f} GiB but {available_bytes() / 2**30:.2f} GiB are "
-                "available; lower the depth")
-        self.cap = cap
-        self.inv = np.zeros((3 * cap, 3 * cap))
-        self.sites = np.empty(cap, dtype=np.int64)  # the site of each slot
+        # room for the sites that touch: at first the overlap at the end widened by two
+        # pixels, grown when more touch (the coupling moves the gaps; on periodic grids the
+        # surface may rise anywhere)
+        first = ndimage.binary_dilation(problem.overlap(self.end) >= 0, iterations=2)
+        self.cap = 0
         self.slot = np.full(self.base.size, -1, dtype=np.int64)
         self.used = 0
-        self.mode = np.full(cap, OUT, dtype=np.int8)
-        self.face = np.zeros(cap, dtype=np.int64)
-        self.ref = np.zeros((cap, 2))
-        self.P = np.zeros((cap, 3, 3))
-        self.Q = np.zeros((cap, 3, 3))
-        self.E = np.zeros((cap, 3, 3))
+        self._grow(max(int(first.sum()), 4))
         self.D = 0.0  # the depth while indenting, the tangential drive while pulling
         #: the drive's unit vector while pulling (None while indenting)
         self.e: np.ndarray | None = None
@@ -210,7 +196,7 @@ class ConeIndent:
         self.gained = STICK
         self.events, self.refreshes, self.worst = 0, 0, 0.0
         self.limit = (max_events if max_events is not None
-                      else 40 * cap * (facets // 4 + 4) + 100)
+                      else 40 * self.cap * (facets // 4 + 4) + 100)
         self._seen: dict[bytes, int] = {}
         g0 = float(self.k.block(np.array([0]), np.array([0]))[0, 0, 0, 0])
         self.g0 = g0
@@ -218,14 +204,43 @@ class ConeIndent:
             self.apply(self._slot_of(int(s)), STICK)
 
     # -- the sites and their blocks ------------------------------------------------------------
+    def _grow(self, cap: int) -> None:
+        """Room for ``cap`` sites (at most the grid's), the inverse and every per-site array
+        copied. The memory asked for counts what a fresh inverse needs at its peak (the
+        kernels, the matrix and its inverse beside the stored one)."""
+        cap = min(cap, self.base.size)
+        need = 4 * 8 * (3 * cap) ** 2
+        if need > available_bytes():
+            raise MemoryLimitError(
+                f"the Coulomb cone under coupling on up to {cap} contact sites needs "
+                f"~{need / 2**30:.2f} GiB but {available_bytes() / 2**30:.2f} GiB are "
+                "available; lower the depth or use pull.components = 'x'")
+        old, m = self.cap, 3 * self.used
+
+        def grown(name, shape, fill=0.0, dtype=float):
+            arr = np.full(shape, fill, dtype=dtype)
+            if old:
+                arr[:old] = getattr(self, name)
+            setattr(self, name, arr)
+
+        inv = np.zeros((3 * cap, 3 * cap))
+        if old:
+            inv[:m, :m] = self.inv[:m, :m]
+        self.inv = inv
+        grown("sites", cap, 0, np.int64)  # the site of each slot
+        grown("mode", cap, OUT, np.int8)
+        grown("face", cap, 0, np.int64)
+        grown("ref", (cap, 2))
+        grown("P", (cap, 3, 3))
+        grown("Q", (cap, 3, 3))
+        grown("E", (cap, 3, 3))
+        self.cap = cap
+
     def _slot_of(self, site: int) -> int:
         p = int(self.slot[site])
         if p < 0:
-            if not self.candidates[site]:
-                iy, ix = divmod(site, self.problem.shape[1])
-                raise NumericalError(
-                    f"frictional indentation: a gap closes at pixel ({iy}, {ix}), outside the "
-                    f"overlap at depth {self.end!r} widened by two pixels")
+            if self.used == self.cap:
+                self._grow(2 * self.cap)
             p = self.used
             self.used += 1
             self.sites[p], self.slot[site] = site, p
@@ -407,11 +422,12 @@ class ConeIndent:
         fscale = max(float(np.abs(F[0]).max()), np.finfo(float).tiny)
         ftie = TIE * fscale
         rtie = TIE * max(float(np.abs(Fr).max()), np.finfo(float).tiny)
-        best, rank, who, to, where = math.inf, 2, 0, -1, 0
+        best, rank, who, to, where = math.inf, 3, 0, -1, 0
 
         def take(inc: np.ndarray, ids: np.ndarray, mode, face, kind: int = 0) -> None:
-            # the least increment; at one depth, a bound reached (kind 0) before a slip
-            # rate that turns (kind 1), then the lowest id
+            # the least increment; at one driver value, a bound reached (kind 0) before a
+            # normal force that reaches zero (kind 1, so that a new contact may slip first)
+            # before a slip rate that turns (kind 2), then the lowest id
             nonlocal best, rank, who, to, where
             if not inc.size:
                 return
@@ -449,7 +465,7 @@ class ConeIndent:
         with np.errstate(divide="ignore", invalid="ignore"):
             inc = np.where(fr[c] < -rtie, np.maximum(fz[c], 0.0) / -fr[c], np.inf)
         inc = np.where(fz[c] < -ftie, 0.0, inc)
-        take(inc, slots[c], OUT, 0)
+        take(inc, slots[c], OUT, 0, 1)
         # sticking forces that reach a facet's line
         s = mode == STICK
         if s.any():
@@ -458,11 +474,17 @@ class ConeIndent:
             with np.errstate(divide="ignore", invalid="ignore"):
                 inc = np.where(rate > rtie, np.maximum(-val, 0.0) / rate, np.inf)
             inc = np.where(val > ftie, 0.0, inc)
-            k = np.argmin(inc, axis=1)
-            first = inc[np.arange(k.size), k]
+            # the first line met; among lines met at once (a force at the cone's apex, a
+            # new contact) the one the force's rate crosses fastest
+            first = inc.min(axis=1)
+            tied = inc <= first[:, None] * (1 + TIE)
+            k = np.argmax(np.where(tied, rate, -np.inf), axis=1)
             Dk = D + np.where(np.isfinite(first), first, 0.0)
             p = Dk[:, None] * ftr[s] + ft[s] - D * ftr[s]
             half = cone.h * lam * (fz[s] + (Dk - D) * fr[s])
+            # where the force is still at the apex, where it meets the line follows the rates
+            apex = np.abs(half) <= cone.h * lam * ftie
+            p[apex], half[apex] = ftr[s][apex], cone.h * lam * fr[s][apex]
             with np.errstate(divide="ignore", invalid="ignore"):
                 tau = np.einsum("pa,pa->p", p, cone.tangents[k]) / half
             hi, lo = tau >= 1 - 1e-9, tau <= -1 + 1e-9
@@ -485,7 +507,7 @@ class ConeIndent:
             down = np.where(-tau > half + ftie, 0.0, down)
             sig = np.einsum("pa,pa->p", sr[f], cone.normals[k])
             stie = RATE_TIE * max(float(np.abs(sr[f]).max()), np.finfo(float).tiny)
-            take(np.where(sig < -stie, 0.0, np.inf), slots[f], STICK, 0, 1)
+            take(np.where(sig < -stie, 0.0, np.inf), slots[f], STICK, 0, 2)
             take(up, slots[f], VERTEX, (k + 1) % cone.m)
             take(down, slots[f], VERTEX, k)
         v = mode == VERTEX
@@ -495,10 +517,10 @@ class ConeIndent:
             stie = RATE_TIE * max(float(np.abs(sr[v]).max()), np.finfo(float).tiny)
             neg = ab < -stie
             both = neg.all(axis=1)
-            take(np.where(both, 0.0, np.inf), slots[v], STICK, 0, 1)
-            take(np.where(neg[:, 0] & ~both, 0.0, np.inf), slots[v], FACET, j, 1)
+            take(np.where(both, 0.0, np.inf), slots[v], STICK, 0, 2)
+            take(np.where(neg[:, 0] & ~both, 0.0, np.inf), slots[v], FACET, j, 2)
             take(np.where(neg[:, 1] & ~both, 0.0, np.inf), slots[v], FACET, (j - 1) % cone.m,
-                 1)
+                 2)
         return best, who, to, where
 
     def run(self) -> None:
@@ -678,12 +700,12 @@ def couple_cone(problem: Problem, depth: float, *, lam: float = 0.2, direction: 
     """
     t0 = time.perf_counter()
     direction = finite(direction, "direction")
+    if gained not in ("bonded", "unbonded"):
+        raise InputError(f"gained = {gained!r}: must be 'bonded' or 'unbonded'")
     st = _indented(problem, depth, lam, facets, tol, max_events, direction)
     start_F = st.fields()
     start_mode = _grid_modes(st)
     t_squeeze = time.perf_counter() - t0
-    if gained not in ("bonded", "unbonded"):
-        raise InputError(f"gained = {gained!r}: must be 'bonded' or 'unbonded'")
     rows, message = st.pull(direction, gained)
     drive = np.array([r[0] for r in rows])
     force = np.array([r[1] for r in rows]).reshape(-1, 2)

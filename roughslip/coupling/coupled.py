@@ -235,7 +235,7 @@ def couple(
     _check_couple(problem, depth, force, lam, pull_control, gained, slip_law, squeeze_method)
     if components != "x" or direction != 0 or facets is not None:
         _check_vector(components, direction, slip_law, history, depth, pull_control, method,
-                      record_states)
+                      record_states, reference)
         from roughslip.coupling.cone import FACETS, couple_cone
 
         return couple_cone(problem, finite(depth, "depth"), lam=lam, direction=direction,
@@ -364,14 +364,14 @@ def _check_couple(problem: Problem, depth: float | None, force: float | None, la
 
 def _check_vector(components: str, direction: float, slip_law: str, history: str,
                   depth: float | None, pull_control: str, method: str,
-                  record_states: bool) -> None:
+                  record_states: bool, reference: bool) -> None:
     """The choices :func:`couple` takes with the traction vector; each other one refused in
     one line that names it."""
     if components not in ("x", "xy"):
         raise InputError(f"components = {components!r}: must be 'x' or 'xy'")
     if components == "x":
-        raise InputError(f"direction = {direction!r}: the x-only model (components = 'x') "
-                         "pulls along x alone, with the default facets; use components = 'xy'")
+        raise InputError(f"direction = {direction!r}, facets: the x-only model (components = "
+                         "'x') pulls along x alone and has no cone; use components = 'xy'")
     vector = "components = 'xy' (the coupled model with the traction vector)"
     if slip_law != "coulomb":
         raise InputError(f"slip_law = {slip_law!r}: {vector} holds the Coulomb cone only; "
@@ -388,6 +388,9 @@ def _check_vector(components: str, direction: float, slip_law: str, history: str
                          "'dense'")
     if record_states:
         raise InputError(f"record_states = True: {vector} does not record its states")
+    if reference:
+        raise InputError(f"reference = True: {vector} has no dense-sum reference (its tests "
+                         "check it against dense kernels)")
 
 
 @dataclass(frozen=True)
