@@ -39,14 +39,21 @@ def measures(force: np.ndarray, drive: np.ndarray, full: float) -> tuple[float, 
     return k0, d50, d90
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def study_arguments(doc: str, samples: int, depths: list[float], facets: int
+                    ) -> argparse.Namespace:
+    """The command line of a vector / x-only study on rough surfaces (this one and
+    ``coupled_vector_effect.py``): size, samples, Poisson ratios, depths and facets."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--size", type=int, default=64)
-    ap.add_argument("--samples", type=int, default=20)
+    ap.add_argument("--samples", type=int, default=samples)
     ap.add_argument("--nu", type=float, nargs="+", default=[0.25, 0.45])
-    ap.add_argument("--depths", type=float, nargs="+", default=[2.5, 3.5])
-    ap.add_argument("--facets", type=int, default=64)
-    args = ap.parse_args()
+    ap.add_argument("--depths", type=float, nargs="+", default=depths)
+    ap.add_argument("--facets", type=int, default=facets)
+    return ap.parse_args()
+
+
+def main() -> None:
+    args = study_arguments(__doc__, 20, [2.5, 3.5], 64)
     n = args.size
     print(f"N = {n}, {args.samples} samples, lambda = {LAM}, {args.facets} facets, drive along "
           "x; ratios traction vector / x-only\n")

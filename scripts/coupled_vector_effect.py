@@ -21,10 +21,10 @@ resamples, seed 0) and the range over samples, and the seconds of each model.
 
 from __future__ import annotations
 
-import argparse
 import time
 
 import numpy as np
+from coulomb_vector_effect import study_arguments  # the decoupled study's command line
 from coupling_effect import bootstrap_std  # the same statistics as the coupling study
 
 from roughslip import Problem, couple
@@ -40,13 +40,7 @@ def half_drive(drive: np.ndarray, along: np.ndarray, peak: float) -> float:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--size", type=int, default=64)
-    ap.add_argument("--samples", type=int, default=10)
-    ap.add_argument("--nu", type=float, nargs="+", default=[0.25, 0.45])
-    ap.add_argument("--depths", type=float, nargs="+", default=[2.5])
-    ap.add_argument("--facets", type=int, default=32)
-    args = ap.parse_args()
+    args = study_arguments(__doc__, 10, [2.5], 32)
     n = args.size
     print(f"N = {n}, {args.samples} samples, lambda = {LAM}, {args.facets} facets, history "
           "indent, drive along x; ratios vector / x-only\n")

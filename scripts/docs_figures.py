@@ -550,15 +550,7 @@ def coulomb_cone(out: Path, a_over_h: int = 12, nu: float = 0.5, lam: float = 0.
                        interpolation="nearest")
         ax.contour(centres, centres, stick.astype(float), levels=[0.5], colors="k",
                    linewidths=1.0)
-        t = np.linspace(0, 2 * np.pi, 200)
-        for r, style in ((1.0, ":"), (c, "--")):
-            ax.plot(r * np.cos(t), r * np.sin(t), style, color="0.3", lw=0.9)
-        ax.set_xlim(-1.15, 1.15)
-        ax.set_ylim(-1.15, 1.15)
-        ax.set_aspect("equal")
-        ax.set_xlabel("$x / a$", fontsize=8)
-        ax.set_ylabel("$y / a$", fontsize=8)
-        ax.tick_params(labelsize=8)
+        _disc_axes(ax, c, 1.15)
         ax.set_title(title, fontsize=9)
         bar = fig.colorbar(im, ax=ax, shrink=0.85)
         bar.ax.tick_params(labelsize=7)
@@ -620,18 +612,24 @@ def spence_sphere(out: Path, a_over_h: int = 8, lam: float = 0.2986, facets: int
     scale = lam * float(res.fz.max())
     ax.quiver(X[c], Y[c], res.fx[c] / scale, res.fy[c] / scale, angles="xy",
               scale_units="xy", scale=4.0, width=0.006, color="k")
+    _disc_axes(ax, 0.5, 1.2)
+    ax.set_title(f"$a/h$ = {a_over_h}, $\\lambda$ = {lam:g}: stick (blue), slip (sand),\n"
+                 "traction on the half-space (arrows), $c = a/2$ (dashed)", fontsize=9)
+    save(plt, fig, out / "spence_sphere.png")
+
+
+def _disc_axes(ax, inner: float, lim: float) -> None:
+    """A contact map's axes in units of the contact radius: the contact circle (dotted), a
+    circle of radius ``inner`` (dashed), equal scales to +-``lim``."""
     t = np.linspace(0, 2 * np.pi, 200)
-    for r, style in ((1.0, ":"), (0.5, "--")):
+    for r, style in ((1.0, ":"), (inner, "--")):
         ax.plot(r * np.cos(t), r * np.sin(t), style, color="0.3", lw=0.9)
-    ax.set_xlim(-1.2, 1.2)
-    ax.set_ylim(-1.2, 1.2)
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim, lim)
     ax.set_aspect("equal")
     ax.set_xlabel("$x / a$", fontsize=8)
     ax.set_ylabel("$y / a$", fontsize=8)
     ax.tick_params(labelsize=8)
-    ax.set_title(f"$a/h$ = {a_over_h}, $\\lambda$ = {lam:g}: stick (blue), slip (sand),\n"
-                 "traction on the half-space (arrows), $c = a/2$ (dashed)", fontsize=9)
-    save(plt, fig, out / "spence_sphere.png")
 
 
 def _markdown_table(page: Path, header: str) -> list[list[str]]:
