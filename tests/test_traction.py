@@ -240,10 +240,10 @@ def _config(tmp_path, sets):
 
 
 @pytest.mark.parametrize("sets,match", [
-    (["pull.direction=30"], r"pull\.direction = 30\.0: the x-only model"),
+    (["pull.components='x'", "pull.direction=30"], r"pull\.direction = 30\.0: the x-only model"),
     (["pull.components='xy'", "coupling.enabled=true", "coupling.history='indent'"],
      r"pull\.components = \"xy\": the coupled model with the traction vector holds "
-     r"slip_law = 'coulomb'"),
+     r"slip_law 'coulomb'"),
     (["pull.components='xy'", "coupling.enabled=true", "pull.slip_law='coulomb'"],
      r"coupling\.history = \"bonded\": the coupled model with the traction vector starts "
      r"from the frictional indentation"),
@@ -273,6 +273,14 @@ def test_the_configuration_refuses_what_the_vector_model_lacks(tmp_path, sets, m
     with pytest.raises(ConfigError, match=match) as e:
         _config(tmp_path, sets)
     assert str(e.value).count("\n") == 0
+
+
+def test_a_drive_off_x_pulls_the_vector_unless_told_otherwise(tmp_path):
+    """``pull.direction`` set and ``pull.components`` not: the traction vector (the x-only
+    model cannot pull off x); at direction 0 the default stays the x-only model."""
+    assert _config(tmp_path, ["pull.direction=30"]).pull.components == "xy"
+    assert _config(tmp_path, []).pull.components == "x"
+    assert _config(tmp_path, ["pull.direction=0"]).pull.components == "x"
 
 
 def test_a_run_stores_the_force_vector(tmp_path):

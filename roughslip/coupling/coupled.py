@@ -79,6 +79,7 @@ from roughslip.friction.laws import LAWS
 from roughslip.friction.pull import check_friction
 from roughslip.friction.result import CoupledDetails, PullResult, PullState, renamed
 from roughslip.linalg.threads import blas_threads
+from roughslip.registry import AUTO
 
 
 def __getattr__(name: str) -> type:
@@ -373,8 +374,9 @@ def _check_vector(components: str, direction: float, slip_law: str, history: str
         raise InputError(f"direction = {direction!r}, facets: the x-only model (components = "
                          "'x') pulls along x alone and has no cone; use components = 'xy'")
     vector = "components = 'xy' (the coupled model with the traction vector)"
-    if slip_law != "coulomb":
-        raise InputError(f"slip_law = {slip_law!r}: {vector} holds the Coulomb cone only; "
+    if not LAWS.get(slip_law, "slip_law").couples_vector:
+        have = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).couples_vector)
+        raise InputError(f"slip_law = {slip_law!r}: {vector} holds slip_law {have} only; "
                          "use components = 'x'")
     if history != "indent":
         raise InputError(f"history = {history!r}: {vector} starts from the frictional "
@@ -383,9 +385,9 @@ def _check_vector(components: str, direction: float, slip_law: str, history: str
         raise InputError(f"force: {vector} squeezes to a depth; give depth instead")
     if pull_control != "depth":
         raise InputError(f"pull_control = {pull_control!r}: {vector} holds the depth")
-    if method not in ("auto", "dense"):
-        raise InputError(f"method = {method!r}: {vector} is solved dense; use 'auto' or "
-                         "'dense'")
+    if choose_solver(method) != choose_solver(AUTO):
+        raise InputError(f"method = {method!r}: {vector} is solved dense; use "
+                         f"{AUTO!r} or {choose_solver(AUTO)!r}")
     if record_states:
         raise InputError(f"record_states = True: {vector} does not record its states")
     if reference:

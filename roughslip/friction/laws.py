@@ -84,6 +84,9 @@ class SlipLaw:
         methods also run.
     couples
         The coupled model (:func:`~roughslip.coupling.coupled.couple`) runs it exactly.
+    couples_vector
+        The coupled model runs it with the traction vector
+        (:func:`~roughslip.coupling.cone.couple_cone`, the faceted cone).
     lands
         Its decoupled pull records the state each burst lands in, at the drive (an event
         with site -1): :func:`roughslip.analysis.bursts.landing_curve` reads its curve.
@@ -108,6 +111,7 @@ class SlipLaw:
     reverses: bool = False
     slides: bool = False
     couples: bool = True
+    couples_vector: bool = False
     lands: bool = False
     single: bool = False
     components: tuple[str, ...] = ("x",)
@@ -241,7 +245,7 @@ LAWS.register("break", "a failed bond carries no force (the report's law)")(Brea
     components=("x", "xy")))
 LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(
     "coulomb", failed="slipping", curve="slip events", reverses=True, slides=True,
-    engine=slide, needs=frozenset({"tracked"}), components=("x", "xy")))
+    engine=slide, needs=frozenset({"tracked"}), components=("x", "xy"), couples_vector=True))
 LAWS.register("slip-weakening", "a failed bond slips, its strength falling from lam f_z to "
               "lam_dynamic f_z over the slip slip_distance")(SlipWeakeningLaw(
     "slip-weakening", failed="slipping", curve="slip events", reverses=True, couples=True,

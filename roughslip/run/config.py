@@ -232,6 +232,9 @@ def _build(data: dict[str, Any], ctx: Context, base_dir: Path) -> RunConfig:
     errors.raise_any()
     given = frozenset(f"{sec}.{k}" for sec, t in data.items() if isinstance(t, dict)
                       for k in t)
+    pull = sections["pull"]
+    if pull.direction != 0 and "pull.components" not in given:  # a drive off x pulls the vector
+        sections["pull"] = dataclasses.replace(pull, components="xy")
     cfg = RunConfig(title=title, source=ctx.source, given=given, retired=dict(ctx.retired),
                     quantities=quantities, **sections)
     _check_cross(cfg, ctx, errors)

@@ -33,9 +33,10 @@ def check_pull(cfg: RunConfig, errors: Errors) -> None:
     engine = comps != "x" and cfg.material.nu != 0
     if comps != "x" and cfg.coupling.enabled:  # the coupled cone: one history and control
         vector = "the coupled model with the traction vector"
-        if cfg.pull.slip_law != "coulomb":
-            errors.add("pull.components", comps, f"{vector} holds slip_law = 'coulomb' "
-                       "(the faceted cone) only; needs components = 'x'")
+        if not law.couples_vector:
+            have = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).couples_vector)
+            errors.add("pull.components", comps, f"{vector} holds slip_law {have} (the "
+                       "faceted cone) only; needs components = 'x'")
         if cfg.coupling.history != "indent":
             errors.add("coupling.history", cfg.coupling.history, f"{vector} starts from the "
                        "frictional indentation; needs history = 'indent'")

@@ -242,12 +242,12 @@ class PullConfig:
                             "sequence and friction force by certified decisions, the other "
                             "curve points to ~1e-6) or auto (double when it fits in memory, "
                             "else single)", choices=PULL_PRECISIONS)
-    components: str = option("x", "the tangential model: x (the report's: each bond carries f_x "
-                             "alone and u_y is free) or xy (each bond carries the traction "
-                             "vector (f_x, f_y) and sticks in both directions, pulled at "
+    components: str = option("x", "the tangential model: x (the report's: f_x alone, u_y free; "
+                             "xy when pull.direction is set and this is not) or xy (the "
+                             "traction vector (f_x, f_y), sticking both ways, pulled at "
                              "pull.direction; decoupled: every law at nu = 0, the break law on "
                              "methods inverse and hierarchical and the Coulomb cone on method "
-                             "inverse at nu > 0)",
+                             "inverse at nu > 0; coupled: the Coulomb cone, history indent)",
                              choices=tuple(TANGENTIAL_MODELS))
     direction: float = option(0.0, "the drive's angle in the surface plane, degrees from x "
                               "toward y; 0 with components = 'x', which pulls along x alone",
