@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 
 import numpy as np
 from coupling_effect import bootstrap_std  # the same statistics as the coupling study
@@ -52,38 +53,52 @@ def study_arguments(doc: str, samples: int, depths: list[float], facets: int
     return ap.parse_args()
 
 
-def main() -> None:
-    args = study_arguments(__doc__, 20, [2.5, 3.5], 64)
+def run_study(args: argparse.Namespace, title: str, columns: str,
+              pair: Callable[[np.ndarray, float, float], tuple[list[float], float, float,
+                                                               float]]) -> None:
+    """Print a vector / x-only study's table: for each nu and depth, over the samples (H =
+    0.8, rms height 1, seeds ``sample_rng(1, s)``), the mean, bootstrap error and range of
+    each ratio ``pair(heights, nu, depth)`` returns, with the contact fraction and the
+    seconds of each model it returns."""
     n = args.size
-    print(f"N = {n}, {args.samples} samples, lambda = {LAM}, {args.facets} facets, drive along "
-          "x; ratios traction vector / x-only\n")
-    print("| nu | depth (rms) | contact | K_0 | D at 50 % | D at 90 % | seconds x-only / "
-          "vector |")
-    print("|---|---|---|---|---|---|---|")
+    print(f"N = {n}, {args.samples} samples, lambda = {LAM}, {args.facets} facets, {title}\n")
+    print(f"| nu | depth (rms) | contact | {columns} | seconds x-only / vector |")
+    print("|---|---|---|" + "---|" * (columns.count("|") + 1) + "---|")
     for nu in args.nu:
         for depth in args.depths:
             ratios, area, tx, tv = [], [], 0.0, 0.0
             for s in range(args.samples):
                 h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(1, s))
-                normal = squeeze(h, depth=depth, nu=nu, tol=1e-12)
-                full = LAM * normal.normal_force
-                t0 = time.perf_counter()
-                x = pull(normal, lam=LAM, slip_law="coulomb", threads=1)
-                tx += time.perf_counter() - t0
-                t0 = time.perf_counter()
-                v = pull(normal, lam=LAM, slip_law="coulomb", components="xy",
-                         facets=args.facets, threads=1)
-                tv += time.perf_counter() - t0
-                mx = measures(x.curve.fx, x.curve.dx, full)
-                mv = measures(v.curve.along, v.curve.drive, full)
-                ratios.append([b / a for a, b in zip(mx, mv, strict=True)])
-                area.append(float(normal.contact.mean()))
+                r, contact, sx, sv = pair(h, nu, depth)
+                ratios.append(r)
+                area.append(contact)
+                tx, tv = tx + sx, tv + sv
             r = np.array(ratios)
             cells = [f"{c.mean():.4f} ± {bootstrap_std(c):.4f} ({c.min():.3f} to "
                      f"{c.max():.3f})" for c in r.T]
             print(f"| {nu} | {depth:g} | {np.mean(area):.1%} | {' | '.join(cells)} | "
                   f"{tx:.0f} / {tv:.0f} |", flush=True)
 
+
+def main() -> None:
+    args = study_arguments(__doc__, 20, [2.5, 3.5], 64)
+
+    def pair(h: np.ndarray, nu: float, depth: float):
+        normal = squeeze(h, depth=depth, nu=nu, tol=1e-12)
+        full = LAM * normal.normal_force
+        t0 = time.perf_counter()
+        x = pull(normal, lam=LAM, slip_law="coulomb", threads=1)
+        t1 = time.perf_counter()
+        v = pull(normal, lam=LAM, slip_law="coulomb", components="xy", facets=args.facets,
+                 threads=1)
+        t2 = time.perf_counter()
+        mx = measures(x.curve.fx, x.curve.dx, full)
+        mv = measures(v.curve.along, v.curve.drive, full)
+        return ([b / a for a, b in zip(mx, mv, strict=True)], float(normal.contact.mean()),
+                t1 - t0, t2 - t1)
+
+    run_study(args, "drive along x; ratios traction vector / x-only",
+              "K_0 | D at 50 % | D at 90 %", pair)
 
 if __name__ == "__main__":
     main()

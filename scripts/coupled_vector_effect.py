@@ -24,13 +24,9 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from coulomb_vector_effect import study_arguments  # the decoupled study's command line
-from coupling_effect import bootstrap_std  # the same statistics as the coupling study
+from coulomb_vector_effect import LAM, run_study, study_arguments  # shared with that study
 
 from roughslip import Problem, couple
-from roughslip.surfaces.synthetic import sample_rng, self_affine
-
-LAM = 0.2
 
 
 def half_drive(drive: np.ndarray, along: np.ndarray, peak: float) -> float:
@@ -41,38 +37,25 @@ def half_drive(drive: np.ndarray, along: np.ndarray, peak: float) -> float:
 
 def main() -> None:
     args = study_arguments(__doc__, 10, [2.5], 32)
-    n = args.size
-    print(f"N = {n}, {args.samples} samples, lambda = {LAM}, {args.facets} facets, history "
-          "indent, drive along x; ratios vector / x-only\n")
-    print("| nu | depth (rms) | contact | F_n | friction force | D at 50 % | seconds x-only / "
-          "vector |")
-    print("|---|---|---|---|---|---|---|")
-    for nu in args.nu:
-        for depth in args.depths:
-            ratios, area, tx, tv = [], [], 0.0, 0.0
-            for s in range(args.samples):
-                h = self_affine((n, n), hurst=0.8, rms_height=1.0, rng=sample_rng(1, s))
-                problem = Problem.from_arrays(h, nu=nu)
-                d = depth * float(np.std(h))
-                t0 = time.perf_counter()
-                x = couple(problem, depth=d, lam=LAM, slip_law="coulomb", history="indent")
-                tx += time.perf_counter() - t0
-                t0 = time.perf_counter()
-                v = couple(problem, depth=d, lam=LAM, slip_law="coulomb", history="indent",
-                           components="xy", facets=args.facets)
-                tv += time.perf_counter() - t0
-                mx = (x.normal_force, x.friction_force,
-                      half_drive(x.curve.dx, x.curve.fx, x.friction_force))
-                mv = (v.normal_force, v.friction_force,
-                      half_drive(v.curve.drive, v.curve.along, v.friction_force))
-                ratios.append([b / a for a, b in zip(mx, mv, strict=True)])
-                area.append(float(x.start.contact.mean()))
-            r = np.array(ratios)
-            cells = [f"{c.mean():.4f} ± {bootstrap_std(c):.4f} ({c.min():.3f} to "
-                     f"{c.max():.3f})" for c in r.T]
-            print(f"| {nu} | {depth:g} | {np.mean(area):.1%} | {' | '.join(cells)} | "
-                  f"{tx:.0f} / {tv:.0f} |", flush=True)
 
+    def pair(h: np.ndarray, nu: float, depth: float):
+        problem = Problem.from_arrays(h, nu=nu)
+        d = depth * float(np.std(h))
+        t0 = time.perf_counter()
+        x = couple(problem, depth=d, lam=LAM, slip_law="coulomb", history="indent")
+        t1 = time.perf_counter()
+        v = couple(problem, depth=d, lam=LAM, slip_law="coulomb", history="indent",
+                   components="xy", facets=args.facets)
+        t2 = time.perf_counter()
+        mx = (x.normal_force, x.friction_force,
+              half_drive(x.curve.dx, x.curve.fx, x.friction_force))
+        mv = (v.normal_force, v.friction_force,
+              half_drive(v.curve.drive, v.curve.along, v.friction_force))
+        return ([b / a for a, b in zip(mx, mv, strict=True)], float(x.start.contact.mean()),
+                t1 - t0, t2 - t1)
+
+    run_study(args, "history indent, drive along x; ratios vector / x-only",
+              "F_n | friction force | D at 50 %", pair)
 
 if __name__ == "__main__":
     main()
