@@ -697,6 +697,12 @@ def couple_cone(problem: Problem, depth: float, *, lam: float = 0.2, direction: 
     bonded where it touches (``gained = "bonded"``) or without a bond, carrying a normal force
     alone (``"unbonded"``). The result is :func:`~roughslip.coupling.coupled.couple`'s, with
     the history ``"indent"`` and the y forces of both states.
+
+    The polygon keeps a vertex on the drive from first touch, so the indentation differs from
+    :func:`indent_cone`'s (a vertex on x) by the polygon's orientation when ``direction`` is
+    not a multiple of the facets' angle: by at most :math:`1 - \cos(\pi/m)` in any force.
+    One ``max_events`` budget covers both phases: spent during the indentation it raises
+    :class:`~roughslip.errors.NumericalError`, during the pull it ends the curve unconverged.
     """
     t0 = time.perf_counter()
     direction = finite(direction, "direction")
