@@ -700,7 +700,8 @@ def couple_cone(problem: Problem, depth: float, *, lam: float = 0.2, direction: 
 
     The polygon keeps a vertex on the drive from first touch, so the indentation differs from
     :func:`indent_cone`'s (a vertex on x) by the polygon's orientation when ``direction`` is
-    not a multiple of the facets' angle: by at most :math:`1 - \cos(\pi/m)` in any force.
+    not a multiple of the facets' angle (the two polygons' strengths in any direction differ
+    by at most :math:`1 - \cos(\pi/m)`).
     One ``max_events`` budget covers both phases: spent during the indentation it raises
     :class:`~roughslip.errors.NumericalError`, during the pull it ends the curve unconverged.
     """
