@@ -317,7 +317,7 @@ def test_a_coupled_run_stores_the_force_vector(tmp_path):
     cfg = _config(tmp_path, ["grid.n=16", "pull.components='xy'", "pull.direction=30",
                              "pull.slip_law='coulomb'", "pull.facets=16",
                              "coupling.enabled=true", "coupling.history='indent'",
-                             "output.fields=['fy', 'ux', 'uz']", "ensemble.samples=1"])
+                             "output.fields=['fz', 'fy', 'ux', 'uz']", "ensemble.samples=1"])
     run(cfg, tmp_path / "c.h5", workers=1)
     r = read_run(tmp_path / "c.h5")
     F = r.scalars["friction_force"]
@@ -331,6 +331,12 @@ def test_a_coupled_run_stores_the_force_vector(tmp_path):
                  slip_law="coulomb", history="indent", components="xy", direction=30.0,
                  facets=16, tol=1e-10)
     assert F[0, 1] == pytest.approx(api.friction_force, rel=1e-12)
+    # the stored u_z holds the overlap on the contacts to the FFT's rounding: it includes the
+    # y forces' part G_zy f_y (without it the check fails)
+    uz, fz = r.field(0, 1, "uz"), r.field(0, 1, "fz")
+    touch = fz > 0
+    target = problem.overlap(float(r.scalars["depth_length"][0, 1]))
+    assert np.abs(uz - target)[touch].max() <= 1e-9 * np.abs(uz).max()
     np.testing.assert_allclose(r.field(0, 1, "fy"), api.peak.fy, rtol=0,
                                atol=1e-12 * float(np.abs(api.peak.fy).max()))
 

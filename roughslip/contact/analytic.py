@@ -261,14 +261,12 @@ def _punch_mesh(k: float, n: int) -> np.ndarray:
     return np.concatenate([stick, slip[1:]])
 
 
-def _punch_slip_start(k: float, lam: float, nu: float, n: int,
-                      feedback: bool = True, mats: tuple | None = None) -> float:
-    """The radial displacement rate just outside the stick zone ``r < k`` of the incremental
-    flat-punch problem (:func:`sphere_indentation_friction`), for friction ``lam``."""
-    nodes = _punch_mesh(k, n) if mats is None else mats[0]
-    A = _punch_matrices(nodes, nu, feedback) if mats is None else mats[1]
+def _punch_slip_start(lam: float, n: int, A: tuple) -> float:
+    """The radial displacement rate just outside the ``n`` stick elements of the incremental
+    flat-punch problem (:func:`sphere_indentation_friction`) with the collocation matrices
+    ``A`` (:func:`_punch_matrices`), for friction ``lam``."""
     Azz, Azr, Arz, Arr = A
-    m = nodes.size - 1
+    m = Azz.shape[0]
     M = np.zeros((2 * m, 2 * m))
     rhs = np.zeros(2 * m)
     M[:m, :m], M[:m, m:], rhs[:m] = Azz, Azr, 1.0
@@ -338,10 +336,9 @@ def sphere_indentation_friction(stick_ratio: float, nu: float = 0.0, n: int = 40
         raise ValueError(f"nu = {nu!r}: needs -1 < nu < 1/2 (at 1/2 nothing couples)")
 
     def root(m: int) -> float:
-        nodes = _punch_mesh(k, m)
-        mats = (nodes, _punch_matrices(nodes, nu, feedback))
-        return optimize.brentq(lambda lam: _punch_slip_start(k, lam, nu, m, mats=mats),
-                               1e-4, 20.0, xtol=1e-13)
+        A = _punch_matrices(_punch_mesh(k, m), nu, feedback)
+        return optimize.brentq(lambda lam: _punch_slip_start(lam, m, A), 1e-4, 20.0,
+                               xtol=1e-13)
 
     l1, l2 = root(n), root(2 * n)
     return 2.0 * l2 - l1

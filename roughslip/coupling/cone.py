@@ -198,8 +198,8 @@ class ConeIndent:
         self.limit = (max_events if max_events is not None
                       else 40 * self.cap * (facets // 4 + 4) + 100)
         self._seen: dict[bytes, int] = {}
-        g0 = float(self.k.block(np.array([0]), np.array([0]))[0, 0, 0, 0])
-        self.g0 = g0
+        #: a site's self-compliance, the scale of the displacements' ties
+        self.g0 = float(self.k.block(np.array([0]), np.array([0]))[0, 0, 0, 0])
         for s in np.flatnonzero(self.base >= 0.0):
             self.apply(self._slot_of(int(s)), STICK)
 
@@ -596,8 +596,7 @@ class ConeIndent:
         return (self.F0 + self.D * self.F1).reshape(3, *self.problem.shape)
 
     def _record(self) -> tuple[float, float, int, int]:
-        Fz = (float(self.F0[0].sum() + self.D * self.F1[0].sum()) if hasattr(self, "F0")
-              else 0.0)
+        Fz = self._fz() if hasattr(self, "F0") else 0.0
         m = self.mode[:self.used]
         return self.D, Fz, int((m != OUT).sum()), int((m == STICK).sum())
 
