@@ -104,6 +104,36 @@ def test_the_path_agrees_with_the_direct_reference():
     assert fast.friction_force == pytest.approx(ref.friction_force, rel=1e-8)
 
 
+@pytest.mark.parametrize(("history", "seed", "dc"), [("indent", 1, 0.05), ("bonded", 3, 0.01),
+                                                     ("frictionless", 3, 0.01)])
+def test_the_reference_inverse_follows_the_fresh_one(monkeypatch, history, seed, dc):
+    """The path served from the updated reference inverse against one that inverts the
+    augmented Jacobian afresh at every step (UPDATES = 0): the same events, and the curve
+    within a few rounding errors of the Jacobian's conditioning."""
+    from roughslip.coupling import weakening as wk
+
+    pb = Problem.from_arrays(rough(24, seed), nu=0.25)
+    kw = dict(depth=1.5, history=history)
+    calls = []
+    real = wk.NearInverse.of
+
+    def fresh(A, X):
+        calls.append(A.shape[0])
+        return real(A, X)
+
+    monkeypatch.setattr(wk.NearInverse, "of", staticmethod(fresh))
+    served = _weak(pb, 0.1, dc, **kw)
+    inverted = len(calls)
+    monkeypatch.setattr(wk, "UPDATES", 0)
+    direct = _weak(pb, 0.1, dc, **kw)
+    assert inverted < (len(calls) - inverted) / 2  # the reference served most steps
+    assert [(e.kind, e.site) for e in served.events] == [(e.kind, e.site)
+                                                          for e in direct.events]
+    scale = np.abs(direct.curve.force).max()
+    np.testing.assert_allclose(served.curve.force, direct.curve.force, rtol=0,
+                               atol=1e-10 * scale)
+
+
 def test_coupled_weakening_rejects_bad_input():
     pb = Problem.from_arrays(rough(8), nu=0.25)
     with pytest.raises(InputError, match="slip_distance: slip_law = 'slip-weakening' needs"):

@@ -28,7 +28,10 @@ certificate:
   :math:`q_i = k_i t_{0,i}\,\mathrm{d}f_{z,i}(t_0)` (:math:`k_i = (\lambda_s-\lambda_d)/d_c` on
   weakening bonds); the Jacobian :math:`A` is Lipschitz with the constant
   :math:`L = \max_i 2 k_i \|\nabla f_{z,i}\|_1`; with :math:`\beta \ge \|A^{-1}\|` along the
-  predictor (a Neumann bound from the exact inverse at :math:`x_0`), Kantorovich's theorem puts
+  predictor (a Neumann bound from one at :math:`x_0`, itself a Neumann bound from the
+  inverse of a nearby reference matrix, :mod:`roughslip.linalg.near`: the last fresh inverse,
+  bordered, cut and changed by rank-one updates as bonds start and stop moving, so that a
+  step costs :math:`O(P^2)`, not :math:`O(P^3)`), Kantorovich's theorem puts
   the one curve point with :math:`t_0\cdot(x-x_0) = \tau` within :math:`\rho = 2\beta\eta` of
   :math:`p(\tau)` for every :math:`\tau \le h`, when :math:`\beta L \eta \le 1/2`;
 * every constraint that ends a state is affine in :math:`x` (a stick bond's
@@ -62,6 +65,7 @@ from scipy.integrate import solve_ivp
 
 from roughslip.errors import NumericalError
 from roughslip.friction.events import TIE, VISITS, Event, EventKind, EventPath, Snapshot, digest
+from roughslip.linalg.near import Near, NearInverse
 
 STICK, WEAK, RESID = 0, 1, 2
 
@@ -98,6 +102,17 @@ FLOW_SPANS = (1e12, 1e6, 1e3)
 APPROACH = 0.1
 #: the returns of one violation inside a burst at which it is a cycle whatever its sizes
 RETURNS = 30
+#: the largest :math:`\theta = \|X\|\|E\|` at which a step is served from the reference
+#: inverse (:mod:`roughslip.linalg.near`): its bound of the inverse's norm is then at most
+#: 1/(1 - THETA) times that of a fresh inverse, so the certified steps shrink by at most that
+THETA = 0.1
+#: the updates (bonds added or taken out) after which the reference is inverted afresh, so
+#: that the rounding of the updates stays that of a few fresh inverses
+UPDATES = 100
+#: the rows of the Jacobian that may be made the reference's own exactly at one point (those
+#: that moved by THETA / 4 or more of the reference's inverse norm: the augmented row, a bond
+#: turned residual); more, and the reference is inverted afresh
+ROWS = 8
 
 
 @dataclass(frozen=True)
@@ -130,6 +145,9 @@ class _Linear:
         self.Nz = np.zeros((0, idx.size))
         self.Nx = np.zeros((0, idx.size))
         self.dN = np.zeros(0)
+        self.ref: NearInverse | None = None  # the augmented Jacobian's reference inverse
+        self.blk = None  # the moving bonds' own rows (_Core._block)
+        self.memo = None  # the fields at the last point asked (_Core.fields)
 
     def spread(self, a0: np.ndarray, s: np.ndarray, N: np.ndarray) -> np.ndarray:
         """The flat grid :math:`a^0 + s N` (a new array)."""
@@ -265,7 +283,7 @@ class _Core:
                 Nz = Nz + dN[:, None] * fdz
                 Nx = Nx + dN[:, None] * fdx
         lin.sites, lin.Nz, lin.Nx, lin.dN = sites, Nz, Nx, dN
-        lin.blk = None
+        lin.blk = lin.memo = None
 
     def _add_column(self, j: int) -> None:
         lin = self.lin
@@ -275,23 +293,38 @@ class _Core:
         lin.Nz = np.vstack([old[1], lin.Nz])
         lin.Nx = np.vstack([old[2], lin.Nx])
         lin.dN = np.concatenate([old[3], lin.dN])
-        lin.blk = None
+        lin.blk = lin.memo = None
         self.s = np.concatenate([self.s, [0.0]])
+        if lin.ref is not None:
+            # border the reference with the new bond's row and column at the current point
+            # (the augmented row, a tangent that had no component for it, gets 0)
+            if not lin.ref.border(lin.sites.size - 1,
+                                  *self._border_entries(lin.sites.size - 1)):
+                lin.ref = None
 
     def _drop_column(self, j: int) -> None:
         lin = self.lin
         keep = lin.sites != j
+        if lin.ref is not None and not lin.ref.remove(int(np.flatnonzero(~keep)[0])):
+            lin.ref = None
         lin.sites, lin.Nz, lin.Nx, lin.dN = (lin.sites[keep], lin.Nz[keep], lin.Nx[keep],
                                              lin.dN[keep])
-        lin.blk = None
+        lin.blk = lin.memo = None
         self.s = self.s[keep]
 
     # -- fields at a point ----------------------------------------------------------------------
     def fields(self, s: np.ndarray, D: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """Normal and tangential forces (flat grids, not to be written to) and the depth at
+        ``(s, D)``; the last point's are kept until the affine parts change."""
         lin = self.lin
+        key = (s.tobytes(), D)
+        if lin.memo is not None and lin.memo[0] == key:
+            return lin.memo[1]
         fz = lin.spread(lin.fz0 + D * lin.fz1, s, lin.Nz)
         fx = lin.spread(lin.fx0 + D * lin.fx1, s, lin.Nx)
-        return fz, fx, lin.dep0 + lin.dep1 * D + float(s @ lin.dN)
+        out = fz, fx, lin.dep0 + lin.dep1 * D + float(s @ lin.dN)
+        lin.memo = (key, out)
+        return out
 
     def _lam(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Strength and its slope in s of the moving bonds."""
@@ -321,16 +354,46 @@ class _Core:
         lam, _ = self._lam(s)
         return self.sigma[P] * (fx0 + D * fx1 + Ax @ s) - lam * (fz0 + D * fz1 + Az @ s)
 
-    def jacobian(self, s: np.ndarray, D: float, *_: object) -> np.ndarray:
-        r""":math:`[\partial R/\partial s,\ \partial R/\partial D]`."""
+    def jacobian(self, s: np.ndarray, D: float, *_: object, rows: int = 0) -> np.ndarray:
+        r""":math:`[\partial R/\partial s,\ \partial R/\partial D]`, with ``rows`` more
+        rows left for the caller (uninitialised)."""
+        Az, Ax, fz0, _, fz1, fx1 = self._block()
+        P = self.lin.sites
+        p = P.size
+        lam, k = self._lam(s)
+        sg = self.sigma[P]
+        J = np.empty((p + rows, p + 1))
+        Js = J[:p, :p]
+        np.multiply(sg[:, None], Ax, out=Js)
+        Js -= lam[:, None] * Az
+        Js[np.diag_indices(p)] += k * (fz0 + D * fz1 + Az @ s)
+        J[:p, p] = sg * fx1 - lam * fz1
+        return J
+
+    def jacobian_times(self, s: np.ndarray, D: float, v: np.ndarray) -> np.ndarray:
+        """:meth:`jacobian` times ``v``, without forming it."""
         Az, Ax, fz0, _, fz1, fx1 = self._block()
         P = self.lin.sites
         lam, k = self._lam(s)
         sg = self.sigma[P]
-        Js = sg[:, None] * Ax - lam[:, None] * Az
-        Js[np.diag_indices(P.size)] += k * (fz0 + D * fz1 + Az @ s)
-        RD = sg * fx1 - lam * fz1
-        return np.column_stack([Js, RD])
+        vs, vD = v[:-1], float(v[-1])
+        return (sg * (Ax @ vs) - lam * (Az @ vs) + k * (fz0 + D * fz1 + Az @ s) * vs
+                + vD * (sg * fx1 - lam * fz1))
+
+    def _border_entries(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Row and column ``k`` of the augmented Jacobian at the current point (the
+        augmented row's entry in the column, a tangent that had no component for bond
+        ``k``, is 0)."""
+        Az, Ax, fz0, _, fz1, fx1 = self._block()
+        P = self.lin.sites
+        lam, kk = self._lam(self.s)
+        sg = self.sigma[P]
+        row = np.append(sg[k] * Ax[k] - lam[k] * Az[k], sg[k] * fx1[k] - lam[k] * fz1[k])
+        col = np.append(sg * Ax[:, k] - lam * Az[:, k], 0.0)
+        d = kk[k] * (fz0[k] + self.D * fz1[k] + float(Az[k] @ self.s))
+        row[k] += d
+        col[k] = row[k]
+        return row, col
 
     def fscale(self) -> float:
         """The force unit of the ties: the largest normal force, or what the drive adds over
@@ -413,18 +476,34 @@ class _Core:
         return out, (fz, fx, dep)
 
     # -- the path-follower ----------------------------------------------------------------------
-    def _tangent(self, s: np.ndarray, D: float, prev: np.ndarray | None, fz=None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+    def _tangent(self, s: np.ndarray, D: float, prev: np.ndarray | None, fz=None):
         """The unit tangent of R = 0 at (s, D), oriented along ``prev`` (else D growing), and
-        the inverse of the augmented Jacobian [J; t]."""
-        JA = self.jacobian(s, D, fz)
+        the augmented Jacobian [J; t] served from the reference inverse
+        (:class:`roughslip.linalg.near.Near`: solves and the bounds the certificate needs).
+
+        The reference is the last fresh inverse, bordered and cut down as bonds start and
+        stop moving. A fresh one is taken when there is none, after :data:`UPDATES` updates,
+        or when the Jacobian has moved from it by :data:`THETA` or more."""
         p = s.size
         row = np.zeros(p + 1)
         if prev is None:
             row[-1] = 1.0
         else:
             row[:] = prev
-        A = np.vstack([JA, row])
+        A = self.jacobian(s, D, fz, rows=1)
+        A[-1] = row
+        ref = self.lin.ref
+        if ref is not None and ref.size == p + 1 and ref.updates < UPDATES:
+            near = _serve(ref, A)
+            if near is not None:
+                e = np.zeros(p + 1)
+                e[-1] = 1.0
+                t = self._orient(near.solve(e), prev)
+                A[-1] = t
+                near = _serve(ref, A)
+                if near is not None:
+                    return t, near
+                A[-1] = row
         try:
             X = linalg.inv(A, check_finite=False)
         except linalg.LinAlgError:
@@ -432,26 +511,32 @@ class _Core:
                                  f"at D = {D!r}") from None
         # [J; row]^-1 = [X_J, z] with J z = 0, row.z = 1: the tangent is z / |z|, and
         # [J; t]^-1 = [X_J - t (t.X_J), t] (J t = 0, t.t = 1)
-        z = X[:, -1]
+        t = self._orient(X[:, -1], prev)
+        X[:, :-1] -= np.outer(t, t @ X[:, :-1])
+        X[:, -1] = t
+        A[-1] = t
+        self.lin.ref = NearInverse.of(A, X)
+        return t, self.lin.ref.near(A)
+
+    @staticmethod
+    def _orient(z: np.ndarray, prev: np.ndarray | None) -> np.ndarray:
         t = z / np.linalg.norm(z)
         if prev is not None and float(t @ prev) < 0:
             t = -t
-        X[:, :-1] -= np.outer(t, t @ X[:, :-1])
-        X[:, -1] = t
-        return t, X
+        return t
 
     def _newton(self, x: np.ndarray, t0: np.ndarray, x0: np.ndarray, h: float,
-                Ainv: np.ndarray | None = None) -> np.ndarray | None:
+                near: np.ndarray | None = None) -> np.ndarray | None:
         """The curve point with t0.(x - x0) = h, from ``x`` (None: no convergence): chord
-        iterations on ``Ainv`` (the augmented Jacobian's inverse at x0) while they contract
+        iterations on ``near`` (the augmented Jacobian's inverse at x0) while they contract
         fast, then Newton's."""
         fs = self.fscale()
-        if Ainv is not None:
+        if near is not None:
             last = math.inf
             for _ in range(8):
                 s, D = x[:-1], float(x[-1])
                 R = self.residual(s, D)
-                dx = Ainv @ np.append(R, float(t0 @ (x - x0)) - h)
+                dx = near.solve(np.append(R, float(t0 @ (x - x0)) - h))
                 x = x - dx
                 step = float(np.abs(dx).max())
                 if (np.abs(R).max(initial=0.0) <= 1e-14 * fs
@@ -477,13 +562,15 @@ class _Core:
         R = self.residual(s, D)
         return x if np.abs(R).max(initial=0.0) <= 1e-12 * fs else None
 
-    def _kantorovich(self, t0, Ainv, R0, h):
+    def _kantorovich(self, t0, near, R0, h):
         """The tube around p(tau), tau <= h (module docstring): (beta, rho, L, beta on the
         whole tube), or None when the theorem's conditions fail."""
         lin = self.lin
         P = lin.sites
         _, k = self._lam(self.s)
-        beta0 = float(np.abs(Ainv).sum(axis=1).max())
+        beta0 = near.beta
+        if not math.isfinite(beta0):
+            return None
         L = float((2 * k * lin.nz1[P]).max(initial=0.0))
         tn = float(np.abs(t0).max())
         r0 = float(np.abs(R0).max(initial=0.0))
@@ -545,7 +632,7 @@ class _Core:
             s, D = self.s, self.D
             x0 = np.append(s, D)
             R0 = self.residual(s, D)
-            t0, Ainv = self._tangent(s, D, prev)
+            t0, near = self._tangent(s, D, prev)
             self._approach = (self.lin.sites.copy(), t0)
             tn = float(np.abs(t0).max())
             if t0[-1] <= TIE * tn:
@@ -566,7 +653,11 @@ class _Core:
             ts = t0[:-1]
             rev = self._reversible() & (ts < 0)
             if rev.any():
-                r = int(np.flatnonzero(rev)[np.argmin(ts[rev])])
+                # the fastest reversal; rates within the path's ties of it (symmetric sites)
+                # go by the lowest site
+                rows = np.flatnonzero(rev)
+                rows = rows[ts[rows] <= ts[rows].min() + TIE * tn]
+                r = int(rows[np.argmin(self.lin.sites[rows])])
                 return EventKind.STICK, int(self.lin.sites[r])
             fall = c1 < 0
             tau = np.full(c0.size, np.inf)
@@ -586,29 +677,29 @@ class _Core:
                                          f"certify a step at D = {D!r} (step {h:.3g})")
                 if tau_ev <= h:
                     e = _first(tau <= tau_ev * (1 + 1e-9) + hmin, sites, tau)
-                    got = self._locate(e, kinds, sites, c0, x0, t0, tau_ev, end, Ainv)
+                    got = self._locate(e, kinds, sites, c0, x0, t0, tau_ev, end, near)
                     if got is not None:
                         te, xe = got
                         # the rows due at the landing too (ties): applied from there on
                         ce = self.constraints(xe[:-1], float(xe[-1]), None, end)[0][2]
                         ties = (ce <= tie) | (np.arange(c0.size) == e)
                         if np.all(ce >= -tie) and self._certified(
-                                t0, Ainv, R0, te, c0, c1, g1, tie, ties, gF, peak_side, x0,
+                                t0, near, R0, te, c0, c1, g1, tie, ties, gF, peak_side, x0,
                                 xe, fall_row=e):
                             self._accept(xe)
                             on_point(xe[:-1], float(xe[-1]))
                             # the tangent at the landing, not the step's start (one chord
                             # correction: J(xe) z = 0 to second order in the step)
-                            z = t0 - Ainv @ np.append(self.jacobian(xe[:-1], float(xe[-1]))
-                                                      @ t0, 0.0)
+                            z = t0 - near.solve(np.append(
+                                self.jacobian_times(xe[:-1], float(xe[-1]), t0), 0.0))
                             self._approach = (self.lin.sites.copy(), z / np.linalg.norm(z))
                             return names[kinds[e]], int(sites[e])
                         h = 0.5 * te
                     else:
                         h = 0.5 * tau_ev
                     continue
-                x1 = self._newton(x0 + h * t0, t0, x0, h, Ainv)
-                if x1 is not None and self._certified(t0, Ainv, R0, h, c0, c1, g1, tie,
+                x1 = self._newton(x0 + h * t0, t0, x0, h, near)
+                if x1 is not None and self._certified(t0, near, R0, h, c0, c1, g1, tie,
                                                       np.zeros(c0.size, bool), gF,
                                                       peak_side, x0, x1):
                     self._accept(x1)
@@ -622,7 +713,7 @@ class _Core:
         self.s, self.D = x[:-1].copy(), float(x[-1])
         self.steps += 1
 
-    def _locate(self, e, kinds, sites, c0, x0, t0, tau_ev, end, Ainv=None):
+    def _locate(self, e, kinds, sites, c0, x0, t0, tau_ev, end, near=None):
         """The curve point where constraint ``e`` vanishes, by the secant method in tau
         from its predicted root: (tau, x) or None."""
         k, j = int(kinds[e]), int(sites[e])
@@ -631,7 +722,7 @@ class _Core:
         tb = tau_ev
         xb = None
         for _ in range(40):
-            xb = self._newton(x0 + tb * t0, t0, x0, tb, Ainv)
+            xb = self._newton(x0 + tb * t0, t0, x0, tb, near)
             if xb is None:
                 return None
             cb = self._value(k, j, xb[:-1], float(xb[-1]), end)
@@ -644,11 +735,11 @@ class _Core:
                 return None
             ta, ca, tb = tb, cb, tn
             if abs(tb - ta) <= 1e-15 * max(abs(tb), self.scale):
-                xb = self._newton(x0 + tb * t0, t0, x0, tb, Ainv)
+                xb = self._newton(x0 + tb * t0, t0, x0, tb, near)
                 return None if xb is None else (tb, xb)
         return None
 
-    def _tangent_bound(self, t0, Ainv, dx: float, L: float, beta_t: float) -> np.ndarray:
+    def _tangent_bound(self, t0, near, dx: float, L: float, beta_t: float) -> np.ndarray:
         r"""Per component, how far the tangent (scaled to :math:`t_0\cdot z = 1`) moves on
         the tube, whose points are within ``dx`` of :math:`x_0`: with
         :math:`\Delta A` the change of the augmented Jacobian,
@@ -664,14 +755,14 @@ class _Core:
         dfz = self._block()[0] @ ts + tD * lin.fz1[P]
         u = np.append(k * dx * (np.abs(dfz) + np.abs(ts) * lin.nz1[P]), 0.0)
         second = L * dx * beta_t * float(u.max())
-        return np.abs(Ainv) @ (u + second)
+        return near.abs_bound(u + second)
 
-    def _certified(self, t0, Ainv, R0, h, c0, c1, g1, tie, skip, gF, rising, x0, x1,
+    def _certified(self, t0, near, R0, h, c0, c1, g1, tie, skip, gF, rising, x0, x1,
                    fall_row: int | None = None) -> bool:
         """The step's certificate (module docstring): the curve on [0, h] stays in the tube,
         no constraint but ``skip`` has a root on it, the tangent keeps its signs, and the
         located event's own constraint falls monotonically."""
-        kb = self._kantorovich(t0, Ainv, R0, h)
+        kb = self._kantorovich(t0, near, R0, h)
         if kb is None:
             return False
         _, rho, L, beta_t = kb
@@ -683,7 +774,7 @@ class _Core:
         if float(np.abs(x1 - (x0 + h * t0)).max()) > rho * (1 + 1e-9) + slack:
             return False  # Newton left the tube: not the branch the certificate is about
         dz = beta_t * L * (h * tn + rho) * tn
-        dzv = self._tangent_bound(t0, Ainv, h * tn + rho, L, beta_t)
+        dzv = self._tangent_bound(t0, near, h * tn + rho, L, beta_t)
         lbA = np.minimum(c0, c0 + h * c1) - g1 * (rho + slack)
         lbB = c0 + np.minimum(0.0, h * (c1 - g1 * dz))
         ok = np.maximum(lbA, lbB) > -tie
@@ -702,6 +793,23 @@ class _Core:
             if not float(gF @ t0) - float(np.abs(gF) @ dzv) > 0:
                 return False
         return True
+
+
+def _serve(ref: NearInverse, A: np.ndarray) -> Near | None:
+    r"""``A`` served from the reference (:class:`roughslip.linalg.near.Near`), its rows that
+    moved far from the reference's made the reference's own first (at most :data:`ROWS`,
+    rank-one each), or None when that leaves :math:`\theta \ge` :data:`THETA` or an update is
+    refused."""
+    moved = np.abs(A - ref.A).sum(axis=1)
+    big = np.flatnonzero(moved * ref.norm() >= 0.25 * THETA)
+    if big.size > ROWS:
+        return None
+    for i in big:
+        if not ref.replace_row(int(i), A[i]):
+            return None
+        moved[i] = 0.0
+    near = ref.near(A, float(moved.max(initial=0.0)))
+    return near if near.theta < THETA else None
 
 
 def _proved_stable(J: np.ndarray) -> bool:
@@ -781,7 +889,7 @@ class _Events:
             lin.fz0 = lin.spread(lin.fz0, s, lin.Nz)
             lin.fx0 = lin.spread(lin.fx0, s, lin.Nx)
             lin.dep0 = lin.dep0 + float(s @ lin.dN)
-            lin.blk = None
+            lin.blk = lin.memo = None
             self.offset[P] -= self.sigma[P] * s
             self.delta[P] += s
         self.s = np.zeros(P.size)
@@ -1024,7 +1132,7 @@ class _Events:
         P = self.lin.sites
         rate = dict(zip(sites.tolist(), t[:-1].tolist(), strict=True))
         tt = np.array([rate.get(int(p), 0.0) for p in P] + [float(t[-1])])
-        return self.jacobian(self.s, self.D) @ tt
+        return self.jacobian_times(self.s, self.D, tt)
 
     @staticmethod
     def _rate_scale(JA: np.ndarray) -> float:
