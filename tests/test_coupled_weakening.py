@@ -134,6 +134,36 @@ def test_the_reference_inverse_follows_the_fresh_one(monkeypatch, history, seed,
                                atol=1e-10 * scale)
 
 
+def test_a_gained_site_lands_closed_and_keeps_its_contact(monkeypatch):
+    """A Hertz indentation at a/h = 32 gained a site whose gap was located on its open side
+    (2.9e-14, inside the tie): in contact it pulled a tension of 2.6 TIE of the largest
+    force, was lost at once, gained again, and the path stopped as a cycle at D_z = 7.5e-5.
+    Landed just past the root, the new contact carries no tension and the indentation goes
+    on; every gained site starts with its normal force at or above the contacts' tie."""
+    from roughslip.coupling import weakening as wk
+    from roughslip.elastic.operators import Grid, Material
+    from roughslip.surfaces.synthetic import sphere
+
+    a, n = 0.1, 128
+    h = a / 32
+    pb = Problem(sphere((n, n), radius=1.0, a=h), Grid((n, n), h), Material(1.0, 0.25))
+    starts = []
+    real = wk._Events.apply
+
+    def apply(self, kind, j):
+        real(self, kind, j)
+        if kind == EventKind.GAINED:
+            starts.append(float(self.fields(self.s, self.D)[0][j]) / self.fscale())
+
+    monkeypatch.setattr(wk._Events, "apply", apply)
+    got = indent(pb, depth=8e-5, lam=LAM, slip_law="slip-weakening", lam_dynamic=0.1,
+                 slip_distance=5e-4)
+    assert got.converged
+    assert got.depth == pytest.approx(8e-5)
+    assert len(starts) > 20
+    assert min(starts) >= -wk.TIE
+
+
 def test_coupled_weakening_rejects_bad_input():
     pb = Problem.from_arrays(rough(8), nu=0.25)
     with pytest.raises(InputError, match="slip_distance: slip_law = 'slip-weakening' needs"):

@@ -31,7 +31,7 @@ The reference follows the index set without a new factorisation:
   :math:`X_{\bar i\bar i} - X_{\bar i i}X_{i\bar i}/X_{ii}` (the same Schur identity read
   backwards).
 
-Both are exact in exact arithmetic; in floating point each adds rounding of order
+All three are exact in exact arithmetic; in floating point each adds rounding of order
 :math:`\varepsilon\,\kappa(A_r)`, as a fresh inverse does once. The owner bounds the number of
 updates between fresh inversions (``updates``), and asks for a fresh inversion when
 :math:`\theta` grows past what its contraction needs.
@@ -85,9 +85,9 @@ class NearInverse:
 
     @classmethod
     def of(cls, A: np.ndarray, X: np.ndarray) -> NearInverse:
-        """A reference from a matrix and an inverse the caller computed (both kept)."""
+        """A reference from a matrix (copied) and an inverse the caller computed (kept)."""
         obj = cls.__new__(cls)
-        obj.A, obj.X, obj.updates, obj._abs, obj._norm = A, X, 0, None, None
+        obj.A, obj.X, obj.updates, obj._abs, obj._norm = A.copy(), X, 0, None, None
         return obj
 
     @property
@@ -177,11 +177,13 @@ class Near:
     r""":math:`A = A_r + E` served from a :class:`NearInverse` (module docstring): ``theta``
     (:math:`\|X\|_\infty\|E\|_\infty`), ``beta`` (the bound of :math:`\|A^{-1}\|_\infty`,
     infinite when :math:`\theta \ge 1`), :meth:`solve` and :meth:`abs_bound`. When
-    :math:`E = 0` every answer is the reference's own: :math:`Xb`, :math:`\|X\|_\infty`,
-    :math:`|X|v`."""
+    :math:`E = 0` and the reference is a fresh inverse, every answer is the reference's own:
+    :math:`Xb`, :math:`\|X\|_\infty`, :math:`|X|v`. A ``Near`` holds for the reference as
+    it was: its methods refuse to run after the reference was updated."""
 
     def __init__(self, ref: NearInverse, A: np.ndarray, moved: float | None = None) -> None:
         self.ref, self.A = ref, A
+        self.version = ref.updates
         self.xn = ref.norm()
         self.en = (float(np.abs(A - ref.A).sum(axis=1).max(initial=0.0)) if moved is None
                    else moved)
@@ -193,9 +195,10 @@ class Near:
         r""":math:`A^{-1}b` by iterative refinement on :math:`X`
         (:func:`roughslip.linalg.inverse.refine`) to a normwise backward error of
         :data:`BACKWARD`; a direct solve when it stalls above that."""
+        self._current()
         X = self.ref.X
         z = X @ b
-        if self.en == 0.0:
+        if self.en == 0.0 and self.ref.updates == 0:
             return z
         if self._an is None:
             self._an = float(np.abs(self.A).sum(axis=1).max(initial=0.0))
@@ -211,8 +214,14 @@ class Near:
 
     def abs_bound(self, v: np.ndarray) -> np.ndarray:
         r"""An entrywise upper bound of :math:`|A^{-1}|\,v` for :math:`v \ge 0`."""
+        self._current()
         aX = self.ref.abs_x()
         out = aX @ v
-        if self.en == 0.0:
+        vn = float(np.abs(v).max(initial=0.0))
+        if self.en == 0.0 or vn == 0.0:
             return out
-        return out + self.beta * self.en * float(np.abs(v).max(initial=0.0)) * aX.sum(axis=1)
+        return out + self.beta * self.en * vn * aX.sum(axis=1)
+
+    def _current(self) -> None:
+        if self.ref.updates != self.version:
+            raise RuntimeError("the reference changed after this Near was made")
