@@ -5,7 +5,7 @@ A path-follower needs, at every point :math:`x` of its path, solves with the Jac
 Inverting :math:`A(x)` afresh costs :math:`O(m^3)` at every point. :class:`NearInverse` keeps
 instead a *reference* matrix :math:`A_r` and its inverse :math:`X = A_r^{-1}`, and serves a
 nearby :math:`A = A_r + E` through the Neumann series (Horn & Johnson, *Matrix Analysis*,
-5.6.16; Higham, *Accuracy and Stability of Numerical Algorithms*, 2002, §14.4): with
+1985, corollary 5.6.16): with
 :math:`\theta = \|X\|_\infty \|E\|_\infty < 1`,
 
 .. math:: A^{-1} = (I + XE)^{-1}X, \qquad
