@@ -1,6 +1,7 @@
 """The exact pull's inverse in double and in single precision, and compressed, side by side.
 
     python scripts/bench_precision.py [--size 256] [--area 0.2] [--repeat 3] [--threads 2]
+                                      [--slip-law break|coulomb]
                                       [--variants double single hierarchical
                                                   hierarchical-single vector
                                                   vector-single vector-hierarchical
@@ -18,7 +19,8 @@ the rise of the peak over the resident set just before the pull. Prints the medi
 the break sequences are identical to the reference's, the friction forces' relative
 difference and each certified path's counters, then every run's seconds and the time ratio
 of each alternating pair (a variant over the reference run just before it), whose spread
-shows how far the machine's scatter moves the ratio.
+shows how far the machine's scatter moves the ratio. ``--slip-law coulomb`` pulls under the
+Coulomb law instead (its event sequence, sites and kinds, is compared).
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ VARIANTS = {"double": ("inverse", "double", "x"), "single": ("inverse", "single"
             "vector-hierarchical-single": ("hierarchical", "single", "xy")}
 
 
-def child(size: int, area: float, variant: str, threads: int, out: str) -> None:
+def child(size: int, area: float, variant: str, threads: int, out: str, law: str) -> None:
     sys.path.insert(0, os.path.dirname(__file__))
     from bench_pull import contact
 
@@ -61,10 +63,11 @@ def child(size: int, area: float, variant: str, threads: int, out: str) -> None:
     t0 = time.perf_counter()
     method, precision, components = VARIANTS[variant]
     res = pull(normal, lam=0.2, method=method, tol=1e-10, threads=threads,
-               precision=precision, components=components)
+               precision=precision, components=components, slip_law=law)
     sec = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    np.save(out + ".npy", res.curve.site[1:])
+    kinds = np.array([str(k) for k in res.curve.kind[1:]])
+    np.save(out + ".npy", np.char.add(res.curve.site[1:].astype(str), kinds))
     with open(out + ".json", "w") as f:
         json.dump({"sec": sec, "peak": peak, "pull": peak - before, "bonds": res.details.n_bonds,
                    "steps": res.steps, "friction": res.friction_force,
@@ -80,10 +83,11 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--variants", nargs="+", choices=list(VARIANTS),
                     default=["double", "single"])
+    ap.add_argument("--slip-law", default="break", choices=["break", "coulomb"])
     ap.add_argument("--child", nargs=2, metavar=("VARIANT", "OUT"), help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
-        child(a.size, a.area, a.child[0], a.threads, a.child[1])
+        child(a.size, a.area, a.child[0], a.threads, a.child[1], a.slip_law)
         return
     runs: dict[str, list[dict]] = {v: [] for v in a.variants}
     seqs: dict[str, np.ndarray] = {}
@@ -91,7 +95,8 @@ def main() -> None:
     for _ in range(a.repeat):
         for p in runs:
             subprocess.run([sys.executable, __file__, "--size", str(a.size), "--area",
-                            str(a.area), "--threads", str(a.threads), "--child", p, tmp],
+                            str(a.area), "--threads", str(a.threads), "--slip-law",
+                            a.slip_law, "--child", p, tmp],
                            check=True)
             with open(tmp + ".json") as f:
                 runs[p].append(json.load(f))
@@ -101,7 +106,7 @@ def main() -> None:
     ref = a.variants[0]
     d = runs[ref][0]
     print(f"# cores: {os.cpu_count()}, threads {a.threads}; N = {a.size}, area {a.area}, "
-          f"{d['bonds']} bonds, medians of {a.repeat}")
+          f"{d['bonds']} bonds, slip law {a.slip_law}, medians of {a.repeat}")
     print(f"{'variant':>12} {'sec':>8} {'peak GiB':>9} {'pull GiB':>9} {'steps':>6} "
           f"{'F_friction':>20}")
     for p, rs in runs.items():
@@ -118,7 +123,8 @@ def main() -> None:
               f"pull {med[p]['pull'] / med[ref]['pull']:.3f}; alternating pairs "
               + " ".join(f"{r:.3f}" for r in paired))
         rel = (s["friction"] - d["friction"]) / d["friction"]
-        print(f"{p}: same break sequence as {ref}: {np.array_equal(seqs[ref], seqs[p])}; "
+        what = "break" if a.slip_law == "break" else "event"
+        print(f"{p}: same {what} sequence as {ref}: {np.array_equal(seqs[ref], seqs[p])}; "
               f"friction relative difference {rel:.1e}; "
               f"converged {d['converged']} / {s['converged']}")
         print(f"{p}: {s['message']}")

@@ -109,14 +109,15 @@ def test_override_errors(tmp_path, override, match):
 
 
 def test_a_pull_method_without_the_slip_law_is_refused_before_any_work(tmp_path):
-    """The Coulomb law has the inverse only (or auto): a config asking for another method
-    fails at load time, naming the key, not after samples were computed."""
+    """The Coulomb law runs on the stick solvers only (or auto): a config asking for another
+    method fails at load time, naming the key, not after samples were computed."""
     sets = ["pull.enabled=true", "pull.slip_law='coulomb'"]
     with pytest.raises(ConfigError, match=r"pull\.method = \"literal\": slip_law = "
-                                          r"'coulomb' needs one of auto, inverse") as e:
+                                          r"'coulomb' needs one of auto, inverse, "
+                                          r"hierarchical") as e:
         load_config(write(tmp_path, BASE), [*sets, "pull.method='literal'"])
     assert str(e.value).startswith("run.toml (--set pull.method=")
-    for ok in ("auto", "inverse"):
+    for ok in ("auto", "inverse", "hierarchical"):
         assert load_config(write(tmp_path, BASE), [*sets, f"pull.method='{ok}'"])
     # under coupling the pull's method is not used
     assert load_config(write(tmp_path, BASE),

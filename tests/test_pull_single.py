@@ -242,7 +242,8 @@ def test_auto_chooses_double_when_it_fits_and_single_when_only_that_fits():
     assert single < 0.6 * double
     assert choose_precision(n, memory=double) == "double"
     assert choose_precision(n, memory=(single + double) // 2) == "single"
-    assert choose_precision(n, memory=(single + double) // 2, slip_law="coulomb") == "double"
+    sw = {"slip_law": "slip-weakening"}
+    assert choose_precision(n, memory=(single + double) // 2, **sw) == "double"
     assert choose_method(n, memory=double) == "inverse"
     assert choose_method(n, memory=(single + double) // 2) == "inverse"
     assert choose_method(n, memory=double, precision="single") == "inverse"
@@ -259,7 +260,7 @@ def test_auto_chooses_double_when_it_fits_and_single_when_only_that_fits():
     assert choose_precision(n, memory=between, method="hierarchical") == "single"
     assert choose_precision(n, memory=compressed, method="hierarchical") == "double"
     assert choose_method(n, memory=between, precision="double") == "cg"
-    assert choose_method(n, memory=between, slip_law="coulomb") != "hierarchical"
+    assert choose_method(n, memory=between, **sw) != "hierarchical"
     assert choose_method(n, memory=half // 2) == "cg"
     assert choose_method(5, precision="single") == "inverse"  # not the literal algorithm
 
@@ -347,9 +348,11 @@ def test_bad_precision():
     normal = squeeze(sphere((12, 12), radius=10.0), depth=1.0, tol=1e-12)
     with pytest.raises(InputError, match="precision"):
         pull(normal, precision="half")
-    with pytest.raises(InputError, match="only slip_law 'break' with method 'inverse'"):
-        pull(normal, precision="single", slip_law="coulomb")
-    with pytest.raises(InputError, match="only slip_law 'break' with method 'inverse'"):
+    only = "only slip_law 'break', 'coulomb' with method 'inverse'"
+    with pytest.raises(InputError, match=only):
+        pull(normal, precision="single", slip_law="slip-weakening", lam_dynamic=0.1,
+             slip_distance=0.05)
+    with pytest.raises(InputError, match=only):
         pull(normal, precision="single", method="cg")
 
 

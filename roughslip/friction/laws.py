@@ -35,7 +35,7 @@ import numpy as np
 from roughslip.errors import InputError
 from roughslip.friction.breaking import break_sequence
 from roughslip.friction.events import RATE_TIE, TANGENTIAL, TIE, EventKind
-from roughslip.friction.sliding import slide
+from roughslip.friction.sliding_single import slide_certified
 from roughslip.friction.weakening import weaken
 from roughslip.registry import Registry
 
@@ -91,8 +91,10 @@ class SlipLaw:
         Its decoupled pull records the state each burst lands in, at the drive (an event
         with site -1): :func:`roughslip.analysis.bursts.landing_curve` reads its curve.
     single
-        Its engine has certified decisions for a single-precision inverse
-        (``pull(..., precision="single")``).
+        The tangential models (:attr:`components`) in which its engine certifies its
+        decisions against the exact operator, and so runs on an inexact inverse: a
+        single-precision one (``pull(..., precision="single")``) or a compressed one
+        (``method="hierarchical"``); empty when it has none.
     components
         The tangential models its decoupled engine runs (``pull.components``,
         :data:`~roughslip.friction.bonds.TANGENTIAL_MODELS`): ``"x"``, the report's model, and
@@ -113,7 +115,7 @@ class SlipLaw:
     couples: bool = True
     couples_vector: bool = False
     lands: bool = False
-    single: bool = False
+    single: tuple[str, ...] = ()
     components: tuple[str, ...] = ("x",)
     engine: Callable[..., object] | None = None
     needs: frozenset[str] = frozenset({"tracked"})
@@ -241,11 +243,13 @@ class SlipWeakeningLaw(SlipLaw):
 LAWS: Registry[SlipLaw] = Registry("slip law")
 
 LAWS.register("break", "a failed bond carries no force (the report's law)")(BreakLaw(
-    "break", failed="released", curve="break sequence", single=True, engine=break_sequence,
+    "break", failed="released", curve="break sequence", single=("x", "xy"),
+    engine=break_sequence,
     components=("x", "xy")))
 LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull")(CoulombLaw(
     "coulomb", failed="slipping", curve="slip events", reverses=True, slides=True,
-    engine=slide, needs=frozenset({"tracked"}), components=("x", "xy"), couples_vector=True))
+    engine=slide_certified, needs=frozenset({"tracked"}), components=("x", "xy"),
+    couples_vector=True, single=("x",)))
 LAWS.register("slip-weakening", "a failed bond slips, its strength falling from lam f_z to "
               "lam_dynamic f_z over the slip slip_distance")(SlipWeakeningLaw(
     "slip-weakening", failed="slipping", curve="slip events", reverses=True, couples=True,

@@ -148,7 +148,10 @@ class PullMethod:
         measured faster than they are and its memory fits (0: only once no dense method
         fits; docs/benchmarks.md). Measured on open rough contacts at 20 % with one and two
         BLAS threads (the crossover came earlier on one); periodic grids, whose blocks have
-        higher ranks, were not measured.
+        higher ranks, were not measured. It holds for break sequences (the laws that need
+        nothing of the solver beyond the stick set); a law whose pull is an event path (the
+        Coulomb law: an FFT product per event on either inverse, and the certification's
+        refinements on this one) takes it only once no dense method fits.
     auto
         ``auto`` may choose it.
     early_stop
@@ -194,7 +197,7 @@ class PullMethod:
             return False
         if self.solver is not None:
             return (law.engine is not None and law.needs <= self.offers
-                    and (law.single or not self.inexact))
+                    and (components in law.single or not self.inexact))
         return self.run is not None and not law.needs
 
 
@@ -224,23 +227,25 @@ def _method(method: str | PullMethod) -> PullMethod:
     return METHODS.get(method) if isinstance(method, str) else method
 
 
-def single_ok(slip_law: str | SlipLaw, method: str | PullMethod = "inverse") -> bool:
-    """Whether ``method`` runs ``slip_law`` on a single-precision matrix: the law has
-    certified decisions (:attr:`~roughslip.friction.laws.SlipLaw.single`) and the method
-    stores its matrix in single precision (``"auto"``: some method does)."""
+def single_ok(slip_law: str | SlipLaw, method: str | PullMethod = "inverse",
+              components: str = "x") -> bool:
+    """Whether ``method`` runs ``slip_law`` on a single-precision matrix in the tangential
+    model ``components``: the law has certified decisions there
+    (:attr:`~roughslip.friction.laws.SlipLaw.single`) and the method stores its matrix in
+    single precision (``"auto"``: some method does)."""
     law = _law(slip_law)
-    if not law.single:
+    if components not in law.single:
         return False
     m = _method(method)
     if m.chooses:
-        return any(METHODS.get(n).runs(law) and "single" in METHODS.get(n).precisions
-                   for n in METHODS)
-    return m.runs(law) and "single" in m.precisions
+        return any(METHODS.get(n).runs(law, components)
+                   and "single" in METHODS.get(n).precisions for n in METHODS)
+    return m.runs(law, components) and "single" in m.precisions
 
 
 def choose_precision(n: int, memory: int | None = None, slip_law: str | SlipLaw = "break",
                      block: int = 128, method: str | PullMethod = "inverse",
-                     per_point: int = 1) -> str:
+                     per_point: int = 1, components: str = "x") -> str:
     """The precision ``"auto"`` picks for the matrix of ``n`` bonds given ``memory`` bytes:
     double when it fits, else single when that fits and the law and the method have it
     (:func:`single_ok`), else double (whose memory check then says what would fit). The
@@ -249,7 +254,7 @@ def choose_precision(n: int, memory: int | None = None, slip_law: str | SlipLaw 
     memory = available_bytes() if memory is None else memory
     m = _method(method)
     if (_matrix_bytes(m, n, "double", block, per_point) <= memory
-            or not single_ok(slip_law, method)):
+            or not single_ok(slip_law, method, components)):
         return "double"
     return ("single" if _matrix_bytes(m, n, "single", block, per_point) <= memory
             else "double")
@@ -267,11 +272,12 @@ def _matrix_bytes(m: PullMethod, n: int, precision: str, block: int = 128,
 
 
 def _fits(m: PullMethod, n: int, law: SlipLaw, precision: str, memory: int,
-          per_point: int = 1) -> bool:
+          per_point: int = 1, components: str = "x") -> bool:
     """Whether ``m``'s matrix for ``n`` bonds fits in ``memory`` in a precision that
     ``precision`` (``"auto"``: any) and the law allow (single: :func:`single_ok`)."""
     return any(_matrix_bytes(m, n, p, per_point=per_point) <= memory for p in m.precisions
-               if precision in ("auto", p) and (p == "double" or single_ok(law, m)))
+               if precision in ("auto", p) and (p == "double"
+                                                or single_ok(law, m, components)))
 
 
 def coulomb_force_at(result: PullResult, dx: float | np.ndarray) -> np.ndarray:
@@ -363,9 +369,10 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
 
     A law that only dense methods run gets the first of them, which checks its memory
     itself. From the bond count where a method that is not dense was measured faster than the
-    dense ones (:attr:`PullMethod.above`: the compressed inverse), ``auto`` takes that method
-    whenever its memory fits. Otherwise, ``precision="single"`` for a law with certified
-    decisions gets the first dense method, which checks its memory itself. Otherwise a method
+    dense ones (:attr:`PullMethod.above`: the compressed inverse, for break sequences),
+    ``auto`` takes that method whenever its memory fits. Otherwise, ``precision="single"``
+    for a law with certified decisions gets the first dense method, which checks its memory
+    itself. Otherwise a method
     made for tiny contacts takes them (:attr:`PullMethod.tiny`, the literal algorithm); then
     a dense method whenever its matrix fits in memory (in double or, where the law and the
     method have it, single precision) and the LAPACK can index it (for 3 271 bonds the
@@ -389,20 +396,23 @@ def choose_method(n: int, memory: int | None = None, slip_law: str | SlipLaw = "
         return dense[0].name
     memory = available_bytes() if memory is None else memory
     for m in free:  # above is a bond count (measured per bond, as fast for the vector)
-        if m.above and n >= m.above * k and _fits(m, n, law, precision, memory, k):
+        if (m.above and not law.needs and n >= m.above * k
+                and _fits(m, n, law, precision, memory, k, components)):
             return m.name
     if precision == "single":
         for m in dense:
-            if single_ok(law, m):
+            if single_ok(law, m, components):
                 return m.name  # asked for by name: it checks its memory itself
     for m in cands:
         if n <= m.tiny:
             return m.name
     limit = lapack64.max_n()
     for m in dense:
-        if _fits(m, n, law, precision, memory, k) and (limit is None or n <= limit):
+        if _fits(m, n, law, precision, memory, k, components) and (limit is None
+                                                                   or n <= limit):
             return m.name
-    fits = [m for m in free if m.solver is None or _fits(m, n, law, precision, memory, k)]
+    fits = [m for m in free
+            if m.solver is None or _fits(m, n, law, precision, memory, k, components)]
     return (fits or free or dense)[0].name
 
 
@@ -474,9 +484,10 @@ def pull(
         only, and needed there.
     precision : {"auto", "double", "single"}
         The precision of the stored matrix of the ``"inverse"`` and ``"hierarchical"``
-        methods. ``"single"`` (the break law) stores it in float32, half the memory, and
-        keeps the break sequence and the friction force exact by certified decisions
-        (:mod:`roughslip.friction.breaking_single`). ``"auto"``: double when the matrix
+        methods. ``"single"`` (the break law; the Coulomb law in the x-only model) stores it
+        in float32, half the memory, and keeps the events and the friction force exact by
+        certified decisions (:mod:`roughslip.friction.breaking_single`,
+        :mod:`roughslip.friction.sliding_single`). ``"auto"``: double when the matrix
         fits in the memory available, else single (:func:`choose_precision`; for
         ``"hierarchical"`` by its estimate). The other methods take ``"auto"`` only.
     components : {"x", "xy"}
@@ -550,16 +561,17 @@ def pull(
             raise _no_vector(law, components)
         if components != "x" and impl.runs(law):
             raise InputError(f"pull.components = {components!r}: method {impl.name!r} runs "
-                             f"the x-only model; use method "
+                             f"slip_law = {law.name!r} in the x-only model only; use method "
                              f"{', '.join(repr(m) for m in methods_for(law, components))}")
         raise InputError(f"slip_law = {law.name!r} supports methods "
                          f"{', '.join(methods_for(law, components))}, not {impl.name!r}")
     if precision == "auto":
         precision = (choose_precision(n * len(comps), slip_law=law, block=int(block),
-                                      method=impl, per_point=len(comps))
+                                      method=impl, per_point=len(comps),
+                                      components=components)
                      if impl.solver is not None else "double")
-    if precision == "single" and not single_ok(law, impl):
-        laws = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)
+    if precision == "single" and not single_ok(law, impl, components):
+        laws = ", ".join(repr(n) for n in LAWS.names() if components in LAWS.get(n).single)
         methods = ", ".join(repr(n) for n in METHODS.names()
                             if "single" in METHODS.get(n).precisions)
         raise InputError(f"precision = 'single': only slip_law {laws} with method {methods} "
@@ -611,7 +623,8 @@ METHODS.register("inverse", "exact, an updated inverse of G_xx on the bonds (O(n
                offers=frozenset(CAPABILITIES), precisions=("double", "single"),
                components=("x", "xy")))
 METHODS.register("hierarchical", "exact with certified decisions, a compressed (HODLR) inverse "
-                 "of G_xx on the bonds (break law; a fraction of the dense memory)")(
+                 "of G_xx on the bonds (the break and Coulomb laws; a fraction of the dense "
+                 "memory)")(
     PullMethod("hierarchical", exact=True, dense=False, blas=True,
                solver=HierarchicalInverse, offers=frozenset({"tracked"}),
                precisions=("double", "single"), inexact=True, above=HIERARCHICAL_ABOVE,

@@ -235,12 +235,17 @@ class TangentialState:
         s = self.law.failed_direction(kind)
         carried = float(self.law.carried(self.b.lam, s)[X] * self.b.fz[pos])
         # psi <- psi - c (psi_k + f_L,k) / c_k: the removal does it with psi_k so raised
-        self.rows.remove(self.inv, r, held={"psi": -carried})
+        self.rows.remove(self.inv, r, self._leaving(r, carried), held={"psi": -carried})
         self.sigma[pos], self.slip[pos] = s, carried
         self.slip_sum += carried
         self.S.ravel()[j] = False
         if self.rows.fold(self.inv):
             self.recertify()
+
+    def _leaving(self, row: int, carried: float) -> np.ndarray | None:
+        """The column of the inverse at ``row``, which is about to leave the stick set with the
+        force ``carried``, when the state needs it itself (else None: the solver takes it)."""
+        return None
 
     def _load(self) -> np.ndarray:
         return self.b.field(self.slip)

@@ -73,9 +73,10 @@ def check_pull(cfg: RunConfig, errors: Errors) -> None:
             errors.add("pull.method", cfg.pull.method, f"{what} needs one of {', '.join(laws)}")
     if cfg.pull.precision == "single" and (
             cfg.coupling.enabled or cfg.pull.method not in METHODS
-            or not single_ok(law, cfg.pull.method)):
-        single = ", ".join(repr(n) for n in LAWS.names() if LAWS.get(n).single)
-        methods = ", ".join(repr(n) for n in METHODS.names() if single_ok(law, n))
+            or not single_ok(law, cfg.pull.method, comps if engine else "x")):
+        model = comps if engine else "x"
+        single = ", ".join(repr(n) for n in LAWS.names() if model in LAWS.get(n).single)
+        methods = ", ".join(repr(n) for n in METHODS.names() if single_ok(law, n, model))
         errors.add("pull.precision", "single", "is the decoupled single-precision matrix of "
                    f"slip_law {single} only (coupling.enabled = false, method "
                    f"{methods or repr('auto')})")

@@ -1,0 +1,331 @@
+r"""The Coulomb law's exact event path on an inexact inverse, with certified decisions: a
+single-precision one (``pull(..., slip_law="coulomb", precision="single")``) or a compressed
+one (``method="hierarchical"``); docs/theory/pull.rst#certified-slip-events.
+
+The state is the decoupled pull's (:class:`~roughslip.friction.sliding.TangentialState`):
+stick forces :math:`f_S = D\varphi - \psi` with :math:`G_{SS}\varphi = 1_S` and
+:math:`G_{SS}\psi = G_{SL}f_L - o_S`, both tracked through the removals on the stored inverse.
+Here neither is exact between certifications. With :math:`r_\varphi` and :math:`r_\psi` their
+residuals against the FFT operator, every entry obeys (as for the break law,
+:mod:`roughslip.friction.breaking_single`)
+
+.. math:: |\tilde\varphi_i - \varphi_i| \le \sqrt{\nu d_i}\,\|r_\varphi\|_2 = e_{\varphi,i},
+          \qquad |\tilde\psi_i - \psi_i| \le \sqrt{\nu d_i}\,\|r_\psi\|_2 = e_{\psi,i},
+
+and both residual norms are bounded between certifications by the measured residual plus
+:math:`\hat g\sum|\alpha|\,\|\tilde c\|` over the removals, :math:`\alpha = \tilde\varphi_k /
+\tilde c_k` for :math:`\varphi` and :math:`(\tilde\psi_k + f_{L,k})/\tilde c_k` for
+:math:`\psi` (the removed bond's force moves to the right-hand side). A bond that sticks
+again takes the :math:`u_x` of the tracked forces as its offset, within
+:math:`\|Ge_j\|_2\,\nu(|D|\,\|r_\varphi\| + \|r_\psi\|)` of the exact path's; that
+error is added to :math:`\|r_\psi\|` from then on (:attr:`CertifiedSlide.offset_error`).
+
+Each decision of the event loop (:func:`~roughslip.friction.events.follow_events`) is made on
+the tracked values and kept only when every value inside these bounds makes the same one:
+
+* the next event (:meth:`CertifiedSlide.interval`): a stick row's constraint
+  :math:`a + bD \ge 0` has :math:`a = \lambda f_z \pm \psi` and :math:`b = \mp\varphi`, so its
+  root lies in the interval that interval division gives, and the first root must stay
+  below every other row's lower bound by more than the tie tolerance; the lower end of the
+  admissible interval must stay where it is against :math:`D` and the event;
+* an overloaded bond (:meth:`CertifiedSlide.violation`): its overload
+  :math:`|D\varphi_i - \psi_i|/(\lambda f_{z,i})` within :math:`(D e_{\varphi,i} +
+  e_{\psi,i})/(\lambda f_{z,i})` of it;
+* a slip that turns back (:meth:`CertifiedSlide.reversal`): the slipping bonds' rates
+  :math:`G_{LS}\tilde\varphi` are within :math:`\|G e_j\|_2\,\nu\|r_\varphi\|_2` of the exact
+  ones, :math:`\|G e_j\|_2 \le 2\|G e_0\|_2` for the corner column :math:`e_0` (the kernel is
+  even in x and in y).
+
+When a decision is left open, :math:`\tilde\varphi` and :math:`\tilde\psi` are refined
+against the FFT operator and the decision is made on the refined values, as the
+double-precision path makes it. The friction force under this law is the slipping forces'
+sum at full sliding, exact once the events are; the other points of the curve carry the
+bound, reported in the message.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from roughslip.friction.bonds import Bonds, PullOptions, stick_residual
+from roughslip.friction.breaking_single import CERT_FRACTION, _Bound
+from roughslip.friction.events import RATE_TIE, TIE, X_DRIVE, EventPath, event_table
+from roughslip.friction.result import PullResult
+from roughslip.friction.sliding import FollowEvents, TangentialState, slide
+
+#: refinements of a tracked solution at a certification or an open decision
+REFINEMENTS = 4
+
+
+class CertifiedSlide(TangentialState):
+    """The decoupled pull's state on an inexact inverse, whose every decision is certified
+    (module docstring)."""
+
+    def __init__(self, b: Bonds, opt: PullOptions) -> None:
+        super().__init__(b, opt)
+        self.track_slip()
+        self.bound = _Bound(b, self.inv, opt.tol)
+        self.R_psi, self.A_psi = 0.0, 0.0  # psi's measured residual and its removals' count
+        #: the offsets' error: a bond that sticks again holds the u_x of the tracked forces
+        self.offset_error = 0.0
+        corner = np.zeros(b.shape)
+        corner[0, 0] = 1.0
+        #: a bound on the 2-norm of any column of G_xx on the grid
+        self.column_norm = 2.0 * float(np.linalg.norm(b.apply(corner, np.empty(b.shape))))
+        self.decisions = self.opened = 0
+        #: the largest bound on a curve point's relative error so far
+        self.curve_error = 0.0
+        self._dD = 0.0  # the bound on the error of the last event's drive
+        self._fresh = False
+        self._certify()
+
+    # -- the bounds -----------------------------------------------------------------------------
+    def _psi_own(self) -> float:
+        """The bound on the norm of psi's residual against its own right-hand side."""
+        return self.R_psi + self.bound.g_hat * self.A_psi
+
+    def _psi_bound(self) -> float:
+        """... and against the exact path's, whose offsets differ by ``offset_error``."""
+        return self._psi_own() + self.offset_error
+
+    def _errors(self) -> tuple[np.ndarray, np.ndarray]:
+        r""":math:`e_\varphi` and :math:`e_\psi` on the rows now (module docstring)."""
+        s = np.sqrt(self.bound.nu * self.bound.d)
+        return s * self.bound.residual_bound(), s * self._psi_bound()
+
+    def _leaving(self, row: int, carried: float) -> np.ndarray:
+        inv = self.inv
+        c = inv.column(row)
+        t = inv.tracked
+        self.bound.removed(float(t["phi"].x[row] / c[row]), c)
+        self.A_psi += abs(float((t["psi"].x[row] + carried) / c[row])) * float(
+            np.linalg.norm(c[inv.live]))
+        return c
+
+    def _psi_residual(self, first: list[float]):
+        """``residual(x)`` of psi's equation on the rows by the FFT operator (relative to the
+        right-hand side's norm), and that norm."""
+        b, inv = self.b, self.inv
+        live = inv.live
+        pos = inv.ids[live]
+        rhs = b.apply(self._load(), np.empty(b.shape)).ravel()[b.sites[pos]]
+        if np.any(self.offset[pos]):
+            rhs = rhs - self.offset[pos]
+
+        def residual(x: np.ndarray) -> tuple[np.ndarray, float]:
+            r, res = stick_residual(b, pos, x[live], rhs)
+            full = np.zeros(inv.m)
+            full[live] = r
+            if not first:
+                first.append(res)
+            return full, res
+
+        return residual, max(float(np.linalg.norm(rhs)), 1e-300)
+
+    def _refine(self, fold: bool) -> None:
+        """Refine both tracked solutions against the FFT operator; after a fold also take the
+        inverse's diagonal afresh and sample its columns (:meth:`_Bound.certify`)."""
+        bd, inv, tol = self.bound, self.inv, self.opt.tol
+        if fold:
+            bd.certify(self.rows.cap)
+        else:
+            first: list[float] = []
+            t = inv.tracked["phi"]
+            residual = bd._residual_on_rows(first)
+            t.x, res, n = inv.refine(t.x, residual, CERT_FRACTION * tol, REFINEMENTS)
+            scale = bd._rhs_norm()
+            bd.measured(first[0] * scale)
+            bd.R, bd.refinements = res * scale, bd.refinements + n
+            bd.worst = max(bd.worst, res)
+        first = []
+        t = inv.tracked["psi"]
+        residual, scale = self._psi_residual(first)
+        t.x, res, n = inv.refine(t.x, residual, CERT_FRACTION * tol, REFINEMENTS)
+        rn = first[0] * scale
+        if self.A_psi > 0:
+            if rn > (1 + 1e-6) * self._psi_own():
+                bd.exceeded += 1
+            bd.growth = max(bd.growth, (rn - self.R_psi) / self.A_psi)
+        self.R_psi, self.A_psi = res * scale, 0.0
+        bd.refinements += n
+        bd.worst = max(bd.worst, res)
+        self.worst, self.refinements = bd.worst, bd.refinements
+        self.ok = self.worst <= tol
+        self._rate = None
+
+    def _certify(self) -> None:
+        if self._fresh:  # a bond stuck again: the inverse was factorised on a larger set
+            self.bound = _Bound(self.b, self.inv, self.opt.tol)
+            self._fresh = False
+        self._refine(fold=True)
+
+    def recertify(self) -> None:
+        """After a fold: both tracked solutions certified, the bounds restarted."""
+        self._certify()
+
+    def _stick_again(self, pos: int, j: int, D: float) -> None:
+        # its offset is u_x of the tracked forces, within ||G e_j|| ||f~ - f|| of the exact
+        self.offset_error += self.column_norm * self.bound.nu * (
+            abs(D) * self.bound.residual_bound() + self._psi_bound())
+        self._fresh = True
+        self.R_psi = self.A_psi = 0.0
+        super()._stick_again(pos, j, D)
+
+    def _open(self) -> None:
+        """A decision the bounds leave open: refine, then decide on the refined values."""
+        self.opened += 1
+        self._refine(fold=False)
+
+    # -- the decisions --------------------------------------------------------------------------
+    def interval(self, D: float) -> tuple[float, float, str, int]:
+        """The admissible interval and the event ending it
+        (:meth:`~roughslip.friction.sliding.TangentialState.interval`), certified: refined
+        first when the bounds leave the event or the interval's lower end open."""
+        self.decisions += 1
+        lo, hi, kind, row, sure = self._interval(D, check=True)
+        if not sure:
+            self._open()
+            lo, hi, kind, row, _ = self._interval(D, check=False)
+        return lo, hi, kind, (self._site(row) if row >= 0 else -1)
+
+    def _interval(self, D: float, check: bool) -> tuple[float, float, str, int, bool]:
+        """The base state's interval on the tracked values, the row of its event, and whether
+        every value within the bounds gives the same decision (module docstring)."""
+        phi, psi, fz, live = self._rows()
+        scale = self.progress.scale
+        Dref = max(scale, abs(D))
+        fs = max(float(np.abs(fz).max()), np.finfo(float).tiny)
+        zero = np.zeros(phi.shape)
+        cons = self.law.stick_rows(self.b.lam, live, (fz, -psi), (zero, phi), fs)
+        lo, hi, kind, row = event_table(cons, D, Dref, scale)
+        self._dD = 0.0
+        if not check:
+            return lo, hi, kind, row, True
+        e_phi, e_psi = self._errors()
+        tol_d = TIE * max(scale, abs(D))
+        fall_lo = np.full(phi.shape, math.inf)  # the least root a falling row can have
+        rise_hi = np.full(phi.shape, -math.inf)  # the largest root a rising row can have
+        own_lo = own_hi = math.inf
+        for name, mask, a, b_, sc in cons:
+            ea, eb = e_psi, e_phi
+            m = mask & np.isfinite(a)
+            tiny = TIE * sc
+            # a row that may be flat and violated makes the state admissible nowhere
+            if np.any(m & (np.abs(b_) * Dref <= tiny + eb * Dref) & (a - ea < -tiny)):
+                return lo, hi, kind, row, False
+            with np.errstate(divide="ignore", invalid="ignore"):
+                # falling (b < 0): root a / |b|, |b| in [max(-b - eb, 0), -b + eb]
+                fal = m & (b_ < eb)
+                big, small = np.maximum(-b_ + eb, 0.0), np.maximum(-b_ - eb, 0.0)
+                num = a - ea
+                least = np.where(num >= 0, num / big, np.where(small > 0, num / small,
+                                                               -math.inf))
+                fall_lo = np.where(fal, np.minimum(fall_lo, np.nan_to_num(least, nan=-math.inf)),
+                                   fall_lo)
+                # rising (b > 0): root -a / b, b in [max(b - eb, 0), b + eb]
+                ris = m & (b_ > -eb)
+                top_num = -a + ea
+                big, small = b_ + eb, np.maximum(b_ - eb, 0.0)
+                most = np.where(top_num <= 0, top_num / big, np.where(small > 0, top_num / small,
+                                                                      math.inf))
+                rise_hi = np.where(ris, np.maximum(rise_hi, np.nan_to_num(most, nan=math.inf)),
+                                   rise_hi)
+            if name == kind and row >= 0:
+                sm = -b_[row] - eb[row]
+                own_hi = (a[row] + ea[row]) / sm if sm > 0 else math.inf
+                own_lo = (a[row] - ea[row]) / (-b_[row] + eb[row])
+        lo_hi = float(rise_hi.max(initial=-math.inf))
+        if row < 0:  # no falling row: none may be one
+            return lo, hi, kind, row, bool(not np.isfinite(fall_lo).any()
+                                           and lo_hi <= D + tol_d)
+        others = fall_lo.copy()
+        others[row] = math.inf
+        tie = 2 * TIE * max(abs(own_hi), scale)
+        self._dD = own_hi - hi
+        sure = (math.isfinite(own_hi) and float(others.min()) > own_hi + tie
+                and lo_hi <= min(D, own_lo) + tol_d)
+        return lo, hi, kind, row, sure
+
+    def violation(self, D: float) -> tuple[str, int] | None:
+        """The overloaded bond, certified: refined first unless the bounds leave no row
+        or exactly one row beyond its strength."""
+        phi, psi, fz, live = self._rows()
+        e_phi, e_psi = self._errors()
+        over = self.law.overload(self.b.lam, live, fz, D * phi - psi)
+        err = np.zeros(phi.shape)
+        np.divide(abs(D) * e_phi + e_psi, self.b.lam * fz, out=err, where=live & (fz > 0))
+        self.decisions += 1
+        high, low = over + err > 1 + TIE, over - err > 1 + TIE
+        if high.any() and not (int(high.sum()) == 1 and int(low.sum()) == 1):
+            self._open()
+        return super().violation(D)
+
+    def reversal(self) -> int | None:
+        """The slipping bond that sticks again, certified against the rates' bound:
+        refined first when it leaves the answer open."""
+        slipping = self.sigma.any(axis=-1)
+        if not (self.law.reverses and slipping.any()):
+            return None
+        fresh = self._rate is None
+        j = super().reversal()
+        if not fresh:
+            return j
+        self.decisions += 1
+        err = self.column_norm * self.bound.nu * self.bound.residual_bound()
+        back = np.where(slipping, (self.sigma * (self._rate[self.b.sites, None] - X_DRIVE))
+                        .sum(axis=-1), -math.inf)
+        if j is None:
+            sure = float(back.max()) + err <= RATE_TIE
+        else:
+            k = int(self.position[j])
+            top = float(back[k])
+            rest = back.copy()
+            rest[k] = -math.inf
+            sure = (top - err > RATE_TIE and float(rest.max(initial=-math.inf)) + err
+                    < top - err - 2 * TIE * max(1.0, top))
+        if sure:
+            return j
+        self._open()
+        return super().reversal()
+
+    # -- the curve and the result ---------------------------------------------------------------
+    def totals(self, D: float) -> tuple[float, float]:
+        """F_x and F_z at ``D``; the bound on F_x's error joins :attr:`curve_error`."""
+        F_x, F_z = super().totals(D)
+        phi, _, _, live = self._rows()
+        m = int(live.sum())
+        err = (math.sqrt(m) * self.bound.nu * (abs(D) * self.bound.residual_bound()
+                                               + self._psi_bound())
+               + abs(float(phi[live].sum())) * abs(self._dD))
+        self.curve_error = max(self.curve_error, err / max(abs(F_x), 1e-300))
+        return F_x, F_z
+
+    def result(self, path: EventPath, t0: float) -> PullResult:
+        """The pull's result, its message with the certification's counts and the curve's
+        bound."""
+        res = super().result(path, t0)
+        bd = self.bound
+        what = ("single precision" if self.opt.precision == "single"
+                else f"{self.inv.kind} inverse")
+        msg = (f"{res.message}; {self.b.n} bonds, {what}: {bd.refinements} refinements, "
+               f"{self.opened} of {self.decisions} decisions refined, bound exceeded "
+               f"{bd.exceeded} times; curve points within {self.curve_error:.1e} relative, "
+               "the friction force exact")
+        return replace(res, message=msg, details=replace(res.details,
+                                                         precision=self.opt.precision))
+
+
+def slide_certified(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
+    r"""The decoupled pull by the event loop (:func:`~roughslip.friction.sliding.slide`); on an
+    inexact inverse (``precision = "single"`` or a compressed one) with certified decisions
+    (:class:`CertifiedSlide`, the x-only model)."""
+    inexact = opt.precision == "single" or (opt.method is not None and opt.method.inexact)
+    if not inexact or b.k > 1:
+        return slide(b, opt, t0)
+    return CertifiedSlide(b, opt).run(FollowEvents(), t0)
+
+
+__all__ = ["CertifiedSlide", "slide_certified"]
