@@ -587,6 +587,51 @@ def test_a_burst_leaves_a_flat_valley(monkeypatch):
                                                          rel=1e-12)
 
 
+def test_a_weak_mode_lands_where_a_finer_flow_rests(monkeypatch):
+    """A 64^2 indentation (the rough configuration's sample 7 at 1.37 rms, nu = 0.25,
+    d_c = 0.01) has a burst whose mode grows at 6e-6 of the stiffest bond's rate and stops
+    growing within 0.01 d_c: along it the excess peaks at 3e-10 of the largest normal force,
+    below the flow's threshold, and the sample was refused. The rest beyond the peak is found
+    by Newton's method: a stable state, every slip grown, no excess left. A flow with a ten
+    times finer threshold resolves that burst itself, and gives the same friction force and
+    the same released bonds."""
+    from pathlib import Path
+
+    from roughslip.coupling import weakening as wk
+    from roughslip.run.config import load_config
+    from roughslip.run.sample import run_sample
+
+    cfg = load_config(Path(__file__).parents[1] / "configs" / "rough_h08.toml", [
+        "grid.n=64", "ensemble.samples=20", "squeeze.depths=[1.3685108578372633]",
+        "material.nu=0.25", "coupling.enabled=true", "pull.slip_law='slip-weakening'",
+        "pull.lam_dynamic=0.1", "pull.slip_distance=0.01", "coupling.history='indent'"])
+    weak, landings = wk.WeakeningContact._weak_landing, []
+
+    def logged(self, s0, v):
+        s1 = weak(self, s0, v)
+        if s1 is not None:
+            R = self.residual(s1, self.D)
+            landings.append((float(np.abs(R).max()) / self.fscale(), self.stable(),
+                             float((s1 - s0).min()) / self.law.dc,
+                             float((s1 - s0).max()) / self.law.dc))
+            self.s = s1
+        return s1
+
+    monkeypatch.setattr(wk.WeakeningContact, "_weak_landing", logged)
+    newton = run_sample(cfg, 7).scalars
+    assert newton["pull_converged"][0] == 1.0
+    assert landings, "no burst of the scene landed by Newton's method"
+    for excess, stable, least, most in landings:
+        assert excess <= 1e-14 and stable and least >= -1e-9 * most and most > 1e-3
+    monkeypatch.setattr(wk.WeakeningContact, "_weak_landing", lambda self, s0, v: None)
+    monkeypatch.setattr(wk, "FLOW_EPS", wk.FLOW_EPS / 10)
+    monkeypatch.setattr(wk, "REST", wk.REST / 10)
+    flow = run_sample(cfg, 7).scalars
+    assert flow["pull_converged"][0] == 1.0
+    assert flow["released_bonds"][0] == newton["released_bonds"][0]
+    assert flow["friction_force"][0] == pytest.approx(newton["friction_force"][0], rel=1e-12)
+
+
 @pytest.mark.parametrize(("c0", "c1", "c2", "x"), [
     (0.0, 1e-8, 0.0, 1e8),  # linear
     (0.0, 1e-8, 1e-25, 1e8 * (1 - 1e-9)),  # near-linear: no cancellation to zero

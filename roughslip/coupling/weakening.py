@@ -197,6 +197,8 @@ class _Core:
         self.worst = 0.0
         self.steps = 0
         self.bursts = 0
+        #: bursts whose weak mode landed by Newton's method (:meth:`_Events._weak_landing`)
+        self.weak_landings = 0
         self.changes = 0  # set changes (events), to tell a flow that came back from one that moved
         self._origin: tuple[int, np.ndarray, int] | None = None  # the last push: changes, s, level
         self._approach: tuple[np.ndarray, np.ndarray] | None = None  # the path's last tangent
@@ -1183,6 +1185,12 @@ class _Events:
         else:
             level = len(PUSHES) - 1
             x = self._flat_push(s0, v) if first < len(PUSHES) and rate >= ESCAPE else None
+            if x is None and rate >= ESCAPE:
+                landing = self._weak_landing(s0, v)
+                if landing is not None:  # the rest the flow reaches, found directly
+                    self.s, self._origin, self._pushed = landing, None, False
+                    self.weak_landings += 1
+                    return
             if x is None:
                 self.s = s0
                 raise NumericalError(
@@ -1243,6 +1251,53 @@ class _Events:
         self.s = s0
         return x if rate >= ESCAPE else None
 
+    def _weak_landing(self, s0: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+        r"""The stable rest that the flow from ``s0`` along a weakly growing mode ``v``
+        reaches, found by Newton's method instead of the flow, or None.
+
+        A mode that grows at little more than :data:`ESCAPE` can stop growing within a
+        fraction of :math:`d_c`: the excess along it rises to a maximum below the flow's
+        threshold :data:`FLOW_EPS` and falls to a second root, a stable rest. The flow cannot
+        resolve that rise, and the rest polish returns to ``s0``. On the ray
+        :math:`s_0 + x\,d_c v` the first push of :data:`PUSHES` at which the mode decays
+        lies past the excess's maximum, where Newton's method on :math:`R = 0` goes to that
+        second root (in the one-dimensional reduction :math:`R = ax - bx^2`, beyond
+        :math:`a/2b` the iteration converges to :math:`a/b`). The root is the landing if the
+        slips only grew on the way to it (the law's :math:`\dot s \ge 0`), it lies at least a
+        quarter of that push from ``s0``, no constraint is violated and no excess falls below
+        the flow's stop threshold on the segment to it (16 points: no bond stops on the way)
+        and it is stable; None otherwise."""
+        dc, fs = self.law.dc, self.fscale()
+        for x in PUSHES:
+            self.s = s0 + x * dc * v
+            if self._violation() is not None:
+                break
+            if self._mode_rate() >= 0:
+                continue
+            for _ in range(NEWTON):
+                R = self.residual(self.s, self.D)
+                if np.abs(R).max(initial=0.0) <= 1e-14 * fs:
+                    break
+                self.s = self.s - linalg.solve(self.jacobian(self.s, self.D)[:, :-1], R)
+            else:
+                break
+            s1, ds = self.s.copy(), self.s - s0
+            if (float(ds.min(initial=0.0)) < -TIE * x * dc
+                    or float(np.abs(ds).max(initial=0.0)) < 0.25 * x * dc):
+                break
+            for t in np.linspace(0.0, 1.0, 17)[1:]:
+                self.s = s0 + t * ds
+                if (self._violation() is not None or float(
+                        self.residual(self.s, self.D).min(initial=0.0)) < -FLOW_EPS * fs):
+                    self.s = s0  # an event, or a bond the flow would stop, on the way
+                    return None
+            self.s = s1
+            if self.stable():
+                return s1
+            break
+        self.s = s0
+        return None
+
     def _rest(self) -> bool:
         """At rest: arrested bonds stick, the others are polished to R = 0 by Newton, and the
         state is stable (else pushed along its unstable mode)."""
@@ -1266,7 +1321,7 @@ class _Events:
         if self.stable():
             return True
         self._push(self.unstable_mode())
-        return False
+        return not self._pushed  # a weak mode's landing is a stable rest (_weak_landing)
 
     def _flow(self) -> None:
         r"""Integrate the overdamped law (BDF) to its next event or to rest. The rate is
