@@ -77,6 +77,7 @@ def check_pull(cfg: RunConfig, errors: Errors) -> None:
         model = comps if engine else "x"
         single = ", ".join(repr(n) for n in LAWS.names() if model in LAWS.get(n).single)
         methods = ", ".join(repr(n) for n in METHODS.names() if single_ok(law, n, model))
+        where = "" if model == "x" else f" with components = {model!r}"
         errors.add("pull.precision", "single", "is the decoupled single-precision matrix of "
-                   f"slip_law {single} only (coupling.enabled = false, method "
+                   f"slip_law {single}{where} only (coupling.enabled = false, method "
                    f"{methods or repr('auto')})")
