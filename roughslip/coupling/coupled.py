@@ -327,7 +327,9 @@ def _couple_weakening(problem: Problem, solver: BlockSolver, setup: Setup, law, 
     peak = path.peak
     _check_finite("coupled model", fz=start.fz, fx=start.fx, **{"fz at peak": peak.fz})
     residual = max(wc.worst, solver.residual())
-    message = path.message or (f"{len(path.events)} events, {wc.bursts} burst(s), "
+    weak = (f", {wc.weak_landings} of them landed by Newton's method (a weak mode)"
+            if wc.weak_landings else "")
+    message = path.message or (f"{len(path.events)} events, {wc.bursts} burst(s){weak}, "
                                f"{wc.steps} certified steps")
     return PullResult(
         friction_force=float(peak.fx_total), normal_force_at_peak=float(peak.fz_total),

@@ -13,9 +13,14 @@ residuals against the FFT operator, every entry obeys (as for the break law,
           \qquad |\tilde\psi_i - \psi_i| \le \sqrt{\nu d_i}\,\|r_\psi\|_2 = e_{\psi,i},
 
 and both residual norms are bounded between certifications by the measured residual plus
-:math:`\hat g\sum|\alpha|\,\|\tilde c\|` over the removals, :math:`\alpha = \tilde\varphi_k /
-\tilde c_k` for :math:`\varphi` and :math:`(\tilde\psi_k + f_{L,k})/\tilde c_k` for
-:math:`\psi` (the removed bond's force moves to the right-hand side). A bond that sticks
+:math:`\hat\gamma\sum|\alpha|\,\|\tilde c\|` over the removals, :math:`\alpha = \tilde\varphi_k
+/ \tilde c_k` for :math:`\varphi` and :math:`(\tilde\psi_k + f_{L,k})/\tilde c_k` for
+:math:`\psi` (the removed bond's force moves to the right-hand side), with
+:math:`\hat\gamma` the break law's bound on a column's residual ratio
+:math:`\|e_k - G\tilde c\|/\|\tilde c\|` (at least a compressed inverse's :math:`\delta`;
+sampled, with a safety factor). Unlike the break law's path, which learns how far the
+removals' errors cancel, this one assumes no cancellation: a first residual above its bound
+is counted in the message. A bond that sticks
 again takes the :math:`u_x` of the tracked forces as its offset, within
 :math:`\|Ge_j\|_2\,\nu(|D|\,\|r_\varphi\| + \|r_\psi\|)` of the exact path's; that
 error is added to :math:`\|r_\psi\|` from then on (:attr:`CertifiedSlide.offset_error`).
@@ -26,11 +31,14 @@ the tracked values and kept only when every value inside these bounds makes the 
 * the next event (:meth:`CertifiedSlide.interval`): a stick row's constraint
   :math:`a + bD \ge 0` has :math:`a = \lambda f_z \pm \psi` and :math:`b = \mp\varphi`, so its
   root lies in the interval that interval division gives, and the first root must stay
-  below every other row's lower bound by more than the tie tolerance; the lower end of the
-  admissible interval must stay where it is against :math:`D` and the event;
+  below every other row's lower bound by more than the tie tolerance, fall for every value
+  (not flat), and stay on one side of :math:`D \pm` the tie tolerance with :math:`\Delta D`
+  added; the lower end of the admissible interval must stay at or below :math:`D -
+  \Delta D` and the event;
 * an overloaded bond (:meth:`CertifiedSlide.violation`): its overload
-  :math:`|D\varphi_i - \psi_i|/(\lambda f_{z,i})` within :math:`(D e_{\varphi,i} +
-  e_{\psi,i})/(\lambda f_{z,i})` of it;
+  :math:`|D\varphi_i - \psi_i|/(\lambda f_{z,i})` within :math:`(|D| e_{\varphi,i} +
+  e_{\psi,i} + |\varphi_i|\,\Delta D)/(\lambda f_{z,i})` of it, :math:`\Delta D` the error
+  of the drive (the largest error of an event's root so far);
 * a slip that turns back (:meth:`CertifiedSlide.reversal`): the slipping bonds' rates
   :math:`G_{LS}\tilde\varphi` are within :math:`\|G e_j\|_2\,\nu\|r_\varphi\|_2` of the exact
   ones, :math:`\|G e_j\|_2 \le 2\|G e_0\|_2` for the corner column :math:`e_0` (the kernel is
@@ -50,6 +58,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from roughslip.errors import InputError
 from roughslip.friction.bonds import Bonds, PullOptions, stick_residual
 from roughslip.friction.breaking_single import CERT_FRACTION, _Bound
 from roughslip.friction.events import RATE_TIE, TIE, X_DRIVE, EventPath, event_table
@@ -58,6 +67,18 @@ from roughslip.friction.sliding import FollowEvents, TangentialState, slide
 
 #: refinements of a tracked solution at a certification or an open decision
 REFINEMENTS = 4
+
+
+def _quotient(n_lo: np.ndarray, n_hi: np.ndarray, d_lo: np.ndarray, d_hi: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """The range of ``n / d`` for ``n`` in ``[n_lo, n_hi]`` and ``d`` in ``[d_lo, d_hi]``,
+    ``0 <= d_lo <= d_hi`` (interval division; a denominator that may vanish leaves the range
+    unbounded on the numerator's side)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        least = np.where(n_lo >= 0, n_lo / d_hi, np.where(d_lo > 0, n_lo / d_lo, -math.inf))
+        most = np.where(n_hi <= 0, n_hi / d_hi, np.where(d_lo > 0, n_hi / d_lo, math.inf))
+    return (np.nan_to_num(least, nan=-math.inf, posinf=math.inf, neginf=-math.inf),
+            np.nan_to_num(most, nan=math.inf, posinf=math.inf, neginf=-math.inf))
 
 
 class CertifiedSlide(TangentialState):
@@ -75,17 +96,27 @@ class CertifiedSlide(TangentialState):
         corner[0, 0] = 1.0
         #: a bound on the 2-norm of any column of G_xx on the grid
         self.column_norm = 2.0 * float(np.linalg.norm(b.apply(corner, np.empty(b.shape))))
-        self.decisions = self.opened = 0
+        #: decisions made, those the bounds left open, and first residuals above their bound
+        self.decisions = self.opened = self.exceeded = 0
         #: the largest bound on a curve point's relative error so far
         self.curve_error = 0.0
         self._dD = 0.0  # the bound on the error of the last event's drive
+        #: a bound on the error of the drive the state sits at (the largest event's so far)
+        self._drive_error = 0.0
         self._fresh = False
         self._certify()
 
     # -- the bounds -----------------------------------------------------------------------------
+    def _phi_bound(self) -> float:
+        r"""The bound on the norm of phi's residual: the last measured one plus
+        :math:`\hat\gamma\sum|\alpha|\,\|\tilde c\|` over the removals since
+        (:math:`\hat\gamma` bounds each column's residual ratio, so no cancellation between
+        the removals' errors is assumed)."""
+        return self.bound.R + self.bound.gamma_hat * self.bound.A
+
     def _psi_own(self) -> float:
         """The bound on the norm of psi's residual against its own right-hand side."""
-        return self.R_psi + self.bound.g_hat * self.A_psi
+        return self.R_psi + self.bound.gamma_hat * self.A_psi
 
     def _psi_bound(self) -> float:
         """... and against the exact path's, whose offsets differ by ``offset_error``."""
@@ -94,7 +125,7 @@ class CertifiedSlide(TangentialState):
     def _errors(self) -> tuple[np.ndarray, np.ndarray]:
         r""":math:`e_\varphi` and :math:`e_\psi` on the rows now (module docstring)."""
         s = np.sqrt(self.bound.nu * self.bound.d)
-        return s * self.bound.residual_bound(), s * self._psi_bound()
+        return s * self._phi_bound(), s * self._psi_bound()
 
     def _leaving(self, row: int, carried: float) -> np.ndarray:
         inv = self.inv
@@ -126,33 +157,33 @@ class CertifiedSlide(TangentialState):
         return residual, max(float(np.linalg.norm(rhs)), 1e-300)
 
     def _refine(self, fold: bool) -> None:
-        """Refine both tracked solutions against the FFT operator; after a fold also take the
-        inverse's diagonal afresh and sample its columns (:meth:`_Bound.certify`)."""
+        """Refine both tracked solutions against the FFT operator, count a first residual
+        above its bound, and restart the bounds from the refined residuals; after a fold also
+        take the inverse's diagonal afresh and sample two of its columns (the column ratio,
+        :class:`_Bound`)."""
         bd, inv, tol = self.bound, self.inv, self.opt.tol
-        if fold:
-            bd.certify(self.rows.cap)
-        else:
+        steps = (("phi", bd._residual_on_rows, self._phi_bound(), bd.A),
+                 ("psi", self._psi_residual, self._psi_own(), self.A_psi))
+        for name, make, expected, count in steps:
             first: list[float] = []
-            t = inv.tracked["phi"]
-            residual = bd._residual_on_rows(first)
+            made = make(first)
+            residual, scale = made if name == "psi" else (made, bd._rhs_norm())
+            t = inv.tracked[name]
             t.x, res, n = inv.refine(t.x, residual, CERT_FRACTION * tol, REFINEMENTS)
-            scale = bd._rhs_norm()
-            bd.measured(first[0] * scale)
-            bd.R, bd.refinements = res * scale, bd.refinements + n
-            bd.worst = max(bd.worst, res)
-        first = []
-        t = inv.tracked["psi"]
-        residual, scale = self._psi_residual(first)
-        t.x, res, n = inv.refine(t.x, residual, CERT_FRACTION * tol, REFINEMENTS)
-        rn = first[0] * scale
-        if self.A_psi > 0:
-            if rn > (1 + 1e-6) * self._psi_own():
-                bd.exceeded += 1
-            bd.growth = max(bd.growth, (rn - self.R_psi) / self.A_psi)
-        self.R_psi, self.A_psi = res * scale, 0.0
-        bd.refinements += n
-        bd.worst = max(bd.worst, res)
-        self.worst, self.refinements = bd.worst, bd.refinements
+            if count > 0 and first[0] * scale > (1 + 1e-6) * expected:
+                self.exceeded += 1
+            if name == "phi":
+                bd.R, bd.A = res * scale, 0.0
+            else:
+                self.R_psi, self.A_psi = res * scale, 0.0
+            self.refinements += n
+            self.worst = max(self.worst, res)
+        if fold:
+            bd.refresh()
+            ratio = np.abs(inv.tracked["phi"].x) / self.rows.cap
+            ratio[~inv.live] = -1.0
+            for row in np.argsort(-ratio, kind="stable")[:min(2, int(inv.live.sum()))]:
+                bd._sample(int(row))
         self.ok = self.worst <= tol
         self._rate = None
 
@@ -169,10 +200,16 @@ class CertifiedSlide(TangentialState):
     def _stick_again(self, pos: int, j: int, D: float) -> None:
         # its offset is u_x of the tracked forces, within ||G e_j|| ||f~ - f|| of the exact
         self.offset_error += self.column_norm * self.bound.nu * (
-            abs(D) * self.bound.residual_bound() + self._psi_bound())
+            abs(D) * self._phi_bound() + self._psi_bound())
         self._fresh = True
         self.R_psi = self.A_psi = 0.0
         super()._stick_again(pos, j, D)
+
+    def apply(self, kind: str, j: int, D: float = 0.0) -> None:
+        """An event (:meth:`~roughslip.friction.sliding.TangentialState.apply`); the drive it
+        happens at carries the error of the last event's root."""
+        self._drive_error = max(self._drive_error, self._dD)
+        super().apply(kind, j, D)
 
     def _open(self) -> None:
         """A decision the bounds leave open: refine, then decide on the refined values."""
@@ -201,52 +238,50 @@ class CertifiedSlide(TangentialState):
         zero = np.zeros(phi.shape)
         cons = self.law.stick_rows(self.b.lam, live, (fz, -psi), (zero, phi), fs)
         lo, hi, kind, row = event_table(cons, D, Dref, scale)
-        self._dD = 0.0
-        if not check:
-            return lo, hi, kind, row, True
         e_phi, e_psi = self._errors()
         tol_d = TIE * max(scale, abs(D))
         fall_lo = np.full(phi.shape, math.inf)  # the least root a falling row can have
         rise_hi = np.full(phi.shape, -math.inf)  # the largest root a rising row can have
-        own_lo = own_hi = math.inf
+        own_lo, own_hi, flat, nowhere = -math.inf, math.inf, True, False
         for name, mask, a, b_, sc in cons:
             ea, eb = e_psi, e_phi
             m = mask & np.isfinite(a)
             tiny = TIE * sc
             # a row that may be flat and violated makes the state admissible nowhere
             if np.any(m & (np.abs(b_) * Dref <= tiny + eb * Dref) & (a - ea < -tiny)):
-                return lo, hi, kind, row, False
+                nowhere = True
             with np.errstate(divide="ignore", invalid="ignore"):
                 # falling (b < 0): root a / |b|, |b| in [max(-b - eb, 0), -b + eb]
-                fal = m & (b_ < eb)
-                big, small = np.maximum(-b_ + eb, 0.0), np.maximum(-b_ - eb, 0.0)
-                num = a - ea
-                least = np.where(num >= 0, num / big, np.where(small > 0, num / small,
-                                                               -math.inf))
-                fall_lo = np.where(fal, np.minimum(fall_lo, np.nan_to_num(least, nan=-math.inf)),
-                                   fall_lo)
+                least, _ = _quotient(a - ea, a + ea, np.maximum(-b_ - eb, 0.0), -b_ + eb)
+                fall_lo = np.where(m & (b_ < eb), np.minimum(fall_lo, least), fall_lo)
                 # rising (b > 0): root -a / b, b in [max(b - eb, 0), b + eb]
-                ris = m & (b_ > -eb)
-                top_num = -a + ea
-                big, small = b_ + eb, np.maximum(b_ - eb, 0.0)
-                most = np.where(top_num <= 0, top_num / big, np.where(small > 0, top_num / small,
-                                                                      math.inf))
-                rise_hi = np.where(ris, np.maximum(rise_hi, np.nan_to_num(most, nan=math.inf)),
-                                   rise_hi)
+                _, most = _quotient(-a - ea, -a + ea, np.maximum(b_ - eb, 0.0), b_ + eb)
+                rise_hi = np.where(m & (b_ > -eb), np.maximum(rise_hi, most), rise_hi)
             if name == kind and row >= 0:
-                sm = -b_[row] - eb[row]
-                own_hi = (a[row] + ea[row]) / sm if sm > 0 else math.inf
-                own_lo = (a[row] - ea[row]) / (-b_[row] + eb[row])
+                lo_r, hi_r = _quotient(a[row:row + 1] - ea[row], a[row:row + 1] + ea[row],
+                                       np.maximum(-b_[row:row + 1] - eb[row], 0.0),
+                                       -b_[row:row + 1] + eb[row])
+                own_lo, own_hi = float(lo_r[0]), float(hi_r[0])
+                # the row must fall for every value within the bounds, and not be flat
+                flat = bool((-b_[row] - eb[row]) * Dref <= tiny)
+        self._dD = max(own_hi - hi, hi - own_lo) if row >= 0 else 0.0
+        if not check:  # decided on refined values
+            return lo, hi, kind, row, True
+        if nowhere:
+            return lo, hi, kind, row, False
         lo_hi = float(rise_hi.max(initial=-math.inf))
+        Dlo = D - self._drive_error  # the exact path's drive is within this of D
         if row < 0:  # no falling row: none may be one
-            return lo, hi, kind, row, bool(not np.isfinite(fall_lo).any()
-                                           and lo_hi <= D + tol_d)
+            return lo, hi, kind, row, bool(not (fall_lo < math.inf).any()
+                                           and lo_hi <= Dlo + tol_d)
         others = fall_lo.copy()
         others[row] = math.inf
         tie = 2 * TIE * max(abs(own_hi), scale)
-        self._dD = own_hi - hi
-        sure = (math.isfinite(own_hi) and float(others.min()) > own_hi + tie
-                and lo_hi <= min(D, own_lo) + tol_d)
+        # the event loop compares hi - D with -tol_d and tol_d: neither may lie in its range
+        gap_lo, gap_hi = own_lo - D - self._drive_error, own_hi - D + self._drive_error
+        sure = (not flat and math.isfinite(own_hi) and float(others.min()) > own_hi + tie
+                and lo_hi <= min(Dlo, own_lo) + tol_d
+                and not any(gap_lo <= t <= gap_hi for t in (-tol_d, tol_d)))
         return lo, hi, kind, row, sure
 
     def violation(self, D: float) -> tuple[str, int] | None:
@@ -256,7 +291,9 @@ class CertifiedSlide(TangentialState):
         e_phi, e_psi = self._errors()
         over = self.law.overload(self.b.lam, live, fz, D * phi - psi)
         err = np.zeros(phi.shape)
-        np.divide(abs(D) * e_phi + e_psi, self.b.lam * fz, out=err, where=live & (fz > 0))
+        # the exact path's drive is within _drive_error of D
+        np.divide(abs(D) * e_phi + e_psi + np.abs(phi) * self._drive_error, self.b.lam * fz,
+                  out=err, where=live & (fz > 0))
         self.decisions += 1
         high, low = over + err > 1 + TIE, over - err > 1 + TIE
         if high.any() and not (int(high.sum()) == 1 and int(low.sum()) == 1):
@@ -274,7 +311,7 @@ class CertifiedSlide(TangentialState):
         if not fresh:
             return j
         self.decisions += 1
-        err = self.column_norm * self.bound.nu * self.bound.residual_bound()
+        err = self.column_norm * self.bound.nu * self._phi_bound()
         back = np.where(slipping, (self.sigma * (self._rate[self.b.sites, None] - X_DRIVE))
                         .sum(axis=-1), -math.inf)
         if j is None:
@@ -293,13 +330,16 @@ class CertifiedSlide(TangentialState):
 
     # -- the curve and the result ---------------------------------------------------------------
     def totals(self, D: float) -> tuple[float, float]:
-        """F_x and F_z at ``D``; the bound on F_x's error joins :attr:`curve_error`."""
-        F_x, F_z = super().totals(D)
-        phi, _, _, live = self._rows()
+        """F_x and F_z at ``D``, summed over the live rows (a compressed inverse leaves its
+        removed rows' entries at its own error, not zero); the bound on F_x's error joins
+        :attr:`curve_error`."""
+        phi, psi, _, live = self._rows()
+        F_x = D * float(phi[live].sum()) - float(psi[live].sum()) + self.slip_sum
+        F_z = self.fz_total
         m = int(live.sum())
-        err = (math.sqrt(m) * self.bound.nu * (abs(D) * self.bound.residual_bound()
+        err = (math.sqrt(m) * self.bound.nu * (abs(D) * self._phi_bound()
                                                + self._psi_bound())
-               + abs(float(phi[live].sum())) * abs(self._dD))
+               + abs(float(phi[live].sum())) * max(self._dD, self._drive_error))
         self.curve_error = max(self.curve_error, err / max(abs(F_x), 1e-300))
         return F_x, F_z
 
@@ -307,12 +347,11 @@ class CertifiedSlide(TangentialState):
         """The pull's result, its message with the certification's counts and the curve's
         bound."""
         res = super().result(path, t0)
-        bd = self.bound
         what = ("single precision" if self.opt.precision == "single"
                 else f"{self.inv.kind} inverse")
-        msg = (f"{res.message}; {self.b.n} bonds, {what}: {bd.refinements} refinements, "
+        msg = (f"{res.message}; {self.b.n} bonds, {what}: {self.refinements} refinements, "
                f"{self.opened} of {self.decisions} decisions refined, bound exceeded "
-               f"{bd.exceeded} times; curve points within {self.curve_error:.1e} relative, "
+               f"{self.exceeded} times; curve points within {self.curve_error:.1e} relative, "
                "the friction force exact")
         return replace(res, message=msg, details=replace(res.details,
                                                          precision=self.opt.precision))
@@ -323,8 +362,12 @@ def slide_certified(b: Bonds, opt: PullOptions, t0: float) -> PullResult:
     inexact inverse (``precision = "single"`` or a compressed one) with certified decisions
     (:class:`CertifiedSlide`, the x-only model)."""
     inexact = opt.precision == "single" or (opt.method is not None and opt.method.inexact)
-    if not inexact or b.k > 1:
+    if not inexact:
         return slide(b, opt, t0)
+    if b.k > 1:
+        raise InputError("the Coulomb cone of the traction vector has no certified decisions: "
+                         "it needs the dense inverse in double precision (method 'inverse', "
+                         "precision 'double')")
     return CertifiedSlide(b, opt).run(FollowEvents(), t0)
 
 

@@ -239,9 +239,9 @@ class PullConfig:
     precision: str = option("auto", "the precision of the stored matrix of the inverse and "
                             "hierarchical methods: double, single (the break law; the Coulomb "
                             "law with components = 'x'. Half the memory, the same events and "
-                            "friction force by certified decisions, the other curve points to "
-                            "~1e-6) or auto (double when it fits in memory, else single)",
-                            choices=PULL_PRECISIONS)
+                            "friction force by certified decisions, the other curve points "
+                            "within the bound the message reports) or auto (double when it "
+                            "fits in memory, else single)", choices=PULL_PRECISIONS)
     components: str = option("x", "the tangential model: x (the report's: f_x alone, u_y free; "
                              "xy when pull.direction is set and this is not) or xy (the "
                              "traction vector (f_x, f_y), sticking both ways, pulled at "
