@@ -107,10 +107,11 @@ def main() -> None:
     d = runs[ref][0]
     print(f"# cores: {os.cpu_count()}, threads {a.threads}; N = {a.size}, area {a.area}, "
           f"{d['bonds']} bonds, slip law {a.slip_law}, medians of {a.repeat}")
-    print(f"{'variant':>12} {'sec':>8} {'peak GiB':>9} {'pull GiB':>9} {'steps':>6} "
+    w = max(12, *(len(p) for p in runs))
+    print(f"{'variant':>{w}} {'sec':>8} {'peak GiB':>9} {'pull GiB':>9} {'steps':>6} "
           f"{'F_friction':>20}")
     for p, rs in runs.items():
-        print(f"{p:>12} {med[p]['sec']:8.2f} {med[p]['peak'] / 2**30:9.3f} "
+        print(f"{p:>{w}} {med[p]['sec']:8.2f} {med[p]['peak'] / 2**30:9.3f} "
               f"{med[p]['pull'] / 2**30:9.3f} {rs[0]['steps']:>6} {rs[0]['friction']:20.15f}")
     secs = {p: [r["sec"] for r in rs] for p, rs in runs.items()}
     print("seconds (each run): " + "; ".join(f"{p} " + " ".join(f"{t:.2f}" for t in ts)

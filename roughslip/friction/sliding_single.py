@@ -96,8 +96,12 @@ class CertifiedSlide(TangentialState):
         corner[0, 0] = 1.0
         #: a bound on the 2-norm of any column of G_xx on the grid
         self.column_norm = 2.0 * float(np.linalg.norm(b.apply(corner, np.empty(b.shape))))
-        #: decisions made, those the bounds left open, and first residuals above their bound
-        self.decisions = self.opened = self.exceeded = 0
+        #: decisions made
+        self.decisions = 0
+        #: decisions the bounds left open (refined against the FFT operator)
+        self.opened = 0
+        #: first residuals of a refinement above their bound
+        self.exceeded = 0
         #: the largest bound on a curve point's relative error so far
         self.curve_error = 0.0
         self._dD = 0.0  # the bound on the error of the last event's drive
@@ -206,8 +210,8 @@ class CertifiedSlide(TangentialState):
         super()._stick_again(pos, j, D)
 
     def apply(self, kind: str, j: int, D: float = 0.0) -> None:
-        """An event (:meth:`~roughslip.friction.sliding.TangentialState.apply`); the drive it
-        happens at carries the error of the last event's root."""
+        """An event, applied as the tangential state applies it; the drive it happens at
+        carries the error of the last event's root."""
         self._drive_error = max(self._drive_error, self._dD)
         super().apply(kind, j, D)
 
