@@ -1274,12 +1274,7 @@ class _Events:
                 break
             if self._mode_rate() >= 0:
                 continue
-            for _ in range(NEWTON):
-                R = self.residual(self.s, self.D)
-                if np.abs(R).max(initial=0.0) <= 1e-14 * fs:
-                    break
-                self.s = self.s - linalg.solve(self.jacobian(self.s, self.D)[:, :-1], R)
-            else:
+            if not self._polish(fs):
                 break
             s1, ds = self.s.copy(), self.s - s0
             if (float(ds.min(initial=0.0)) < -TIE * x * dc
@@ -1298,6 +1293,16 @@ class _Events:
         self.s = s0
         return None
 
+    def _polish(self, fs: float) -> bool:
+        """Newton's method on R = 0 from the current slips, to 1e-14 of the force unit ``fs``
+        in :data:`NEWTON` iterations; whether it got there."""
+        for _ in range(NEWTON):
+            R = self.residual(self.s, self.D)
+            if np.abs(R).max(initial=0.0) <= 1e-14 * fs:
+                return True
+            self.s = self.s - linalg.solve(self.jacobian(self.s, self.D)[:, :-1], R)
+        return False
+
     def _rest(self) -> bool:
         """At rest: arrested bonds stick, the others are polished to R = 0 by Newton, and the
         state is stable (else pushed along its unstable mode)."""
@@ -1308,13 +1313,7 @@ class _Events:
         arrested = (R < -REST * fs) & self._reversible()
         for j in self.lin.sites[arrested]:
             self.apply(EventKind.STICK, int(j))
-        for _ in range(NEWTON):
-            R = self.residual(self.s, self.D)
-            if np.abs(R).max(initial=0.0) <= 1e-14 * fs:
-                break
-            Js = self.jacobian(self.s, self.D)[:, :-1]
-            self.s = self.s - linalg.solve(Js, R)
-        else:
+        if not self._polish(fs):
             return False
         if self._violation() is not None:
             return False

@@ -519,6 +519,18 @@ def stick_residual(b: Bonds, pos: np.ndarray, v: np.ndarray, rhs: np.ndarray | f
     return r, float(np.linalg.norm(r)) / max(float(np.linalg.norm(rhs)), 1e-300)
 
 
+def tracked_rhs(b: Bonds, pos: np.ndarray, load: np.ndarray | None,
+                shift: np.ndarray | None = None) -> np.ndarray | float:
+    r"""The right-hand side on the stick set ``pos`` of :math:`\varphi` (``load`` None: the
+    drive's component) or of :math:`\psi`, :math:`(G_{xx} f_L)_S` for the grid field ``load``,
+    less ``shift`` (per bond position: the offsets of bonds that stuck again)."""
+    rhs = (b.drive_rows(pos) if load is None
+           else b.apply(load, np.empty(b.shape)).ravel()[b.sites[pos]])
+    if shift is not None and np.any(shift[pos]):
+        rhs = rhs - shift[pos]
+    return rhs
+
+
 def certify(b: Bonds, inv: StickSolver, name: str, load: np.ndarray | None, tol: float,
             shift: np.ndarray | None = None) -> tuple[float, int]:
     r"""Check the tracked solution ``name`` against the FFT operator, refining it if needed
@@ -532,10 +544,7 @@ def certify(b: Bonds, inv: StickSolver, name: str, load: np.ndarray | None, tol:
     """
     t, live = inv.tracked[name], inv.live
     pos = inv.ids[live]
-    rhs = (b.drive_rows(pos) if load is None
-           else b.apply(load, np.empty(b.shape)).ravel()[b.sites[pos]])
-    if shift is not None and np.any(shift[pos]):
-        rhs = rhs - shift[pos]
+    rhs = tracked_rhs(b, pos, load, shift)
 
     def residual(x: np.ndarray) -> tuple[np.ndarray, float]:
         r, res = stick_residual(b, pos, x[live], rhs)

@@ -274,8 +274,6 @@ class _Bound:
         r"""Refine the tracked solution to ``CERT_FRACTION x tol``, check the bound against the
         residual found, and sample the column ratio on the two leading rows (``cap``:
         :math:`\lambda f_z` on the rows, infinite on dead ones)."""
-        live = self.inv.live
-        alive = int(live.sum())
         scale = self._rhs_norm()
         first: list[float] = []
         t = self.inv.tracked["phi"]
@@ -285,10 +283,17 @@ class _Bound:
         self.refinements += n
         self.worst = max(self.worst, res)
         self.R, self.A = res * scale, 0.0
+        self.refresh_and_sample(cap)
+
+    def refresh_and_sample(self, cap: np.ndarray) -> None:
+        r"""After a fold: the diagonal afresh (:meth:`refresh`) and the column ratio sampled on
+        the two rows of largest :math:`|\varphi_i|/(\lambda f_{z,i})` (``cap``: infinite on
+        dead rows)."""
         self.refresh()
-        ratio = np.abs(t.x) / cap
+        live = self.inv.live
+        ratio = np.abs(self.inv.tracked["phi"].x) / cap
         ratio[~live] = -1.0
-        for row in np.argsort(-ratio, kind="stable")[:min(2, alive)]:
+        for row in np.argsort(-ratio, kind="stable")[:min(2, int(live.sum()))]:
             self._sample(int(row))
 
     def _sample(self, row: int) -> None:

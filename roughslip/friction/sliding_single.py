@@ -59,7 +59,7 @@ from dataclasses import replace
 import numpy as np
 
 from roughslip.errors import InputError
-from roughslip.friction.bonds import Bonds, PullOptions, stick_residual
+from roughslip.friction.bonds import Bonds, PullOptions, stick_residual, tracked_rhs
 from roughslip.friction.breaking_single import CERT_FRACTION, _Bound
 from roughslip.friction.events import RATE_TIE, TIE, X_DRIVE, EventPath, event_table
 from roughslip.friction.result import PullResult
@@ -108,7 +108,7 @@ class CertifiedSlide(TangentialState):
         #: a bound on the error of the drive the state sits at (the largest event's so far)
         self._drive_error = 0.0
         self._fresh = False
-        self._certify()
+        self.recertify()
 
     # -- the bounds -----------------------------------------------------------------------------
     def _phi_bound(self) -> float:
@@ -146,9 +146,7 @@ class CertifiedSlide(TangentialState):
         b, inv = self.b, self.inv
         live = inv.live
         pos = inv.ids[live]
-        rhs = b.apply(self._load(), np.empty(b.shape)).ravel()[b.sites[pos]]
-        if np.any(self.offset[pos]):
-            rhs = rhs - self.offset[pos]
+        rhs = tracked_rhs(b, pos, self._load(), self.offset)
 
         def residual(x: np.ndarray) -> tuple[np.ndarray, float]:
             r, res = stick_residual(b, pos, x[live], rhs)
@@ -183,23 +181,16 @@ class CertifiedSlide(TangentialState):
             self.refinements += n
             self.worst = max(self.worst, res)
         if fold:
-            bd.refresh()
-            ratio = np.abs(inv.tracked["phi"].x) / self.rows.cap
-            ratio[~inv.live] = -1.0
-            for row in np.argsort(-ratio, kind="stable")[:min(2, int(inv.live.sum()))]:
-                bd._sample(int(row))
+            bd.refresh_and_sample(self.rows.cap)
         self.ok = self.worst <= tol
         self._rate = None
 
-    def _certify(self) -> None:
+    def recertify(self) -> None:
+        """After a fold: both tracked solutions certified, the bounds restarted."""
         if self._fresh:  # a bond stuck again: the inverse was factorised on a larger set
             self.bound = _Bound(self.b, self.inv, self.opt.tol)
             self._fresh = False
         self._refine(fold=True)
-
-    def recertify(self) -> None:
-        """After a fold: both tracked solutions certified, the bounds restarted."""
-        self._certify()
 
     def _stick_again(self, pos: int, j: int, D: float) -> None:
         # its offset is u_x of the tracked forces, within ||G e_j|| ||f~ - f|| of the exact
