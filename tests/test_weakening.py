@@ -3,6 +3,8 @@ against a dense equilibrium of the law, its bursts, and its inputs."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -313,3 +315,45 @@ def test_a_burst_lands_where_the_overdamped_pull_does_as_its_viscosity_vanishes(
     assert row["bursts"] >= 3
     assert row["err"] + row["solver"] < 1e-5
     assert abs(row["diff"]) <= row["err"] + row["solver"] + 1e-7, row
+
+
+def test_the_room_of_a_bond_at_its_strength_does_not_cancel():
+    """A stuck bond that starts a piece at its strength (one that just arrested): its room
+    after a change of its force of order eta is exact to the last bits (against exact
+    rational arithmetic), where c - |f_0 + df| is lost in the rounding of f_0 and its sign
+    would join the bond at the start."""
+    from fractions import Fraction
+
+    from roughslip.friction import relax
+
+    rng = np.random.default_rng(3)
+    pc = relax._Piece.__new__(relax._Piece)
+    f0 = rng.uniform(-1e-2, 1e-2, 64)
+    pc.fQ, pc.capQ = f0, np.abs(f0) * (1 - rng.uniform(0, 1e-16, 64) * (np.arange(64) % 2))
+    df = rng.uniform(-1, 1, 64) * 1e-18 * np.abs(f0) * 1e2
+    room = pc._room(df, np.arange(64))
+    exact = np.array([float(Fraction(c) - abs(Fraction(a) + Fraction(d)))
+                      for c, a, d in zip(pc.capQ, f0, df, strict=True)])
+    np.testing.assert_allclose(room, exact, rtol=1e-14, atol=0)
+    naive = pc.capQ - np.abs(f0 + df)
+    assert np.any(np.sign(naive) != np.sign(exact))
+
+
+def test_a_rough_burst_with_a_bond_at_its_strength_lands():
+    """A rough scene at nu = 0.45 (N = 64, rough_h08's sample 10, depth 2 rms, lam_d = 0.1,
+    d_c = 0.01) whose burst, with the room of a bond at its residual strength taken against
+    its force, arrested and joined that bond over and over at the start of a piece and never
+    landed: it lands, and the pull runs to its end."""
+    from roughslip.run.config import load_config
+    from roughslip.run.sample import run_sample
+
+    root = Path(__file__).resolve().parents[1]
+    cfg = load_config(root / "configs" / "rough_h08.toml", [
+        "grid.n=64", "squeeze.depths=[2.0]", "material.nu=0.45", "pull.slip_law='slip-weakening'",
+        "pull.lam_dynamic=0.1", "pull.slip_distance=0.01", "execution.threads=1"])
+    res = run_sample(cfg, 10)
+    sc = res.scalars
+    assert sc["pull_converged"].all()
+    # between the residual strength's sliding force and the static strength's
+    mu = sc["friction_force"] / sc["normal_force"]
+    assert np.all((0.1 <= mu) & (mu <= 0.2)), mu

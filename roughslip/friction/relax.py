@@ -100,6 +100,9 @@ class _Piece:
         self.KQ = rx.K[np.ix_(Q, P)] * s[None, :]
         self.fQ = st.f[Q]
         self.capQ = rx.strength(delta[Q]) * fz[Q]
+        #: stuck bonds at their strength (one that arrested, say): their room is taken from
+        #: the change of the force, not against the force itself (:meth:`_room`)
+        self.atcap = self.capQ - np.abs(self.fQ) <= 0
         self.left = np.where(delta[P] < rx.dc, rx.dc - delta[P], np.inf)  # slip to d_c
         self.lam0 = rx.strength(delta[P]) * fz[P]
 
@@ -123,6 +126,25 @@ class _Piece:
         E = np.exp(-x)
         return (self.c0 * E + self.g * Phi) @ self.V.T, (self.c0 * Phi + self.g * Psi) @ self.V.T
 
+    def _room(self, df: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        r"""The room to their strength of stuck bonds ``cols`` (indices or a mask into
+        :attr:`Q`) that start at it, after the change ``df`` of their forces:
+        :math:`(c - |f_0|) - (2f_0\Delta f + \Delta f^2)/(|f_0 + \Delta f| + |f_0|)`, which
+        is :math:`c - |f_0 + \Delta f|` without its cancellation: a room of order
+        :math:`\eta` is not lost to the rounding of the force, whose sign would decide a join
+        at the start (and an arrest would undo it, over and over)."""
+        cap, f0 = self.capQ[cols], self.fQ[cols]
+        den = np.abs(f0 + df) + np.abs(f0)
+        grow = np.divide(df * (2 * f0 + df), den, out=np.abs(df), where=den > 0)
+        return (cap - np.abs(f0)) - grow
+
+    def _change(self, tau: np.ndarray | float, dy: np.ndarray, cols: np.ndarray
+                ) -> np.ndarray:
+        """The change of the forces of stuck bonds ``cols`` since the piece began (a row per
+        time)."""
+        t = np.atleast_1d(np.asarray(tau, float))[:, None]
+        return self.eta * t * self.K1Q[None, cols] - dy @ self.KQ[cols].T
+
     def stuck_forces(self, tau: np.ndarray | float, dy: np.ndarray) -> np.ndarray:
         t = np.atleast_1d(np.asarray(tau, float))[:, None]
         return self.fQ[None, :] + self.eta * t * self.K1Q[None, :] - dy @ self.KQ.T
@@ -138,6 +160,9 @@ class _Piece:
         arrest = np.where(self.free[None, :], np.inf, ep)
         weak = np.where(self.kap[None, :] > 0, self.left[None, :] - dy, np.inf)
         room = self.capQ[None, :] - np.abs(self.stuck_forces(tau, dy))
+        if self.atcap.any():
+            a = self.atcap
+            room[:, a] = self._room(self._change(tau, dy, a), a)
         return np.concatenate([arrest, weak, room], axis=1)
 
     def total(self, tau: np.ndarray | float) -> np.ndarray:
@@ -182,6 +207,9 @@ class _Piece:
             return float(self.left[c - nP] - self.V[c - nP] @ (self.c0 * Phi + self.g * Psi))
         q = c - 2 * nP
         dy = self.V @ (self.c0 * Phi + self.g * Psi)
+        if self.atcap[q]:
+            dq = self.eta * tau * self.K1Q[q] - float(self.KQ[q] @ dy)
+            return float(self._room(np.array([dq]), np.array([q]))[0])
         fq = self.fQ[q] + self.eta * tau * self.K1Q[q] - float(self.KQ[q] @ dy)
         return float(self.capQ[q] - abs(fq))
 
