@@ -8,7 +8,7 @@ import pytest
 
 from roughslip.contact.squeeze import squeeze
 from roughslip.errors import InputError
-from roughslip.friction.bonds import Bonds, PullOptions
+from roughslip.friction.bonds import Bonds, PullOptions, stick_residual, tracked_rhs
 from roughslip.friction.events import EventKind
 from roughslip.friction.laws import LAWS
 from roughslip.friction.pull import (
@@ -74,13 +74,62 @@ def test_an_inexact_inverse_gives_the_double_slip_events(pulls, name, variant):
     assert "bound exceeded 0 times" in s.message
 
 
-def test_decisions_the_bounds_leave_open_are_refined(pulls):
+def _counts(message: str) -> tuple[int, int]:
+    """Decisions sharpened and refined in full, from a certified pull's message."""
+    sharpened = int(message.split(" of ")[0].split()[-1])
+    full = int(message.split(" refined in full")[0].split()[-1])
+    return sharpened, full
+
+
+def test_decisions_the_bounds_leave_open_are_sharpened_or_refined(pulls):
     """Exact ties (the symmetric spheres) and near-ties leave decisions open: those were
-    refined, and came out as in double precision (previous test)."""
-    opened = {name: [int(r.message.split(" of ")[0].split()[-1]) for r in rs[1:]]
-              for name, rs in pulls.items()}
-    assert all(min(opened[f"sphere{n}"]) > 0 for n in (24, 32))
-    assert sum(sum(v) for k, v in opened.items() if k.startswith("near-tie")) > 0
+    sharpened, or refined in full where a tie outlives the sharpening, and came out as in
+    double precision (previous test)."""
+    counts = {name: [_counts(r.message) for r in rs[1:]] for name, rs in pulls.items()}
+    assert all(min(f for _, f in counts[f"sphere{n}"]) > 0 for n in (24, 32))
+    assert sum(s + f for k, v in counts.items() if k.startswith("near-tie") for s, f in v) > 0
+    assert sum(s for v in counts.values() for s, _ in v) > sum(f for v in counts.values()
+                                                              for _, f in v)
+
+
+def test_sharpened_values_hold_the_dense_state_within_their_bounds():
+    """One residual per solution sharpens phi and psi on chosen rows: after slip events
+    applied to both states, the dense double state's values lie within the sharpened bounds,
+    which are tighter than the running ones."""
+    h = self_affine((48, 48), hurst=0.8, rms_height=1.0, rng=sample_rng(100, 0))
+    normal = squeeze(h, depth=2.2, nu=0.3, tol=1e-13)
+    b = Bonds(normal, 0.2)
+    law = LAWS.get("coulomb").bind(0.2)
+    dense = TangentialState(b, PullOptions(law=law, method=METHODS.get("inverse")))
+    dense.track_slip()
+    for method, precision in VARIANTS:
+        opt = PullOptions(law=law, method=METHODS.get(method), precision=precision)
+        certified = CertifiedSlide(b, opt)
+        D, st = 0.0, TangentialState(b, PullOptions(law=law, method=METHODS.get("inverse")))
+        st.track_slip()
+        for _ in range(40):
+            _, hi, kind, j = st.interval(D)
+            D = max(D, hi)
+            for s in (st, certified):
+                s.apply(kind, j, D)
+        rows = np.flatnonzero(certified.inv.live)[::7]
+        e_phi, e_psi = certified._errors()
+        _, phi, psi, ep, es = certified._sharpen(rows)
+        ref = dict(zip(st.inv.ids[st.inv.live].tolist(),
+                       zip(st.inv.tracked["phi"].x[st.inv.live],
+                           st.inv.tracked["psi"].x[st.inv.live], strict=True), strict=True))
+        # the dense state's own error, by its residuals against the FFT operator
+        pos = st.inv.ids[st.inv.live]
+        own = [np.linalg.norm(stick_residual(b, pos, st.inv.tracked[name].x[st.inv.live],
+                                             tracked_rhs(b, pos, load, st.offset))[0])
+               for name, load in (("phi", None), ("psi", st._load()))]
+        for k, r in enumerate(rows):
+            p, q = ref[int(certified.inv.ids[r])]
+            scale = np.sqrt(certified.bound.nu * certified.bound.d[r])
+            assert abs(phi[k] - p) <= ep[k] + scale * own[0]
+            assert abs(psi[k] - q) <= es[k] + scale * own[1]
+        assert np.all(ep < e_phi[rows]) and np.all(es < e_psi[rows])
+        assert certified.exceeded == 0
 
 
 def test_a_bond_that_sticks_again_keeps_the_solutions_within_their_bounds():

@@ -38,17 +38,22 @@ the tracked values and kept only when every value inside these bounds makes the 
 * an overloaded bond (:meth:`CertifiedSlide.violation`): its overload
   :math:`|D\varphi_i - \psi_i|/(\lambda f_{z,i})` within :math:`(|D| e_{\varphi,i} +
   e_{\psi,i} + |\varphi_i|\,\Delta D)/(\lambda f_{z,i})` of it, :math:`\Delta D` the error
-  of the drive (the largest error of an event's root so far);
+  of the drive;
 * a slip that turns back (:meth:`CertifiedSlide.reversal`): the slipping bonds' rates
   :math:`G_{LS}\tilde\varphi` are within :math:`\|G e_j\|_2\,\nu\|r_\varphi\|_2` of the exact
   ones, :math:`\|G e_j\|_2 \le 2\|G e_0\|_2` for the corner column :math:`e_0` (the kernel is
   even in x and in y).
 
-When a decision is left open, :math:`\tilde\varphi` and :math:`\tilde\psi` are refined
-against the FFT operator and the decision is made on the refined values, as the
-double-precision path makes it. The friction force under this law is the slipping forces'
-sum at full sliding, exact once the events are; the other points of the curve carry the
-bound, reported in the message.
+The drive's error :math:`\Delta D` is that of the root the loop's drive came from
+(:meth:`CertifiedSlide.apply`).
+
+When the next event is left open, the rows that can change it are sharpened
+(:meth:`CertifiedSlide._sharpen`: one residual per solution, and a column of the inverse per
+row) and the decision is asked again. When a decision is still open,
+:math:`\tilde\varphi` and :math:`\tilde\psi` are refined against the FFT operator and the
+decision is made on the refined values, as the double-precision path makes it. The friction
+force under this law is the slipping forces' sum at full sliding, exact once the events are;
+the other points of the curve carry the bound, reported in the message.
 """
 
 from __future__ import annotations
@@ -60,13 +65,23 @@ import numpy as np
 
 from roughslip.errors import InputError
 from roughslip.friction.bonds import Bonds, PullOptions, stick_residual, tracked_rhs
-from roughslip.friction.breaking_single import CERT_FRACTION, _Bound
-from roughslip.friction.events import RATE_TIE, TIE, X_DRIVE, EventPath, event_table
+from roughslip.friction.breaking_single import CERT_FRACTION, MAX_SHARPEN, _Bound
+from roughslip.friction.events import (
+    RATE_TIE,
+    TIE,
+    X_DRIVE,
+    EventKind,
+    EventPath,
+    X,
+    event_table,
+)
 from roughslip.friction.result import PullResult
 from roughslip.friction.sliding import FollowEvents, TangentialState, slide
 
 #: refinements of a tracked solution at a certification or an open decision
 REFINEMENTS = 4
+#: no interval's event pending (:meth:`CertifiedSlide.apply`)
+_NO_EVENT = (math.nan, 0.0, False, "", -1)
 
 
 def _quotient(n_lo: np.ndarray, n_hi: np.ndarray, d_lo: np.ndarray, d_hi: np.ndarray
@@ -79,6 +94,15 @@ def _quotient(n_lo: np.ndarray, n_hi: np.ndarray, d_lo: np.ndarray, d_hi: np.nda
         most = np.where(n_hi <= 0, n_hi / d_hi, np.where(d_lo > 0, n_hi / d_lo, math.inf))
     return (np.nan_to_num(least, nan=-math.inf, posinf=math.inf, neginf=-math.inf),
             np.nan_to_num(most, nan=math.inf, posinf=math.inf, neginf=-math.inf))
+
+
+def _meet(x: np.ndarray, e: np.ndarray, y: np.ndarray, f: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """The centre and half-width of the intersection of ``[x - e, x + e]`` and ``[y - f, y +
+    f]``; the second interval where they do not meet (which a correct bound rules out)."""
+    lo, hi = np.maximum(x - e, y - f), np.minimum(x + e, y + f)
+    empty = lo > hi
+    return np.where(empty, y, 0.5 * (lo + hi)), np.where(empty, f, 0.5 * (hi - lo))
 
 
 class CertifiedSlide(TangentialState):
@@ -105,7 +129,14 @@ class CertifiedSlide(TangentialState):
         #: the largest bound on a curve point's relative error so far
         self.curve_error = 0.0
         self._dD = 0.0  # the bound on the error of the last event's drive
-        #: a bound on the error of the drive the state sits at (the largest event's so far)
+        #: the last interval's event: its root, the root's error, and whether it lies beyond
+        #: the drive for every value within the bounds
+        self._event: tuple[float, float, bool, str, int] = _NO_EVENT
+        #: |du_x/dD - 1| (with its error) of a bond that sticks again, for its offset's error
+        self._stick_rate = 1.0
+        #: decisions the bounds left open that one residual per solution settled
+        self.sharpened = 0
+        #: a bound on the error of the drive the event loop sits at (:meth:`apply`)
         self._drive_error = 0.0
         self._fresh = False
         self.recertify()
@@ -195,15 +226,27 @@ class CertifiedSlide(TangentialState):
     def _stick_again(self, pos: int, j: int, D: float) -> None:
         # its offset is u_x of the tracked forces, within ||G e_j|| ||f~ - f|| of the exact
         self.offset_error += self.column_norm * self.bound.nu * (
-            abs(D) * self._phi_bound() + self._psi_bound())
+            abs(D) * self._phi_bound() + self._psi_bound()) + self._stick_rate * (
+            self._drive_error)
         self._fresh = True
         self.R_psi = self.A_psi = 0.0
         super()._stick_again(pos, j, D)
 
     def apply(self, kind: str, j: int, D: float = 0.0) -> None:
-        """An event, applied as the tangential state applies it; the drive it happens at
-        carries the error of the last event's root."""
-        self._drive_error = max(self._drive_error, self._dD)
+        r"""An event, applied as the tangential state applies it, and the bound on the error
+        of the drive the loop goes on from (:attr:`_drive_error`). The loop's next drive is
+        :math:`\max(D, h)` for an event at :math:`h`, whose error is at most the larger of
+        the two errors; when :math:`h > D` + the tie tolerance for every value within the
+        bounds it is :math:`h` alone, with the root's error. A bond that sticks again takes
+        its offset :math:`u_x - D` at a drive within that error of the exact path's, which
+        moves it by :math:`|\dot u_x - 1|` times the error (:meth:`_stick_again`)."""
+        hi, dD, beyond, e_kind, e_site = self._event
+        if kind == EventKind.STICK and self._rate is not None:
+            self._stick_rate = abs(float(self._rate[j]) - float(X_DRIVE[X])) + (
+                self.column_norm * self.bound.nu * self._phi_bound())
+        if (kind, j) == (e_kind, e_site):  # the interval's event (else: D is held)
+            self._drive_error = dD if beyond and D == hi else max(self._drive_error, dD)
+        self._event = _NO_EVENT
         super().apply(kind, j, D)
 
     def _open(self) -> None:
@@ -217,23 +260,71 @@ class CertifiedSlide(TangentialState):
         (:meth:`~roughslip.friction.sliding.TangentialState.interval`), certified: refined
         first when the bounds leave the event or the interval's lower end open."""
         self.decisions += 1
-        lo, hi, kind, row, sure = self._interval(D, check=True)
+        lo, hi, kind, row, sure, cand = self._interval(D, check=True)
+        if not sure and cand is not None and cand.size <= MAX_SHARPEN:
+            sharp = self._sharpen(cand)
+            lo, hi, kind, row, sure, _ = self._interval(D, check=True, sharp=sharp)
         if not sure:
             self._open()
-            lo, hi, kind, row, _ = self._interval(D, check=False)
+            lo, hi, kind, row, _, _ = self._interval(D, check=False)
         return lo, hi, kind, (self._site(row) if row >= 0 else -1)
 
-    def _interval(self, D: float, check: bool) -> tuple[float, float, str, int, bool]:
-        """The base state's interval on the tracked values, the row of its event, and whether
-        every value within the bounds gives the same decision (module docstring)."""
+    def _sharpen(self, rows: np.ndarray) -> tuple[np.ndarray, ...]:
+        r"""phi and psi on ``rows``, sharpened by one residual each against the FFT operator,
+        with their bounds: :math:`\varphi_i \approx \tilde\varphi_i + \tilde c_i^T r_\varphi`
+        within :math:`\nu\hat\gamma\|\tilde c_i\|\,\|r_\varphi\|` (the error of the
+        column :math:`\tilde c_i`, :meth:`_Bound._sharpen
+        <roughslip.friction.breaking_single._Bound._sharpen>`), and psi alike, with the
+        offsets' error added. The measured residuals also restart both running bounds."""
+        self.sharpened += 1
+        bd, inv = self.bound, self.inv
+        live = inv.live
+        residuals = []
+        for name, make, expected, count in (
+                ("phi", bd._residual_on_rows, self._phi_bound(), bd.A),
+                ("psi", self._psi_residual, self._psi_own(), self.A_psi)):
+            made = make([])
+            residual, scale = made if name == "psi" else (made, bd._rhs_norm())
+            r, res = residual(inv.tracked[name].x)
+            rn = res * scale
+            if count > 0 and rn > (1 + 1e-6) * expected:
+                self.exceeded += 1
+            residuals.append((r, rn))
+        (r_phi, n_phi), (r_psi, n_psi) = residuals
+        bd.R, bd.A = n_phi, 0.0
+        self.R_psi, self.A_psi = n_psi, 0.0
+        phi, psi = inv.tracked["phi"].x, inv.tracked["psi"].x
+        out = np.empty((4, rows.size))
+        eps = 4 * np.finfo(float).eps
+        for k, i in enumerate(rows):
+            c = inv.column(int(i))
+            c[~live] = 0.0
+            reach = bd.nu * bd.gamma_hat * float(np.linalg.norm(c))
+            out[0, k] = phi[i] + float(c @ r_phi)
+            out[1, k] = psi[i] + float(c @ r_psi)
+            out[2, k] = reach * n_phi + eps * abs(phi[i])
+            out[3, k] = (reach * n_psi + eps * abs(psi[i])
+                         + math.sqrt(bd.nu * bd.d[i]) * self.offset_error)
+        return (rows, *out)
+
+    def _interval(self, D: float, check: bool, sharp: tuple[np.ndarray, ...] | None = None
+                  ) -> tuple[float, float, str, int, bool, np.ndarray | None]:
+        """The base state's interval on the tracked values (on ``sharp``'s values on its rows,
+        :meth:`_sharpen`), the row of its event, whether every value within the bounds gives
+        the same decision (module docstring), and the rows that may change it (None: any)."""
         phi, psi, fz, live = self._rows()
+        e_phi, e_psi = self._errors()
+        if sharp is not None:
+            rows, s_phi, s_psi, s_ephi, s_epsi = sharp
+            phi, psi = phi.copy(), psi.copy()
+            phi[rows], e_phi[rows] = _meet(phi[rows], e_phi[rows], s_phi, s_ephi)
+            psi[rows], e_psi[rows] = _meet(psi[rows], e_psi[rows], s_psi, s_epsi)
         scale = self.progress.scale
         Dref = max(scale, abs(D))
         fs = max(float(np.abs(fz).max()), np.finfo(float).tiny)
         zero = np.zeros(phi.shape)
         cons = self.law.stick_rows(self.b.lam, live, (fz, -psi), (zero, phi), fs)
         lo, hi, kind, row = event_table(cons, D, Dref, scale)
-        e_phi, e_psi = self._errors()
         tol_d = TIE * max(scale, abs(D))
         fall_lo = np.full(phi.shape, math.inf)  # the least root a falling row can have
         rise_hi = np.full(phi.shape, -math.inf)  # the largest root a rising row can have
@@ -260,24 +351,30 @@ class CertifiedSlide(TangentialState):
                 # the row must fall for every value within the bounds, and not be flat
                 flat = bool((-b_[row] - eb[row]) * Dref <= tiny)
         self._dD = max(own_hi - hi, hi - own_lo) if row >= 0 else 0.0
+        # the event loop compares hi - D with -tol_d and tol_d: neither may lie in its range
+        gap_lo, gap_hi = own_lo - D - self._drive_error, own_hi - D + self._drive_error
+        # an event beyond D + tol_d for every value: the loop's next drive is its root alone
+        self._event = (hi, self._dD, row >= 0 and gap_lo > tol_d, kind,
+                       self._site(row) if row >= 0 else -1)
         if not check:  # decided on refined values
-            return lo, hi, kind, row, True
+            return lo, hi, kind, row, True, None
         if nowhere:
-            return lo, hi, kind, row, False
+            return lo, hi, kind, row, False, None
         lo_hi = float(rise_hi.max(initial=-math.inf))
         Dlo = D - self._drive_error  # the exact path's drive is within this of D
         if row < 0:  # no falling row: none may be one
-            return lo, hi, kind, row, bool(not (fall_lo < math.inf).any()
-                                           and lo_hi <= Dlo + tol_d)
+            sure = bool(not (fall_lo < math.inf).any() and lo_hi <= Dlo + tol_d)
+            return lo, hi, kind, row, sure, np.flatnonzero((fall_lo < math.inf)
+                                                           | (rise_hi > Dlo + tol_d))
         others = fall_lo.copy()
         others[row] = math.inf
         tie = 2 * TIE * max(abs(own_hi), scale)
-        # the event loop compares hi - D with -tol_d and tol_d: neither may lie in its range
-        gap_lo, gap_hi = own_lo - D - self._drive_error, own_hi - D + self._drive_error
         sure = (not flat and math.isfinite(own_hi) and float(others.min()) > own_hi + tie
                 and lo_hi <= min(Dlo, own_lo) + tol_d
                 and not any(gap_lo <= t <= gap_hi for t in (-tol_d, tol_d)))
-        return lo, hi, kind, row, sure
+        cand = (fall_lo <= own_hi + tie) | (rise_hi > min(Dlo, own_lo) + tol_d)
+        cand[row] = True
+        return lo, hi, kind, row, sure, np.flatnonzero(cand)
 
     def violation(self, D: float) -> tuple[str, int] | None:
         """The overloaded bond, certified: refined first unless the bounds leave no row
@@ -345,7 +442,8 @@ class CertifiedSlide(TangentialState):
         what = ("single precision" if self.opt.precision == "single"
                 else f"{self.inv.kind} inverse")
         msg = (f"{res.message}; {self.b.n} bonds, {what}: {self.refinements} refinements, "
-               f"{self.opened} of {self.decisions} decisions refined, bound exceeded "
+               f"{self.sharpened} of {self.decisions} decisions sharpened, "
+               f"{self.opened} refined in full, bound exceeded "
                f"{self.exceeded} times; curve points within {self.curve_error:.1e} relative, "
                "the friction force exact")
         return replace(res, message=msg, details=replace(res.details,
