@@ -92,21 +92,29 @@ def test_decisions_the_bounds_leave_open_are_sharpened_or_refined(pulls):
                                                               for _, f in v)
 
 
+def _rough48():
+    """The bonds of a rough 48^2 contact and the Coulomb law."""
+    h = self_affine((48, 48), hurst=0.8, rms_height=1.0, rng=sample_rng(100, 0))
+    b = Bonds(squeeze(h, depth=2.2, nu=0.3, tol=1e-13), 0.2)
+    return b, LAWS.get("coulomb").bind(0.2)
+
+
+def _dense(b, law):
+    """The dense double-precision state, both solutions tracked."""
+    st = TangentialState(b, PullOptions(law=law, method=METHODS.get("inverse")))
+    st.track_slip()
+    return st
+
+
 def test_sharpened_values_hold_the_dense_state_within_their_bounds():
     """One residual per solution sharpens phi and psi on chosen rows: after slip events
     applied to both states, the dense double state's values lie within the sharpened bounds,
     which are tighter than the running ones."""
-    h = self_affine((48, 48), hurst=0.8, rms_height=1.0, rng=sample_rng(100, 0))
-    normal = squeeze(h, depth=2.2, nu=0.3, tol=1e-13)
-    b = Bonds(normal, 0.2)
-    law = LAWS.get("coulomb").bind(0.2)
-    dense = TangentialState(b, PullOptions(law=law, method=METHODS.get("inverse")))
-    dense.track_slip()
+    b, law = _rough48()
     for method, precision in VARIANTS:
         opt = PullOptions(law=law, method=METHODS.get(method), precision=precision)
         certified = CertifiedSlide(b, opt)
-        D, st = 0.0, TangentialState(b, PullOptions(law=law, method=METHODS.get("inverse")))
-        st.track_slip()
+        D, st = 0.0, _dense(b, law)
         for _ in range(40):
             _, hi, kind, j = st.interval(D)
             D = max(D, hi)
@@ -135,12 +143,8 @@ def test_sharpened_values_hold_the_dense_state_within_their_bounds():
 def test_a_bond_that_sticks_again_keeps_the_solutions_within_their_bounds():
     """A bond that sticks again factorises the inverse afresh on the larger set, with its
     bounds: phi and psi stay within them of the dense state's after the same events."""
-    h = self_affine((48, 48), hurst=0.8, rms_height=1.0, rng=sample_rng(100, 0))
-    normal = squeeze(h, depth=2.2, nu=0.3, tol=1e-13)
-    b = Bonds(normal, 0.2)
-    law = LAWS.get("coulomb").bind(0.2)
-    dense = TangentialState(b, PullOptions(law=law, method=METHODS.get("inverse")))
-    dense.track_slip()
+    b, law = _rough48()
+    dense = _dense(b, law)
     certified = CertifiedSlide(b, PullOptions(law=law, method=METHODS.get("hierarchical")))
     D = 0.0
     for _ in range(6):  # the first slip events, applied to both
