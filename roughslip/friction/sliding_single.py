@@ -97,12 +97,14 @@ def _quotient(n_lo: np.ndarray, n_hi: np.ndarray, d_lo: np.ndarray, d_hi: np.nda
 
 
 def _meet(x: np.ndarray, e: np.ndarray, y: np.ndarray, f: np.ndarray
-          ) -> tuple[np.ndarray, np.ndarray]:
+          ) -> tuple[np.ndarray, np.ndarray, bool]:
     """The centre and half-width of the intersection of ``[x - e, x + e]`` and ``[y - f, y +
-    f]``; the second interval where they do not meet (which a correct bound rules out)."""
+    f]``, and whether they meet everywhere; where they do not (which correct bounds rule
+    out), the second interval."""
     lo, hi = np.maximum(x - e, y - f), np.minimum(x + e, y + f)
     empty = lo > hi
-    return np.where(empty, y, 0.5 * (lo + hi)), np.where(empty, f, 0.5 * (hi - lo))
+    return (np.where(empty, y, 0.5 * (lo + hi)), np.where(empty, f, 0.5 * (hi - lo)),
+            not bool(empty.any()))
 
 
 class CertifiedSlide(TangentialState):
@@ -317,8 +319,9 @@ class CertifiedSlide(TangentialState):
         if sharp is not None:
             rows, s_phi, s_psi, s_ephi, s_epsi = sharp
             phi, psi = phi.copy(), psi.copy()
-            phi[rows], e_phi[rows] = _meet(phi[rows], e_phi[rows], s_phi, s_ephi)
-            psi[rows], e_psi[rows] = _meet(psi[rows], e_psi[rows], s_psi, s_epsi)
+            phi[rows], e_phi[rows], met_phi = _meet(phi[rows], e_phi[rows], s_phi, s_ephi)
+            psi[rows], e_psi[rows], met_psi = _meet(psi[rows], e_psi[rows], s_psi, s_epsi)
+            self.exceeded += (not met_phi) + (not met_psi)  # a bound that failed
         scale = self.progress.scale
         Dref = max(scale, abs(D))
         fs = max(float(np.abs(fz).max()), np.finfo(float).tiny)
