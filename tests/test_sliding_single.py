@@ -18,7 +18,7 @@ from roughslip.friction.pull import (
     pull,
     single_ok,
 )
-from roughslip.friction.sliding import TangentialState
+from roughslip.friction.sliding import FollowEvents, TangentialState
 from roughslip.friction.sliding_single import CertifiedSlide
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
 
@@ -138,6 +138,35 @@ def test_sharpened_values_hold_the_dense_state_within_their_bounds():
             assert abs(psi[k] - q) <= es[k] + scale * own[1]
         assert np.all(ep < e_phi[rows]) and np.all(es < e_psi[rows])
         assert certified.exceeded == 0
+
+
+@pytest.mark.parametrize("name", ["rough0-open", "near-tie24"])
+def test_every_event_drive_is_within_its_bound_of_the_exact_one(monkeypatch, name):
+    """At every event the drive of each inexact path is within its bound on the drive's error
+    of the dense double path's, which carries its own bound (the same certified state on the
+    dense double inverse): their sum bounds the difference."""
+    _, h, depth, nu, boundary = next(s for s in SCENES if s[0] == name)
+    b = Bonds(squeeze(h, depth=depth, nu=nu, boundary=boundary, tol=1e-13), 0.2)
+    law = LAWS.get("coulomb").bind(0.2)
+    seen: list[tuple[str, int, float, float]] = []
+    apply = CertifiedSlide.apply
+
+    def recorded(self, kind, j, D=0.0):
+        apply(self, kind, j, D)
+        seen.append((kind, j, D, self._drive_error))
+
+    monkeypatch.setattr(CertifiedSlide, "apply", recorded)
+    paths = []
+    for method, precision in [("inverse", "double"), *VARIANTS]:
+        seen.clear()
+        opt = PullOptions(law=law, method=METHODS.get(method), precision=precision)
+        CertifiedSlide(b, opt).run(FollowEvents(), 0.0)
+        paths.append(list(seen))
+    exact = paths[0]
+    for path in paths[1:]:
+        assert [e[:2] for e in path] == [e[:2] for e in exact]
+        for (_, _, D, err), (_, _, D0, err0) in zip(path, exact, strict=True):
+            assert abs(D - D0) <= err + err0
 
 
 def test_a_bond_that_sticks_again_keeps_the_solutions_within_their_bounds():

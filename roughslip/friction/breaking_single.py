@@ -106,6 +106,10 @@ CERT_FRACTION = 1e-2
 DIAG_PAD = 1e-3
 #: the peak candidates are solved to this fraction of ``tol`` (near the rounding level)
 PEAK_FRACTION = 1e-4
+#: the rounding of a residual by the FFT operator, in units of eps log2(FFT points) times the
+#: norms it is made of (:meth:`_Bound.rounding`): a forward and a backward transform of
+#: relative 2-norm error below 4 eps log2 M each, the spectrum's product and the subtraction
+ROUNDING = 10.0
 
 
 def _largest_eigenvalue(inv: StickSolver, sites: np.ndarray, nx: int) -> float:
@@ -126,6 +130,21 @@ def _largest_eigenvalue(inv: StickSolver, sites: np.ndarray, nx: int) -> float:
     start = np.where((iy + ix) % 2 == 0, 1.0, -1.0)
     return float(eigsh(op, k=1, which="LA", v0=start, tol=1e-2,
                        return_eigenvectors=False)[0])
+
+
+def _kernel_sum(b: Bonds) -> float:
+    r"""A bound on the largest modulus of the FFT operator's spectrum: four times the largest
+    absolute sum of the response to a unit force at the corner, over its components. The
+    operator is a circulant on the FFT grid whose row is the kernel on at most four quadrants
+    of the corner's window (the grid itself when periodic), and a circulant's eigenvalues are
+    at most its absolute row sum."""
+    shape = b.shape if b.k == 1 else (b.k, *b.shape)
+    worst = 0.0
+    for a in range(b.k):
+        v = np.zeros(shape)
+        v[(0, 0) if b.k == 1 else (a, 0, 0)] = 1.0
+        worst = max(worst, float(np.abs(b.apply(v, np.empty(shape))).sum()))
+    return 4.0 * worst
 
 
 def _compression_error(b: Bonds, inv: StickSolver) -> float:
@@ -175,6 +194,9 @@ class _Bound:
         self.sharpened = self.full = self.exceeded = self.states = 0
         #: the smallest lambda f_z of a live row, or below it (rows only leave)
         self.cap_min = float(b.cap.min())
+        #: a bound on the FFT operator's largest eigenvalue (:meth:`rounding`)
+        self.kernel_sum = _kernel_sum(b)
+        self.log_points = math.log2(math.prod(b.op.padded_shape))
         #: a compressed inverse's error, the estimate of ||G_SS - A~||_2 with its rounding
         #: floor and safety factor (:func:`_compression_error`; zero for a float32 inverse,
         #: whose stored matrix is the inverse of the exact one, rounded)
@@ -205,6 +227,16 @@ class _Bound:
         :math:`\delta`."""
         learned = GROWTH_SAFETY * self.growth if self.growth else self.gamma_hat
         return max(learned, self.delta)
+
+    def rounding(self, x_norm: float, rhs_norm: float) -> float:
+        r"""A bound on the 2-norm of the rounding in a residual :math:`b - G x` computed by the
+        FFT operator, with :math:`\|x\|_2` = ``x_norm`` and :math:`\|b\|_2` = ``rhs_norm``:
+        :data:`ROUNDING` :math:`\epsilon \log_2 M\,(\|b\|_2 + \bar\lambda\|x\|_2)`, the
+        transforms' error (relative in the 2-norm; Higham, *Accuracy and Stability of Numerical
+        Algorithms*, 2002, ch. 24) amplified by at most
+        the spectrum's largest modulus :math:`\bar\lambda` (:func:`_kernel_sum`)."""
+        return (ROUNDING * np.finfo(float).eps * self.log_points
+                * (rhs_norm + self.kernel_sum * x_norm))
 
     def residual_bound(self) -> float:
         """The bound on the 2-norm of the tracked solution's residual now."""
@@ -350,6 +382,9 @@ class _Bound:
         """Sharpen the candidates (one FFT); the decision, or None when still open."""
         self.sharpened += 1
         r, rn = self.residual()
+        x = self.inv.tracked["phi"].x
+        slack = self.rounding(float(np.linalg.norm(x[self.inv.live])), self._rhs_norm())
+        rn += slack
         self.measured(rn)
         vals, errs = np.empty(cand.size), np.empty(cand.size)
         live = self.inv.live
@@ -361,7 +396,8 @@ class _Bound:
                 c = self.inv.column(i)
                 c[~live] = 0.0
                 v[c_] = phi[i] + float(c @ r)
-                e[c_] = (self.nu * self.gamma_hat * float(np.linalg.norm(c)) * rn
+                norm = float(np.linalg.norm(c))
+                e[c_] = (self.nu * self.gamma_hat * norm * rn + norm * slack
                          + 4 * np.finfo(float).eps * abs(phi[i]))
             i = int(bond) * comps
             if comps == 1:

@@ -212,14 +212,19 @@ class TangentialState:
         slipping = self.sigma.any(axis=-1)
         if not (self.law.reverses and slipping.any()):
             return None
+        pos = self.law.turned_back(slipping, self.sigma, self.rates()[self.b.sites, None],
+                                   X_DRIVE)
+        return None if pos is None else int(self.b.sites[pos])
+
+    def rates(self) -> np.ndarray:
+        r""":math:`\partial u_x/\partial D` on the grid (flat) for the current stick set: one
+        FFT product, kept until the next event."""
         if self._rate is None:
             phi, _, _, live = self._rows()
             v = np.zeros(self.b.shape)
             v.ravel()[self.b.sites[self.inv.ids[live]]] = phi[live]
             self._rate = self.b.apply(v, np.empty(self.b.shape)).ravel()
-        pos = self.law.turned_back(slipping, self.sigma, self._rate[self.b.sites, None],
-                                   X_DRIVE)
-        return None if pos is None else int(self.b.sites[pos])
+        return self._rate
 
     # -- events --------------------------------------------------------------------------------
     def apply(self, kind: str, j: int, D: float = 0.0) -> None:

@@ -47,7 +47,8 @@ the tracked values and kept only when every value inside these bounds makes the 
 The drive's error :math:`\Delta D` is that of the root the loop's drive came from
 (:meth:`CertifiedSlide.apply`).
 
-When the next event is left open, the rows that can change it are sharpened
+When the next event is left open, the rows that can change it, at most
+``MAX_SHARPEN`` (32), are sharpened
 (:meth:`CertifiedSlide._sharpen`: one residual per solution, and a column of the inverse per
 row) and the decision is asked again. When a decision is still open,
 :math:`\tilde\varphi` and :math:`\tilde\psi` are refined against the FFT operator and the
@@ -81,7 +82,7 @@ from roughslip.friction.sliding import FollowEvents, TangentialState, slide
 #: refinements of a tracked solution at a certification or an open decision
 REFINEMENTS = 4
 #: no interval's event pending (:meth:`CertifiedSlide.apply`)
-_NO_EVENT = (math.nan, 0.0, False, "", -1)
+_NO_EVENT = (math.nan, 0.0, False, "", -1, math.nan)
 
 
 def _quotient(n_lo: np.ndarray, n_hi: np.ndarray, d_lo: np.ndarray, d_hi: np.ndarray
@@ -133,10 +134,10 @@ class CertifiedSlide(TangentialState):
         self._dD = 0.0  # the bound on the error of the last event's drive
         #: the last interval's event: its root, the root's error, and whether it lies beyond
         #: the drive for every value within the bounds
-        self._event: tuple[float, float, bool, str, int] = _NO_EVENT
-        #: |du_x/dD - 1| (with its error) of a bond that sticks again, for its offset's error
-        self._stick_rate = 1.0
-        #: decisions the bounds left open that one residual per solution settled
+        self._event: tuple[float, float, bool, str, int, float] = _NO_EVENT
+        #: |du_x/dD - 1| (with its error) of the bond that sticks again, for its offset's error
+        self._stick_rate = math.nan
+        #: open decisions sharpened (:meth:`_sharpen`), whether or not that settled them
         self.sharpened = 0
         #: a bound on the error of the drive the event loop sits at (:meth:`apply`)
         self._drive_error = 0.0
@@ -242,11 +243,13 @@ class CertifiedSlide(TangentialState):
         bounds it is :math:`h` alone, with the root's error. A bond that sticks again takes
         its offset :math:`u_x - D` at a drive within that error of the exact path's, which
         moves it by :math:`|\dot u_x - 1|` times the error (:meth:`_stick_again`)."""
-        hi, dD, beyond, e_kind, e_site = self._event
-        if kind == EventKind.STICK and self._rate is not None:
-            self._stick_rate = abs(float(self._rate[j]) - float(X_DRIVE[X])) + (
+        hi, dD, beyond, e_kind, e_site, at = self._event
+        if kind == EventKind.STICK:
+            self._stick_rate = abs(float(self.rates()[j]) - float(X_DRIVE[X])) + (
                 self.column_norm * self.bound.nu * self._phi_bound())
-        if (kind, j) == (e_kind, e_site):  # the interval's event (else: D is held)
+        # the interval's event, moving the loop's drive (not held: an avalanche's state, an
+        # overload or a stick)
+        if (kind, j) == (e_kind, e_site) and D >= at:
             self._drive_error = dD if beyond and D == hi else max(self._drive_error, dD)
         self._event = _NO_EVENT
         super().apply(kind, j, D)
@@ -259,8 +262,11 @@ class CertifiedSlide(TangentialState):
     # -- the decisions --------------------------------------------------------------------------
     def interval(self, D: float) -> tuple[float, float, str, int]:
         """The admissible interval and the event ending it
-        (:meth:`~roughslip.friction.sliding.TangentialState.interval`), certified: refined
-        first when the bounds leave the event or the interval's lower end open."""
+        (:meth:`~roughslip.friction.sliding.TangentialState.interval`), certified: when the
+        bounds leave the event or the interval's lower end open, sharpened on the rows that
+        can change it (:meth:`_sharpen`; at most
+        ``MAX_SHARPEN`` (32) of them), and refined
+        when still open."""
         self.decisions += 1
         lo, hi, kind, row, sure, cand = self._interval(D, check=True)
         if not sure and cand is not None and cand.size <= MAX_SHARPEN:
@@ -287,12 +293,14 @@ class CertifiedSlide(TangentialState):
                 ("psi", self._psi_residual, self._psi_own(), self.A_psi)):
             made = make([])
             residual, scale = made if name == "psi" else (made, bd._rhs_norm())
-            r, res = residual(inv.tracked[name].x)
-            rn = res * scale
+            x = inv.tracked[name].x
+            r, res = residual(x)
+            slack = bd.rounding(float(np.linalg.norm(x[live])), scale)
+            rn = res * scale + slack
             if count > 0 and rn > (1 + 1e-6) * expected:
                 self.exceeded += 1
-            residuals.append((r, rn))
-        (r_phi, n_phi), (r_psi, n_psi) = residuals
+            residuals.append((r, rn, slack))
+        (r_phi, n_phi, s_phi), (r_psi, n_psi, s_psi) = residuals
         bd.R, bd.A = n_phi, 0.0
         self.R_psi, self.A_psi = n_psi, 0.0
         phi, psi = inv.tracked["phi"].x, inv.tracked["psi"].x
@@ -301,11 +309,12 @@ class CertifiedSlide(TangentialState):
         for k, i in enumerate(rows):
             c = inv.column(int(i))
             c[~live] = 0.0
-            reach = bd.nu * bd.gamma_hat * float(np.linalg.norm(c))
+            reach = bd.nu * bd.gamma_hat * float(np.linalg.norm(c))  # the column's error
             out[0, k] = phi[i] + float(c @ r_phi)
             out[1, k] = psi[i] + float(c @ r_psi)
-            out[2, k] = reach * n_phi + eps * abs(phi[i])
-            out[3, k] = (reach * n_psi + eps * abs(psi[i])
+            norm = float(np.linalg.norm(c))
+            out[2, k] = reach * n_phi + norm * s_phi + eps * abs(phi[i])
+            out[3, k] = (reach * n_psi + norm * s_psi + eps * abs(psi[i])
                          + math.sqrt(bd.nu * bd.d[i]) * self.offset_error)
         return (rows, *out)
 
@@ -357,8 +366,8 @@ class CertifiedSlide(TangentialState):
         # the event loop compares hi - D with -tol_d and tol_d: neither may lie in its range
         gap_lo, gap_hi = own_lo - D - self._drive_error, own_hi - D + self._drive_error
         # an event beyond D + tol_d for every value: the loop's next drive is its root alone
-        self._event = (hi, self._dD, row >= 0 and gap_lo > tol_d, kind,
-                       self._site(row) if row >= 0 else -1)
+        self._event = (hi, self._dD, row >= 0 and gap_lo > 0, kind,
+                       self._site(row) if row >= 0 else -1, D)
         if not check:  # decided on refined values
             return lo, hi, kind, row, True, None
         if nowhere:
