@@ -93,8 +93,9 @@ def _quotient(n_lo: np.ndarray, n_hi: np.ndarray, d_lo: np.ndarray, d_hi: np.nda
     with np.errstate(divide="ignore", invalid="ignore"):
         least = np.where(n_lo >= 0, n_lo / d_hi, np.where(d_lo > 0, n_lo / d_lo, -math.inf))
         most = np.where(n_hi <= 0, n_hi / d_hi, np.where(d_lo > 0, n_hi / d_lo, math.inf))
-    return (np.nan_to_num(least, nan=-math.inf, posinf=math.inf, neginf=-math.inf),
-            np.nan_to_num(most, nan=math.inf, posinf=math.inf, neginf=-math.inf))
+    least[np.isnan(least)] = -math.inf  # 0/0, inf/inf: unbounded
+    most[np.isnan(most)] = math.inf
+    return least, most
 
 
 def _meet(x: np.ndarray, e: np.ndarray, y: np.ndarray, f: np.ndarray
