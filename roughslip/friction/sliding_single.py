@@ -240,10 +240,11 @@ class CertifiedSlide(TangentialState):
         r"""An event, applied as the tangential state applies it, and the bound on the error
         of the drive the loop goes on from (:attr:`_drive_error`). The loop's next drive is
         :math:`\max(D, h)` for an event at :math:`h`, whose error is at most the larger of
-        the two errors; when :math:`h > D` + the tie tolerance for every value within the
-        bounds it is :math:`h` alone, with the root's error. A bond that sticks again takes
-        its offset :math:`u_x - D` at a drive within that error of the exact path's, which
-        moves it by :math:`|\dot u_x - 1|` times the error (:meth:`_stick_again`)."""
+        the two errors; when :math:`h > D` for every value within the bounds it is :math:`h`
+        alone, with the root's error. An avalanche's state (applied at its root below the
+        drive), an overload and a stick hold the drive, and its error. A bond that sticks again
+        takes its offset :math:`u_x - D` at a drive within that error of the exact path's,
+        which moves it by :math:`|\dot u_x - 1|` times the error (:meth:`_stick_again`)."""
         hi, dD, beyond, e_kind, e_site, at = self._event
         if kind == EventKind.STICK:
             self._stick_rate = abs(float(self.rates()[j]) - float(X_DRIVE[X])) + (
