@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from roughslip.contact.squeeze import squeeze
-from roughslip.errors import InputError
+from roughslip.errors import InputError, NumericalError
 from roughslip.friction.bonds import Bonds
 from roughslip.friction.breaking_single import _compression_error
 from roughslip.friction.pull import pull
@@ -195,19 +195,86 @@ def test_solves_in_place_leave_inputs_and_bases_untouched(scene):
 
 def test_what_it_does_not_hold_is_refused(scene):
     pts, entries, _ = scene
-    with pytest.raises(ValueError, match="positive definite"):
-        HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, definite=False)
     with pytest.raises(ValueError, match="double or single precision"):
         HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, dtype=np.float16)
-    with pytest.raises(ValueError, match="positive definite"):
-        HierarchicalInverse(entries, 900, room=lambda m: True, points=pts, lower=False)
     h = _held(pts, entries)
-    for call in (lambda: h.add(np.array([1])), lambda: h.shift(0, 1.0),
-                 lambda: h.compact(extra=3)):
+    for call in (lambda: h.shift(0, 1.0), lambda: h.compact(extra=3),
+                 lambda: h.factor(np.arange(900), positive=False)):
         with pytest.raises(ValueError):
             call()
     assert not HierarchicalInverse(entries, 900, room=lambda m: False,
                                    points=pts).factor(np.arange(900))
+
+
+def _shifted(pts: np.ndarray, dshift: np.ndarray):
+    """The kernel of :func:`_kernel` with the diagonal shifts ``dshift`` (read when called)."""
+    base = _kernel(pts)
+
+    def entries(i, j, order="F", dtype=float):
+        A = base(i, j, order, np.float64)
+        A += dshift[np.asarray(i)][:, None] * (np.asarray(i)[:, None] == np.asarray(j)[None])
+        return np.asarray(A, order=order, dtype=dtype)
+    return entries
+
+
+def test_indefinite_shifts_removals_and_additions_follow_the_dense_inverse(scene):
+    """Diagonal shifts that make the matrix indefinite, removals, an addition, folds and a
+    compaction: the tracked solution, a column and the diagonal follow the dense inverse of
+    the matrix on the final set, and the count of negative eigenvalues follows its spectrum,
+    both from the pivots and from the factorisation."""
+    pts = scene[0]
+    n = pts.shape[0]
+    dshift = np.zeros(n)
+    entries = _shifted(pts, dshift)
+    h = HierarchicalInverse(entries, n, room=lambda m: True, points=pts, definite=False,
+                            leaf=32, tol=1e-10, block=16)
+    assert h.factor(np.arange(n), positive=True) and h.negatives == 0
+    h.tracked["phi"] = Tracked(np.ones(n), h.apply(np.ones(n)), lambda ids: np.ones(ids.size))
+    rng = np.random.default_rng(6)
+    order = rng.permutation(n)
+    weak, gone = order[:60], order[60:110]
+    steps = [("shift", int(u), -3.0) for u in weak[:40]] + [("remove", int(u), 0.0)
+                                                            for u in gone]
+    steps += [("shift", int(u), -3.0) for u in weak[40:]] + [("shift", int(weak[3]), 3.0)]
+    steps += [("remove", int(weak[7]), 0.0), ("add", int(gone[0]), 0.0),
+              ("add", int(weak[7]), 0.0)]
+    out = set()
+    for step, (what, u, delta) in enumerate(steps):
+        if what == "shift":
+            assert h.shift(u, delta) is not None
+            dshift[u] += delta
+        elif what == "remove":
+            assert h.remove(u)
+            out.add(u)
+        else:
+            assert h.add(np.array([u])) is True
+            out.discard(u)
+        if step % 16 == 15:  # a fold with shifts and removals pending
+            h.flush()
+        if step == 70:
+            h.compact()
+        keep = np.setdiff1d(np.arange(n), sorted(out))
+        if step % 25 == 0 or step == len(steps) - 1:
+            w = np.linalg.eigvalsh(entries(keep, keep))
+            assert np.abs(w).min() > 1e-3  # no eigenvalue near zero: the count is robust
+            assert h.negatives == np.count_nonzero(w < 0)
+    assert h.negatives > 0 and h.shifts == len(weak) + 1 and h.factorisations >= 9
+    A = entries(keep, keep)
+    Ai = np.linalg.inv(A)
+    live = np.flatnonzero(h.live)
+    assert np.array_equal(np.sort(h.ids[live]), keep)
+    at = np.argsort(h.ids[live])  # the rows in the order of keep
+    bound = 10 * np.linalg.cond(A) * 1e-10 * np.abs(Ai).max()
+    np.testing.assert_allclose(h.tracked["phi"].x[live][at], Ai.sum(1), rtol=0,
+                               atol=bound * n)
+    r = int(live[at[5]])
+    np.testing.assert_allclose(h.column(r)[live][at], Ai[:, 5], rtol=0, atol=bound)
+    np.testing.assert_allclose(h.diagonal()[live][at], np.diag(Ai), rtol=0, atol=bound)
+    h.flush()
+    h.factor(keep)  # the inertia from the factorisation alone
+    assert h.negatives == np.count_nonzero(np.linalg.eigvalsh(A) < 0)
+    with pytest.raises(NumericalError, match="not positive definite"):
+        h.factor(keep, positive=True)
 
 
 @pytest.fixture(scope="module")

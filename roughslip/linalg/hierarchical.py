@@ -1,5 +1,5 @@
-r"""A compressed inverse of a symmetric matrix on a shrinking index set: a HODLR factorisation
-with pending rank-one removals.
+r"""A compressed inverse of a symmetric matrix on a changing index set: a HODLR factorisation
+with pending rank-one updates.
 
 The matrix :math:`A` is known through its assembler ``entries(i, j, order)`` (as for
 :class:`~roughslip.linalg.inverse.UpdatableInverse`) and each unknown has a point in the plane.
@@ -29,11 +29,28 @@ follows the same recursion: :math:`\mathrm{diag}(A_\tau^{-1}) = \mathrm{diag}(D_
 \mathrm{rowsum}((Y_\tau S_\tau^{-1}) \circ Y_\tau)`.
 
 Removing unknown :math:`r` subtracts :math:`c\,c^T/c_r` (Sherman & Morrison), kept pending as
-in the dense inverse. Folding them (:meth:`HierarchicalInverse.flush`) does not touch the
-compression: the compressed matrix restricted to the remaining unknowns is the same blocks
-with rows deleted, so the fold deletes them and factorises again, which is exactly the pending
-update's result up to rounding. The only approximation is the compression itself, fixed when
-the set is factorised.
+in the dense inverse; shifting its diagonal entry by :math:`\delta` subtracts
+:math:`\delta\,c\,c^T/(1 + \delta c_r)`. Folding them (:meth:`HierarchicalInverse.flush`) does
+not touch the compression: the compressed matrix restricted to the remaining unknowns is the
+same blocks with rows deleted and the shifts added to the leaves' diagonals, so the fold does
+that and factorises again, which is exactly the pending updates' result up to rounding. The
+only approximation is the compression itself, fixed when the set is factorised. Adding
+unknowns compresses the new set afresh (:meth:`HierarchicalInverse.add`).
+
+The matrix may be indefinite (symmetric, nonsingular; ``definite=False``): the leaves and the
+Woodbury matrices are then inverted through their eigenvalues, which also give the inertia of
+the compressed matrix. By Haynsworth's inertia theorem applied to the bordered matrix
+:math:`\begin{pmatrix} D_\tau & Z \\ Z^T & -K \end{pmatrix}` (:math:`K^{-1} = K`; the Schur
+complement of :math:`D_\tau` is :math:`-S_\tau`, that of :math:`-K` is :math:`A_\tau`, and
+:math:`-K` has :math:`k` eigenvalues of each sign),
+
+.. math:: \nu_-(A_\tau) = \nu_-(A_{\tau_1}) + \nu_-(A_{\tau_2}) + \nu_+(S_\tau) - k,
+
+so the count of negative eigenvalues (:attr:`HierarchicalInverse.negatives`) comes out of the
+factorisation; each update then changes it by the sign of its pivot, as in the dense inverse.
+The factorisation needs every cluster's matrix to be nonsingular, not only the whole one: a
+singular one raises :class:`~roughslip.errors.NumericalError`, a nearly singular one amplifies
+the rounding, which the callers' certification against the exact operator sees.
 
 Its memory is estimated before it is built (:func:`hierarchical_bytes`, from a rank model
 measured on rough contacts): the leaves, and per cluster level the bases :math:`U, V` and
@@ -55,6 +72,8 @@ from roughslip.linalg.inverse import (
     Tracked,
     UpdatableInverse,
     _keep_order,
+    _nonsingular,
+    _rank_one,
     take_out,
 )
 from roughslip.linalg.threads import blas_threads
@@ -217,6 +236,19 @@ def _times(a: np.ndarray, x: np.ndarray, transpose: bool) -> np.ndarray:
     return out
 
 
+def _symmetric_inverse(A: np.ndarray, what: str, dtype: np.dtype, positive: bool = False
+                       ) -> tuple[np.ndarray, int]:
+    """The inverse of the symmetric ``A`` through its eigenvalues, rounded to ``dtype``, and
+    the count of its negative eigenvalues (``positive``: of its positive ones). Raises
+    :class:`NumericalError` naming ``what`` when it is numerically singular (an eigenvalue at or
+    below ``order x eps`` times the largest, as the dense inverse judges it)."""
+    w, Q = np.linalg.eigh(0.5 * (A + A.T))
+    if not _nonsingular(w, w):
+        raise NumericalError(f"{what} on {A.shape[0]} unknowns is singular")
+    count = int(np.count_nonzero(w > 0 if positive else w < 0))
+    return ((Q / w) @ Q.T).astype(dtype), count
+
+
 @dataclass
 class _Cluster:
     """One cluster of the tree: its range of tree positions, its children, its parent and
@@ -257,9 +289,12 @@ class HierarchicalInverse:
         Pending rank-one terms kept before they are folded in.
     tol, leaf, max_rank
         The compression (module docstring).
-    definite, lower
-        The dense inverse's options: only a positive definite matrix on a shrinking set is
-        held (anything else raises :class:`ValueError`).
+    definite
+        Whether the matrix is positive definite (leaves by Cholesky; a removal whose pivot is
+        not positive fails), or symmetric and possibly indefinite (module docstring; a
+        numerically singular update fails).
+    lower
+        The dense inverse's layout hint; not used.
     dtype
         What the bases, the leaves, their solves and the pending terms are stored and
         multiplied in: float64, or float32 (half the memory and half the bytes a column
@@ -275,9 +310,9 @@ class HierarchicalInverse:
                  points: np.ndarray, threads: int = 1, block: int = 512,
                  definite: bool = True, lower: bool = True, dtype: type = np.float64,
                  tol: float = TOL, leaf: int = LEAF, max_rank: int = MAX_RANK) -> None:
-        if not definite or not lower or np.dtype(dtype) not in (np.float64, np.float32):
-            raise ValueError("the hierarchical inverse holds a positive definite matrix on a "
-                             "shrinking set in double or single precision")
+        if np.dtype(dtype) not in (np.float64, np.float32):
+            raise ValueError("the hierarchical inverse holds a matrix in double or single "
+                             "precision")
         self.dtype = np.dtype(dtype)
         self.entries, self.room, self.threads = entries, room, threads
         #: pending terms the buffer holds, and the fold point callers read (set after each
@@ -287,7 +322,10 @@ class HierarchicalInverse:
         self.flops = 0.0  # counted since the last factorisation began
         self.points = np.asarray(points, dtype=float)
         self.tol, self.leaf, self.max_rank = tol, leaf, max_rank
-        self.definite = True
+        self.definite = bool(definite)
+        #: negative eigenvalues of the compressed matrix on the set at the last factorisation
+        #: (module docstring), changed since by each update's pivot
+        self.negatives = 0
         self.blas_seconds = 0.0
         self.compress_seconds = 0.0
         self.factorisations = 0
@@ -296,6 +334,8 @@ class HierarchicalInverse:
         self.live = np.empty(0, dtype=bool)
         self.m = 0
         self.V = np.empty((0, block), order="F", dtype=self.dtype)
+        self.s = np.empty(0)  # the sign of each pending term: x += V diag(s) V^T b
+        self.pending_shift = np.empty(0)  # diagonal shifts since the last fold, per row
         self.k = 0
         self.pivot = math.nan
         self.tracked: dict[str, Tracked] = {}
@@ -338,9 +378,11 @@ class HierarchicalInverse:
     def factor(self, ids: np.ndarray, positive: bool | None = None) -> bool:
         """Compress and factorise the matrix on the unknowns ``ids`` afresh (tracked solutions
         dropped); False when ``room`` refuses it. Raises :class:`NumericalError` when the
-        compressed matrix is not positive definite on a leaf or singular above one."""
-        if positive is False:
-            raise ValueError("the hierarchical inverse holds a positive definite matrix")
+        compressed matrix is not positive definite on a leaf (``definite``), not positive
+        definite at all (``positive`` on an indefinite object: an indefinite one may start
+        from a definite set), or singular on a cluster."""
+        if positive is False and self.definite:
+            raise ValueError("a definite hierarchical inverse holds a positive definite matrix")
         ids = np.asarray(ids, dtype=np.int64)
         if not self.room(ids.size):
             return False
@@ -349,6 +391,8 @@ class HierarchicalInverse:
         self.row[ids] = np.arange(ids.size)
         self.live = np.ones(ids.size, dtype=bool)
         self.V = np.zeros((ids.size, self.capacity), order="F", dtype=self.dtype)
+        self.s = np.zeros(self.capacity)
+        self.pending_shift = np.zeros(ids.size)
         self.k = 0
         self.tracked = {}
         self.version += 1
@@ -376,6 +420,9 @@ class HierarchicalInverse:
             c.U, c.V = U.astype(self.dtype), V.astype(self.dtype)
         self.compress_seconds += time.perf_counter() - t0
         self._factorise()
+        if positive and self.negatives:
+            raise NumericalError(f"the compressed matrix on {ids.size} unknowns is not positive "
+                                 f"definite ({self.negatives} negative eigenvalues)")
         return True
 
     def _index(self) -> None:
@@ -398,14 +445,22 @@ class HierarchicalInverse:
         self.block = int(min(self.capacity, max(self.floor, round(best))))
 
     def _factorise(self) -> None:
-        """Woodbury's identity from the leaves up (module docstring)."""
+        """Woodbury's identity from the leaves up (module docstring); the inertia with it when
+        the matrix may be indefinite."""
         t0 = time.perf_counter()
         self.flops = 0.0
+        neg = np.zeros(len(self.clusters), dtype=np.int64)
         with blas_threads(self.threads):
-            for c in reversed(self.clusters):  # children come after their parent
+            for n in range(len(self.clusters) - 1, -1, -1):  # children come after parents
+                c = self.clusters[n]
                 if c.left < 0:
                     if c.stop == c.start:
                         c.inverse = np.zeros((0, 0), dtype=self.dtype)
+                        continue
+                    if not self.definite:
+                        c.inverse, neg[n] = _symmetric_inverse(c.dense.astype(np.float64),
+                                                               "a leaf's matrix", self.dtype)
+                        self.flops += 4 * (c.stop - c.start) ** 3
                         continue
                     try:
                         L = np.linalg.cholesky(c.dense.astype(np.float64))
@@ -422,6 +477,12 @@ class HierarchicalInverse:
                 c.YR = self._solve(c.left + 1, c.V.copy())
                 S = np.block([[(c.U.T @ c.YL).astype(np.float64), np.eye(k)],
                               [np.eye(k), (c.V.T @ c.YR).astype(np.float64)]])
+                if not self.definite:
+                    c.T, pos = _symmetric_inverse(S, "a compressed block's Woodbury matrix",
+                                                  self.dtype, positive=True)
+                    neg[n] = neg[c.left] + neg[c.left + 1] + pos - k
+                    self.flops += 10 * (2 * k) ** 3
+                    continue
                 try:
                     c.T = np.linalg.inv(S).astype(self.dtype)
                     self.flops += 2 * (2 * k) ** 3
@@ -429,6 +490,7 @@ class HierarchicalInverse:
                     raise NumericalError("a compressed block's Woodbury matrix is "
                                          "singular") from None
         self._index()
+        self.negatives = int(neg[0]) if self.clusters else 0
         self.factorisations += 1
         self._balance()
         self.blas_seconds += time.perf_counter() - t0
@@ -466,7 +528,11 @@ class HierarchicalInverse:
         x[self.perm] = self._solve(0, Bs[self.perm])
         if self.k:
             V = self.V[:, : self.k]
-            x -= V @ (V.T @ Bs)
+            if self.definite:  # removals from a definite matrix: every sign is -1
+                x -= V @ (V.T @ Bs)
+            else:
+                s = self.s[: self.k] if B.ndim == 1 else self.s[: self.k, None]
+                x += V @ (s * (V.T @ Bs))
         self.blas_seconds += time.perf_counter() - t0
         return x
 
@@ -529,7 +595,10 @@ class HierarchicalInverse:
             col[self.perm] = self._unit_solve(p)
         if self.k:
             V = self.V[:, : self.k]
-            col -= V @ V[r]
+            if self.definite:
+                col -= V @ V[r]
+            else:
+                col += V @ (self.s[: self.k] * V[r])
         self.blas_seconds += time.perf_counter() - t0
         return col
 
@@ -552,7 +621,10 @@ class HierarchicalInverse:
         d[self.perm] = self._diag(0)
         if self.k:
             V = self.V[:, : self.k]
-            d -= np.einsum("ij,ij->i", V, V, dtype=np.float64)
+            if self.definite:
+                d -= np.einsum("ij,ij->i", V, V, dtype=np.float64)
+            else:
+                d += np.einsum("ij,ij,j->i", V, V, self.s[: self.k], dtype=np.float64)
         return d
 
     #: certify against an exact operator, correcting with the current inverse (the dense
@@ -564,24 +636,31 @@ class HierarchicalInverse:
                held: dict[str, float] | None = None) -> bool:
         """Remove ``unknown`` from the set (as
         :meth:`~roughslip.linalg.inverse.UpdatableInverse.remove`); False when its pivot is
-        not positive."""
+        not positive (``definite``) or is numerically zero. A negative pivot takes one
+        negative eigenvalue with it."""
         r = int(self.row[unknown])
         c = self.column(r) if column is None else column
         cr = float(c[r])
-        if not cr > 0:
+        if not (cr > 0 if self.definite else _nonsingular(np.array([cr]), c)):
             return False
         self.pivot = cr
+        self.negatives -= cr < 0
         take_out(self, r, c, held)
         if self.k == self.capacity:  # the fold deletes the row: nothing left to keep pending
             self.flush()
             return True
-        self.V[:, self.k] = c * (1.0 / math.sqrt(cr))
-        self.k += 1
+        self._push(c * (1.0 / math.sqrt(abs(cr))), -1.0 if cr > 0 else 1.0)
         return True
 
+    def _push(self, v: np.ndarray, sign: float) -> None:
+        """One pending term ``sign v v^T`` (the buffer has room)."""
+        self.V[:, self.k] = v
+        self.s[self.k] = sign
+        self.k += 1
+
     def flush(self) -> None:
-        """Fold the pending removals: delete the removed rows from the compressed blocks and
-        factorise again (module docstring)."""
+        """Fold the pending updates: delete the removed rows from the compressed blocks, add
+        the shifts to the leaves' diagonals and factorise again (module docstring)."""
         if not self.k:
             return
         keep = self.live[self.perm]
@@ -597,9 +676,22 @@ class HierarchicalInverse:
                     c.U, c.V = c.U[keep[a:h]], c.V[keep[h:b]]
                 c.start, c.stop = int(pos[a]), int(pos[b])
             self.perm = self.perm[keep]
+        self._shift_leaves()
         self.V[:, : self.k] = 0.0
         self.k = 0
         self._factorise()
+
+    def _shift_leaves(self) -> None:
+        """Add the diagonal shifts made since the last fold to the leaves' blocks (tree
+        positions of the current ``perm``)."""
+        shift = self.pending_shift[self.perm]
+        if not shift.any():
+            return
+        for c in self.clusters:
+            if c.left < 0 and c.stop > c.start:
+                d = shift[c.start:c.stop]
+                c.dense[np.diag_indices(d.size)] += d.astype(self.dtype)
+        self.pending_shift[:] = 0.0
 
     def compact(self, extra: int = 0) -> bool:
         """Drop the removed rows (tracked solutions follow); no row can be added."""
@@ -618,19 +710,74 @@ class HierarchicalInverse:
         self.row[self.ids] = np.arange(self.m)
         self.live = np.ones(self.m, dtype=bool)
         self.V = np.zeros((self.m, self.capacity), order="F", dtype=self.dtype)
+        self.pending_shift = np.zeros(self.m)
         self.version += 1
         self._index()
         return True
 
     def shift(self, unknown: int, delta: float, column: np.ndarray | None = None
               ) -> np.ndarray | None:
-        """Not held: a shifted diagonal is the slip-weakening law's, which this inverse does
-        not run."""
-        raise ValueError("the hierarchical inverse holds no shifted diagonal")
+        r"""Add ``delta`` to the diagonal entry of ``unknown`` (as
+        :meth:`~roughslip.linalg.inverse.UpdatableInverse.shift`: the new column, or None when
+        :math:`1 + \delta c_r` is numerically zero; its sign in :attr:`pivot` gives the change
+        of inertia). The assembler must give the shifted entry from now on (for
+        :meth:`add`); a fold adds the shift to the compressed leaf."""
+        if self.definite:
+            raise ValueError("a definite hierarchical inverse holds no shifted diagonal")
+        r = int(self.row[unknown])
+        c = self.column(r) if column is None else column
+        dc = delta * float(c[r])
+        den = 1.0 + dc
+        if not (math.isfinite(den) and abs(den) > self.m * np.finfo(float).eps * max(1.0,
+                                                                                  abs(dc))):
+            return None
+        self.pivot = den
+        if den < 0:
+            self.negatives += 1 if delta < 0 else -1
+        self.shifts += 1
+        g = delta / den
+        for t in self.tracked.values():
+            _rank_one(t.x, c, g * t.x[r])
+        self.pending_shift[r] += delta
+        if self.k == self.capacity:  # the fold takes the shift into the leaf
+            self.flush()
+        else:
+            self._push(c * math.sqrt(abs(g)), -1.0 if g > 0 else 1.0)
+        return c / den
 
     def add(self, new: np.ndarray) -> bool | None:
-        """Not held: the set only shrinks."""
-        raise ValueError("the hierarchical inverse holds a set that only shrinks")
+        r"""Add the unknowns ``new`` to the set: the pivots come from the Schur complement
+        :math:`S_c = A_{new,new} - B^T A_{SS}^{-1} B` (:math:`B = A_{S,new}`) on the current
+        inverse, the tracked solutions are bordered with it as in
+        :meth:`~roughslip.linalg.inverse.UpdatableInverse.add`, and the new set is compressed
+        and factorised afresh (its blocks change with the set). False when :math:`S_c` is not
+        positive definite (``definite``) or is singular; None when ``room`` refuses the new
+        set (nothing changed). The new unknowns take the last rows."""
+        new = np.asarray(new, dtype=np.int64)
+        if not self.room(self.live.sum() + new.size):
+            return None
+        live = np.flatnonzero(self.live)
+        B = np.zeros((self.m, new.size))
+        B[live] = self.entries(self.ids[live], new, "C")
+        MB = self.apply(B)
+        MB[~self.live] = 0.0
+        Sc = self.entries(new, new, "C") - B.T @ MB
+        w, Q = np.linalg.eigh(0.5 * (Sc + Sc.T))
+        if not (_nonsingular(w, w) and (w.min() > 0 or not self.definite)):
+            return False
+        Si = (Q / w) @ Q.T
+        grown = {}
+        for name, t in self.tracked.items():  # bordered: [x - MB z; z]
+            bn = t.values(new)
+            z = Si @ (bn - B.T @ t.x)
+            x = np.concatenate([(t.x - MB @ z)[live], z])
+            b = None if t.b is None else np.concatenate([t.b[live], bn])
+            grown[name] = Tracked(b, _keep_order(t.x, x), t.values)
+        if not self.factor(np.concatenate([self.ids[live], new])):
+            return None
+        self.pivot = float(Sc[0, 0]) if new.size == 1 else math.nan
+        self.tracked = grown
+        return True
 
     #: add to a right-hand side entry of a tracked solution (the dense inverse's method: it
     #: reads only ``row``, :meth:`column` and ``tracked``)
