@@ -10,6 +10,7 @@ import pytest
 from roughslip import pull
 from roughslip.contact.squeeze import squeeze
 from roughslip.friction import least, relax
+from roughslip.friction.response import DenseResponse
 from roughslip.surfaces.synthetic import sample_rng, self_affine
 
 LAM_S, LAM_D, DC = 0.2, 0.1, 0.05
@@ -58,7 +59,7 @@ def test_on_a_cooperative_system_every_mobility_lands_on_the_least_equilibrium(s
     steps of the module land exactly there (to the flows' resting tolerance)."""
     K, fz, f, sigma, moving, p = _cooperative(seed)
     n = f.size
-    rx = relax.Relaxation(K, fz, LAM_S, LAM_D, DC)
+    rx = relax.Relaxation(DenseResponse(K), fz, LAM_S, LAM_D, DC)
     land = least.land(rx, f, np.zeros(n), np.zeros(n), sigma, moving, p)
     assert land is not None and not land.stopped
     assert land.moving.sum() > 1 and land.failures  # a cascade, not one bond
@@ -77,7 +78,7 @@ def test_the_landing_is_a_stable_equilibrium(seed):
     (to rounding), and the moving set is stable: B positive definite."""
     K, fz, f, sigma, moving, p = _cooperative(seed)
     n = f.size
-    rx = relax.Relaxation(K, fz, LAM_S, LAM_D, DC)
+    rx = relax.Relaxation(DenseResponse(K), fz, LAM_S, LAM_D, DC)
     land = least.land(rx, f, np.zeros(n), np.zeros(n), sigma, moving, p)
     force = f - K @ land.w
     cap = rx.strength(land.delta) * fz

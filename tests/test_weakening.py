@@ -15,6 +15,7 @@ from roughslip.elastic.operators import Grid, Material
 from roughslip.errors import InputError
 from roughslip.friction import weakening
 from roughslip.friction.events import X
+from roughslip.friction.response import DenseResponse
 from roughslip.surfaces import sphere
 
 LAM = 0.2
@@ -260,7 +261,7 @@ def test_a_piece_of_a_burst_is_the_linear_flow_in_closed_form():
     A = rng.standard_normal((n, n))
     K = A @ A.T / n + np.eye(n)  # a stiffness: symmetric positive definite
     fz = rng.uniform(0.5, 1.5, n)
-    rx = relax.Relaxation(K, fz, 0.2, 0.1, 0.05)
+    rx = relax.Relaxation(DenseResponse(K), fz, 0.2, 0.1, 0.05)
     moving = np.arange(n) < m
     sigma = np.where(moving, rng.choice([-1.0, 1.0], n), 0.0)
     delta = np.where(moving, rng.uniform(0, 0.01, n), 0.0)

@@ -77,8 +77,7 @@ class _Ascent:
         self.free = (rx.lam_d == 0) & (delta >= rx.dc)  # zero strength: slips either way
         self.kap = (rx.lam_s - rx.lam_d) / rx.dc * rx.fz
         self.kt = np.where(moving & (delta < rx.dc), self.kap, 0.0)  # softening on P
-        self.diagK = np.diagonal(rx.K).copy()
-        self.inv = UpdatableInverse(self._entries, n, room=lambda m: True, definite=False)
+        self.inv = UpdatableInverse(self._entries, n, room=rx.response.room, definite=False)
         self.fresh = False  # whether the inverse and neg describe the current B
         #: bonds joined since B was last known positive definite on the rest of the moving
         #: set (ok), in order: a factorisation bordered by them gives the inertia cheaply
@@ -92,7 +91,7 @@ class _Ascent:
 
     def _entries(self, i: np.ndarray, j: np.ndarray, order: str) -> np.ndarray:
         sg = self.sg
-        A = sg[i][:, None] * self.rx.K[np.ix_(i, j)] * sg[j][None, :]
+        A = sg[i][:, None] * self.rx.response.block(i, j) * sg[j][None, :]
         if np.array_equal(i, j):
             A[np.diag_indices(i.size)] -= self.kt[i]
         return np.asarray(A, order=order)
@@ -167,10 +166,15 @@ class _Ascent:
         """A bond that can slip alone (module docstring): it softens faster than its own
         stiffness, so its excess grows, and its slip lowers no moving bond's excess that is at
         0. -1: none (of the first SOLO_TRIES)."""
-        cand = np.flatnonzero(self.P & ~self.free & (self.kt > self.diagK))
-        for q in cand[:SOLO_TRIES]:
+        K, tries = self.rx.response, 0
+        for q in np.flatnonzero(self.P & ~self.free & (self.kt > 0)):
             q = int(q)
-            rate = -self.sg * self.rx.K[:, q] * self.sg[q]  # of the excess, per unit slip of q
+            if not self.kt[q] > K.diagonal(np.array([q]))[0]:
+                continue
+            tries += 1
+            if tries > SOLO_TRIES:
+                break
+            rate = -self.sg * K.column(q) * self.sg[q]  # of the excess, per unit slip of q
             held = self.P & ~self.free & (F <= self.tiny)
             held[q] = False
             if not np.any(held & (rate < 0)):
@@ -260,7 +264,7 @@ def land(rx: Relaxation, f: np.ndarray, w: np.ndarray, delta: np.ndarray, sigma:
     a = _Ascent(rx, f, delta, sigma, moving)
     a.pending = [int(failing)]
     st = Landing(f.copy(), w.copy(), delta.copy(), np.where(moving, sigma, 0.0), moving.copy())
-    K, n = rx.K, f.size
+    K, n = rx.response, f.size
     st.peak = float(f.sum())
     for step in range(8 * n + 8):
         st.pieces = step + 1
@@ -284,9 +288,9 @@ def land(rx: Relaxation, f: np.ndarray, w: np.ndarray, delta: np.ndarray, sigma:
         d = np.zeros(n)
         d[ids] = d_rows
         if ids.size == 1:  # forces per unit step
-            df = -K[:, ids[0]] * (a.sg[ids[0]] * d_rows[0])
+            df = -K.column(ids[0]) * (a.sg[ids[0]] * d_rows[0])
         else:
-            df = -(K @ (a.sg * d))
+            df = -K.times(a.sg * d)
         rate = a.sg * df + np.where(a.P & ~a.free, a.kt * d, 0.0)  # of the excess
         t, kind, which = (1.0 if stable else math.inf), "land", -1
         weak = a.P & (a.kt > 0) & (d > 0)

@@ -51,6 +51,7 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from roughslip.errors import NumericalError
+from roughslip.friction.response import Response
 
 #: the viscosity of the start, relative to the largest normal force (module docstring)
 EPS = 1e-12
@@ -94,10 +95,11 @@ class _Piece:
         self.free = (rx.lam_d == 0) & (delta[P] >= rx.dc)
         self.kap = np.where(delta[P] < rx.dc, (rx.lam_s - rx.lam_d) / rx.dc, 0.0) * fz[P]
         self.s = s = st.sigma[P]
-        self.B = s[:, None] * rx.K[np.ix_(P, P)] * s[None, :] - np.diag(self.kap)
+        rx.response.room(P.size)
+        self.B = s[:, None] * rx.response.block(P, P) * s[None, :] - np.diag(self.kap)
         self.r = rx.eta * s * rx.K1[P]  # the drive, in fast time
         self.e0 = e[P]
-        self.KQ = rx.K[np.ix_(Q, P)] * s[None, :]
+        self.KQ = rx.response.block(Q, P) * s[None, :]
         self.fQ = st.f[Q]
         self.capQ = rx.strength(delta[Q]) * fz[Q]
         #: stuck bonds at their strength (one that arrested, say): their room is taken from
@@ -247,13 +249,14 @@ class _Piece:
 
 
 class Relaxation:
-    r"""The fast-time flow of a burst (module docstring) over ``K`` (:math:`G_{xx}^{-1}` on
-    all bonds), with the normal forces ``fz`` and the law :math:`\lambda_s, \lambda_d, d_c`."""
+    r"""The fast-time flow of a burst (module docstring) over :math:`K = G_{xx}^{-1}` on all
+    bonds (``response``, :mod:`~roughslip.friction.response`), with the normal forces ``fz``
+    and the law :math:`\lambda_s, \lambda_d, d_c`."""
 
-    def __init__(self, K: np.ndarray, fz: np.ndarray, lam_s: float, lam_d: float,
+    def __init__(self, response: Response, fz: np.ndarray, lam_s: float, lam_d: float,
                  dc: float) -> None:
-        self.K, self.fz = K, np.asarray(fz, float)
-        self.K1 = K.sum(axis=1)
+        self.response, self.fz = response, np.asarray(fz, float)
+        self.K1 = response.row_sums
         self.lam_s, self.lam_d, self.dc = lam_s, lam_d, dc
         self.fs = max(float(np.abs(self.fz).max()), np.finfo(float).tiny)
         self.eta = EPS * self.fs

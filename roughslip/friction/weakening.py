@@ -75,9 +75,9 @@ from roughslip.friction.events import (
     event_table,
 )
 from roughslip.friction.relax import Landing, Relaxation
+from roughslip.friction.response import NO_BURSTS, burst_response
 from roughslip.friction.result import PullResult
 from roughslip.friction.sliding import FollowEvents, TangentialState
-from roughslip.linalg import lapack64
 from roughslip.linalg.inverse import Tracked, inverse_bytes
 from roughslip.linalg.memory import available_bytes
 
@@ -435,19 +435,12 @@ class WeakeningState(TangentialState):
     # -- bursts ----------------------------------------------------------------------------
     def _relaxation(self) -> Relaxation:
         """The fast-time flow of a burst, on :math:`K = G_{xx}^{-1}` over all bonds (made at
-        the first burst). The memory guard counts it and the inverse of B on the moving
-        bonds, at most as large (:mod:`~roughslip.friction.least`)."""
+        the first burst): dense when it and the inverse of B on the moving bonds, at most as
+        large (:mod:`~roughslip.friction.least`), fit in memory, else compressed and certified
+        against the FFT operator (:func:`~roughslip.friction.response.burst_response`)."""
         if self._relax is None:
-            n = self.b.n
-            need = 2 * inverse_bytes(n)
-            if need > available_bytes():
-                raise MemoryLimitError(
-                    f"slip-weakening: a burst needs G_xx^-1 on all {n} bonds and an inverse "
-                    f"on the moving ones, ~{need / 2**30:.2f} GiB, but "
-                    f"{available_bytes() / 2**30:.2f} GiB are available")
-            K = np.asfortranarray(self.b.dense())
-            lapack64.mirror_lower(lapack64.cholesky_inverse(K))  # G_xx is positive definite
-            self._relax = Relaxation(K, self.fz, self.lam_s, self.lam_d, self.dc)
+            response = burst_response(self.b, self.opt.tol, self.opt.threads)
+            self._relax = Relaxation(response, self.fz, self.lam_s, self.lam_d, self.dc)
         return self._relax
 
     def _burst(self, D: float, p: int, s: float) -> None:
@@ -583,6 +576,7 @@ class WeakeningState(TangentialState):
         curve = Curve.of(path.events)
         peak = path.peak
         n_jumps = curve.kind.count(EventKind.JUMP)
+        resp = self._relax.response if self._relax is not None else NO_BURSTS
         end = "stopped once no later state could exceed the peak" if self.stopped else \
             "exact event path to full sliding"
         note = (f"; inside a burst at D_x = {self.inside[1]:.6g} the force rose to "
@@ -593,9 +587,11 @@ class WeakeningState(TangentialState):
             b, friction_force=max(peak.fx_total, 0.0), curve=curve, peak_event=path.peak_event,
             peak_fx=peak.fx, peak_stick=peak.stick, t0=t0, method=opt.method_name,
             slip_law=opt.slip_law, converged=bool(self.ok) and not path.message,
-            residual=self.worst, solves=self.refinements, early_stopped=self.stopped,
+            residual=max(self.worst, resp.worst), solves=self.refinements,
+            early_stopped=self.stopped,
             message=path.message or (f"{end}, {n_jumps} burst(s), {self.snaps} bond(s) "
-                                     f"reached their residual strength inside one{note}"))
+                                     f"reached their residual strength inside one{note}"
+                                     f"{resp.describe()}"))
 
 
 #: how the weakening state is followed: every burst's landing is recorded, and the states
