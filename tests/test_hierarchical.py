@@ -338,8 +338,12 @@ def test_memory_estimate_covers_what_is_held(rough):
         b.n, block=h.block)
 
 
-def test_laws_without_certified_decisions_refuse_the_compressed_inverse(rough):
+def test_what_the_compressed_inverse_does_not_certify_is_refused(rough):
+    """Slip-weakening refines its decisions on the compressed inverse in double precision,
+    not in single; the Coulomb law certifies its decisions in the x-only model only."""
     normal, _, _ = rough
-    with pytest.raises(InputError, match="not 'hierarchical'"):
+    with pytest.raises(InputError, match="precision = 'single'"):
         pull(normal, slip_law="slip-weakening", method="hierarchical", lam_dynamic=0.1,
-             slip_distance=0.05)
+             slip_distance=0.05, precision="single")
+    with pytest.raises(InputError, match="x-only model"):
+        pull(normal, slip_law="coulomb", method="hierarchical", components="xy")

@@ -95,7 +95,9 @@ def _solver_uses(tree: ast.AST) -> set[str]:
 def test_the_callers_use_nothing_outside_the_protocol():
     """Every attribute the pull's event logic reads on its stick solver is in the protocol
     (the certified engine's two optional reads excepted: the dense inverse's float32 matrix,
-    and a compressed inverse's matrix, ``compressed_product``, read only where present)."""
+    and a compressed inverse's matrix, ``compressed_product``, read only where present; and
+    slip-weakening's read of a compressed inverse's count of negative eigenvalues, only on an
+    inexact inverse)."""
     members = {n for n in dir(StickSolver) if not n.startswith("_")}
     members |= set(StickSolver.__annotations__)
     pkg = Path(roughslip.__file__).parent / "friction"
@@ -103,6 +105,8 @@ def test_the_callers_use_nothing_outside_the_protocol():
         used = _solver_uses(ast.parse(path.read_text()))
         if path.name == "breaking_single.py":
             used -= {"buf", "compressed_product"}
+        if path.name == "weakening.py":
+            used -= {"negatives"}
         assert used <= members, f"{path.name}: {sorted(used - members)}"
 
 

@@ -1,6 +1,7 @@
-"""The response matrix K = G_xx^-1 of a burst, dense and compressed: the compressed one
-against the dense inverse, the slip-weakening pull on it against the pull on the dense one,
-and the choice between them by memory."""
+"""Slip-weakening without dense matrices: the response K = G_xx^-1 of a burst, dense and
+compressed (the compressed one against the dense inverse, the pull on it against the pull on
+the dense one, the choice between them by memory), and the pull on the compressed inverse of
+M (``method="hierarchical"``) against the dense inverse."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from roughslip.friction import response, weakening
 from roughslip.friction.bonds import Bonds
 from roughslip.friction.pull import pull
 from roughslip.friction.response import CompressedResponse, DenseResponse, burst_response
+from roughslip.linalg.hierarchical import HierarchicalInverse
 from roughslip.surfaces.synthetic import sample_rng, self_affine
 
 EPS = float(np.finfo(float).eps)
@@ -98,3 +100,48 @@ def test_the_dense_response_when_it_fits_else_the_compressed_one(scene, monkeypa
     monkeypatch.setattr(response, "available_bytes", lambda: 2**10)
     with pytest.raises(MemoryLimitError, match=f"G_xx\\^-1 on all {b.n} bonds"):
         burst_response(b, 1e-10)
+
+
+@pytest.mark.parametrize(("seed", "depth", "nu", "lam_d", "dc", "early_stop"), [
+    (3, 2.5, 0.3, 0.1, 0.01, True),  # 591 bonds, 203 bursts
+    (3, 2.5, 0.45, 0.1, 0.01, False),  # to full sliding: residual bonds join the set
+    (2, 2.5, 0.3, 0.2, 0.05, True),  # lam_d = lam_s: the Coulomb law
+])
+def test_the_pull_on_the_compressed_inverse_takes_the_dense_inverse_events(
+        monkeypatch, seed, depth, nu, lam_d, dc, early_stop):
+    """method="hierarchical" under slip-weakening: every event, kind and site, in the same
+    order as on the dense inverse, and the same friction force within 1e-10. The second scene
+    goes on past the peak, where bursts land with residual bonds stuck again, which join the
+    set (a compressed set is compressed afresh)."""
+    h = self_affine((64, 64) if early_stop else (48, 48), hurst=0.8, rms_height=1.0,
+                    rng=sample_rng(seed, 0))
+    normal = squeeze(h, depth=depth, nu=nu, tol=1e-13)
+    kw = dict(lam=0.2, slip_law="slip-weakening", lam_dynamic=lam_d, slip_distance=dc,
+              threads=1, early_stop=early_stop)
+    dense = pull(normal, method="inverse", **kw)
+    joined = []
+    add = HierarchicalInverse.add
+    monkeypatch.setattr(HierarchicalInverse, "add",
+                        lambda self, new: joined.append(new.size) or add(self, new))
+    comp = pull(normal, method="hierarchical", **kw)
+    assert list(comp.curve.kind) == list(dense.curve.kind)
+    assert np.array_equal(comp.curve.site, dense.curve.site)
+    assert abs(comp.friction_force - dense.friction_force) <= 1e-10 * dense.friction_force
+    assert comp.converged and "hierarchical inverse every solution" in comp.message
+    assert joined or early_stop
+
+
+def test_the_whole_pull_on_compressed_matrices(monkeypatch):
+    """The compressed inverse of M and the compressed response of the bursts together: the
+    dense path's events and friction force."""
+    normal = _normal(3, 2.5)
+    kw = dict(lam=0.2, slip_law="slip-weakening", lam_dynamic=0.1, slip_distance=0.01,
+              threads=1)
+    dense = pull(normal, method="inverse", **kw)
+    monkeypatch.setattr(weakening, "burst_response",
+                        lambda b, tol, threads: CompressedResponse(b, tol, threads))
+    comp = pull(normal, method="hierarchical", **kw)
+    assert list(comp.curve.kind) == list(dense.curve.kind)
+    assert np.array_equal(comp.curve.site, dense.curve.site)
+    assert abs(comp.friction_force - dense.friction_force) <= 1e-10 * dense.friction_force
+    assert "compressed" in comp.message and comp.converged

@@ -95,6 +95,10 @@ class SlipLaw:
         decisions against the exact operator, and so runs on an inexact inverse: a
         single-precision one (``pull(..., precision="single")``) or a compressed one
         (``method="hierarchical"``); empty when it has none.
+    certified
+        The tangential models in which its engine refines every solution and column it
+        decides on against the exact operator, and so runs on a compressed inverse in double
+        precision (``method="hierarchical"``), though not in single precision.
     components
         The tangential models its decoupled engine runs (``pull.components``,
         :data:`~roughslip.friction.bonds.TANGENTIAL_MODELS`): ``"x"``, the report's model, and
@@ -116,6 +120,7 @@ class SlipLaw:
     couples_vector: bool = False
     lands: bool = False
     single: tuple[str, ...] = ()
+    certified: tuple[str, ...] = ()
     components: tuple[str, ...] = ("x",)
     engine: Callable[..., object] | None = None
     needs: frozenset[str] = frozenset({"tracked"})
@@ -253,5 +258,5 @@ LAWS.register("coulomb", "a failed bond slips, carrying lam f_z against the pull
 LAWS.register("slip-weakening", "a failed bond slips, its strength falling from lam f_z to "
               "lam_dynamic f_z over the slip slip_distance")(SlipWeakeningLaw(
     "slip-weakening", failed="slipping", curve="slip events", reverses=True, couples=True,
-    lands=True, engine=weaken,
+    lands=True, engine=weaken, certified=("x",),
     needs=frozenset({"tracked", "growing", "shifted", "indefinite"})))

@@ -197,7 +197,8 @@ class PullMethod:
             return False
         if self.solver is not None:
             return (law.engine is not None and law.needs <= self.offers
-                    and (components in law.single or not self.inexact))
+                    and (components in law.single or components in law.certified
+                         or not self.inexact))
         return self.run is not None and not law.needs
 
 
@@ -623,10 +624,9 @@ METHODS.register("inverse", "exact, an updated inverse of G_xx on the bonds (O(n
                offers=frozenset(CAPABILITIES), precisions=("double", "single"),
                components=("x", "xy")))
 METHODS.register("hierarchical", "exact with certified decisions, a compressed (HODLR) inverse "
-                 "of G_xx on the bonds (the break and Coulomb laws; a fraction of the dense "
-                 "memory)")(
+                 "of G_xx on the bonds (a fraction of the dense memory)")(
     PullMethod("hierarchical", exact=True, dense=False, blas=True,
-               solver=HierarchicalInverse, offers=frozenset({"tracked"}),
+               solver=HierarchicalInverse, offers=frozenset(CAPABILITIES),
                precisions=("double", "single"), inexact=True, above=HIERARCHICAL_ABOVE,
                components=("x", "xy")))
 METHODS.register("cg", "exact and matrix-free, a warm-started CG solve per break")(

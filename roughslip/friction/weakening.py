@@ -47,6 +47,15 @@ of the stable path and the landings. Every state the loop accepts is stable.
 Reversal: a slipping bond (weakening, or residual with a residual strength above 0) whose slip
 the pull would turn back sticks again where it is, keeping the strength it has reached.
 
+On an inexact inverse (a compressed one, ``method="hierarchical"``,
+:mod:`roughslip.linalg.hierarchical`), the same decisions are taken on refined numbers:
+:math:`\varphi` and :math:`\psi` are certified against the FFT operator after every event,
+not only after a fold, and every column whose entries decide something (the stability test
+:math:`(M^{-1})_{pp} > k_p`, the pivot whose sign counts the negative eigenvalues) is refined
+against it too; where the set grows, the compressed inverse counts the negative eigenvalues of
+its new factorisation. Every number a decision reads then has a relative residual within the
+pull's tolerance, as on the dense inverse after a fold.
+
 Limits. :math:`\lambda_d = \lambda_s` is the Coulomb law (a failed bond goes straight to its
 residual strength). :math:`\lambda_d = 0` with :math:`d_c` below the pixel's weakening scale
 is the break law: every failure is unstable and the failed bond relaxes to zero force, so each
@@ -120,16 +129,26 @@ class WeakeningState(TangentialState):
         #: the largest sum of the forces inside a burst's relaxation, and its drive
         self.inside: tuple[float, float] = (-math.inf, 0.0)
 
+        #: the stick solver's inverse is exact to rounding (dense), else every decision is
+        #: taken on solutions and columns refined against the FFT operator (module docstring)
+        self.exact = not (opt.method is not None and opt.method.inexact)
+        factory = opt.solver()
+        size = inverse_bytes if self.exact else factory.memory_bytes
+        kw = {}
+        if not self.exact:
+            iy, ix = np.divmod(b.sites, b.shape[1])
+            kw["points"] = np.column_stack([iy, ix]).astype(float)
+
         def room(m: int) -> bool:
-            if inverse_bytes(m) > available_bytes():
+            if size(m) > available_bytes():
                 raise MemoryLimitError(
-                    f"slip-weakening: the inverse on {m} bonds needs "
-                    f"~{inverse_bytes(m) / 2**30:.2f} GiB but "
+                    f"slip-weakening: the inverse on {m} bonds ({factory.kind}) needs "
+                    f"~{size(m) / 2**30:.2f} GiB but "
                     f"{available_bytes() / 2**30:.2f} GiB are available")
             return True
 
-        self.inv = opt.solver()(self._entries, n, room=room, threads=opt.threads,
-                                block=opt.block, definite=False)
+        self.inv = factory(self._entries, n, room=room, threads=opt.threads, block=opt.block,
+                           definite=False, **kw)
         try:
             self.inv.factor(np.arange(n), positive=True)  # G_xx on the bonds: all stick
         except NumericalError as exc:
@@ -177,35 +196,62 @@ class WeakeningState(TangentialState):
         t = self.inv.tracked
         return t["phi"].x, t["psi"].x, self.inv.ids, self.inv.live
 
-    def recertify(self) -> None:
-        """Check phi and psi against the FFT operator (iterative refinement, module
-        :mod:`roughslip.linalg.inverse`)."""
+    def _certify(self, x: np.ndarray, rhs: np.ndarray, scale: float) -> np.ndarray:
+        r"""``x`` (on the rows) refined until :math:`\|rhs - M x\|` is within the tolerance of
+        ``scale`` (``rhs`` on the live rows; iterative refinement, module
+        :mod:`roughslip.linalg.inverse`, with :math:`M` applied by the FFT operator)."""
         inv, b = self.inv, self.b
         live = inv.live
         pos = inv.ids[live]
         sites = b.sites[pos]
         shift = self.dshift[pos]
-        for name, rhs in (("phi", np.ones(pos.size)), ("psi", self._rhs_psi(pos))):
-            def residual(x: np.ndarray, rhs: np.ndarray = rhs) -> tuple[np.ndarray, float]:
-                v = np.zeros(b.shape)
-                v.ravel()[sites] = x[live]
-                u = b.apply(v, np.empty(b.shape)).ravel()[sites] + shift * x[live]
-                r = np.zeros(inv.m)
-                r[live] = rhs - u
-                # psi's right-hand side is a displacement of the order of the drive's
-                scale = max(float(np.linalg.norm(rhs)), self.progress.scale * math.sqrt(rhs.size),
-                            1e-300)
-                return r, float(np.linalg.norm(r[live])) / scale
 
+        def residual(x: np.ndarray) -> tuple[np.ndarray, float]:
+            v = np.zeros(b.shape)
+            v.ravel()[sites] = x[live]
+            u = b.apply(v, np.empty(b.shape)).ravel()[sites] + shift * x[live]
+            r = np.zeros(inv.m)
+            r[live] = rhs - u
+            return r, float(np.linalg.norm(r[live])) / scale
+
+        x, res, nref = inv.refine(x, residual, self.opt.tol, 3)
+        self.worst = max(self.worst, res)
+        self.refinements += nref
+        self.ok &= res <= self.opt.tol
+        return x
+
+    def recertify(self) -> None:
+        """Check phi and psi against the FFT operator (iterative refinement, module
+        :mod:`roughslip.linalg.inverse`)."""
+        inv = self.inv
+        pos = inv.ids[inv.live]
+        for name, rhs in (("phi", np.ones(pos.size)), ("psi", self._rhs_psi(pos))):
+            # psi's right-hand side is a displacement of the order of the drive's
+            scale = max(float(np.linalg.norm(rhs)), self.progress.scale * math.sqrt(rhs.size),
+                        1e-300)
             t = inv.tracked[name]
-            t.x, res, nref = inv.refine(t.x, residual, self.opt.tol, 3)
-            self.worst = max(self.worst, res)
-            self.refinements += nref
-            self.ok &= res <= self.opt.tol
+            t.x = self._certify(t.x, rhs, scale)
+
+    def _column(self, p: int) -> np.ndarray:
+        """Column ``p`` (a bond) of the current inverse on the rows; on an inexact inverse
+        refined against the FFT operator, so that the stability tests and the pivots' signs
+        read it to the tolerance."""
+        inv = self.inv
+        r = int(inv.row[p])
+        col = inv.column(r)
+        if self.exact:
+            return col
+        e = np.zeros(int(inv.live.sum()))
+        e[int(np.count_nonzero(inv.live[:r]))] = 1.0
+        return self._certify(col, e, 1.0)
 
     def _fold(self) -> None:
+        """Fold the pending updates when the block is full, and certify phi and psi then;
+        on an inexact inverse after every event (module docstring)."""
         inv = self.inv
         if inv.k < inv.block:
+            if not self.exact:
+                self.recertify()
             return
         inv.flush()
         if inv.live.sum() < 0.75 * inv.m:
@@ -390,7 +436,7 @@ class WeakeningState(TangentialState):
         if kind in (EventKind.SLIP_PLUS, EventKind.SLIP_MINUS):
             s = float(self.law.failed_direction(kind)[X])
             weakening = bool(np.any(self.phase == WEAK))
-            col = inv.column(int(inv.row[p])) if self.k[p] > 0 or weakening else None
+            col = self._column(p) if self.k[p] > 0 or weakening or not self.exact else None
             d = float(col[inv.row[p]]) if col is not None else math.inf
             if self.lam_cur[p] > self.lam_d:
                 # stable iff (M^-1)_pp > k_p: stick -> weakening from the slip and strength
@@ -412,7 +458,7 @@ class WeakeningState(TangentialState):
         elif kind == EventKind.RESIDUAL:
             s = self.sigma[p, X]
             self.delta[p] += s * (self._slip(p, D) - self.s0[p])
-            self._leave(p, s * self.lam_d * self.fz[p])
+            self._leave(p, s * self.lam_d * self.fz[p], None if self.exact else self._column(p))
         elif kind == EventKind.STICK:
             s = self.sigma[p, X]
             slip = self._slip(p, D)
@@ -420,7 +466,7 @@ class WeakeningState(TangentialState):
                 f = float(self.forces(D)[p])
                 self.delta[p] += s * (slip - self.s0[p])
                 self.lam_cur[p] = s * f / self.fz[p]
-                col = self._shift(p, 1.0 / self.k[p])
+                col = self._shift(p, 1.0 / self.k[p], None if self.exact else self._column(p))
                 self.phase[p] = STICK
                 self._set_b(p, slip, col)
             else:
@@ -518,18 +564,19 @@ class WeakeningState(TangentialState):
         if changed.size <= max(8, int(inv.live.sum()) // 8):
             for p in changed:
                 a, b = old[p], self.phase[p]
+                col = None if self.exact or a == RESIDUAL else self._column(p)
                 if b == RESIDUAL:
-                    if not inv.remove(p):
+                    if not inv.remove(p, column=col):
                         break
                     self.neg -= inv.pivot < 0
                 elif a == RESIDUAL:
                     self.dshift[p] = shift[p]
                     if not inv.add(np.array([p])):
                         break
-                    self.neg += inv.pivot < 0
+                    self.neg = self._joined_neg()
                 else:
                     delta = shift[p] - self.dshift[p]
-                    if inv.shift(p, delta) is None:
+                    if inv.shift(p, delta, column=col) is None:
                         break
                     if inv.pivot < 0:
                         self.neg += 1 if delta < 0 else -1
@@ -541,7 +588,14 @@ class WeakeningState(TangentialState):
         if not inv.factor(np.flatnonzero(~res), positive=False):
             raise MemoryLimitError("slip-weakening: out of memory for the inverse after a "
                                    "burst")
-        self.neg = int(np.count_nonzero(weak))  # the landing is stable
+        # the landing is stable; a compressed inverse counts it from its factorisation
+        self.neg = int(np.count_nonzero(weak)) if self.exact else inv.negatives
+
+    def _joined_neg(self) -> int:
+        """The negative eigenvalues of :math:`M` after a bond joined the set: one more if its
+        Schur complement (the pivot) is negative; a compressed inverse, which compresses the
+        new set afresh, counts them from its factorisation."""
+        return self.neg + (self.inv.pivot < 0) if self.exact else self.inv.negatives
 
     def _slip(self, p: int, D: float) -> float:
         """The slip :math:`s = D - u` of bond ``p`` at ``D``."""
@@ -564,8 +618,7 @@ class WeakeningState(TangentialState):
         if not done:
             raise NumericalError("slip-weakening: a singular update of the inverse"
                                  if done is False else "slip-weakening: out of memory")
-        if inv.pivot < 0:  # its Schur complement
-            self.neg += 1
+        self.neg = self._joined_neg()
         self._retrack()
 
     def result(self, path: EventPath, t0: float) -> PullResult:
@@ -591,7 +644,15 @@ class WeakeningState(TangentialState):
             early_stopped=self.stopped,
             message=path.message or (f"{end}, {n_jumps} burst(s), {self.snaps} bond(s) "
                                      f"reached their residual strength inside one{note}"
-                                     f"{resp.describe()}"))
+                                     f"{resp.describe()}{self._refined()}"))
+
+    def _refined(self) -> str:
+        """What the message adds on an inexact inverse ("" on a dense one)."""
+        if self.exact:
+            return ""
+        return (f"; on the {self.inv.kind} inverse every solution and column decided on was "
+                f"refined against the FFT operator ({self.refinements} corrections, relative "
+                f"residuals within {self.worst:.1e})")
 
 
 #: how the weakening state is followed: every burst's landing is recorded, and the states
