@@ -1,7 +1,8 @@
 """The exact pull's inverse in double and in single precision, and compressed, side by side.
 
     python scripts/bench_precision.py [--size 256] [--area 0.2] [--repeat 3] [--threads 2]
-                                      [--slip-law break|coulomb]
+                                      [--slip-law break|coulomb|slip-weakening]
+                                      [--law 0.1:0.05]
                                       [--variants double single hierarchical
                                                   hierarchical-single vector
                                                   vector-single vector-hierarchical
@@ -20,7 +21,8 @@ the break sequences are identical to the reference's, the friction forces' relat
 difference and each certified path's counters, then every run's seconds and the time ratio
 of each alternating pair (a variant over the reference run just before it), whose spread
 shows how far the machine's scatter moves the ratio. ``--slip-law coulomb`` pulls under the
-Coulomb law instead (its event sequence, sites and kinds, is compared).
+Coulomb law instead (its event sequence, sites and kinds, is compared), ``--slip-law
+slip-weakening`` under slip-weakening with ``--law lam_d:d_c`` (double precision only).
 """
 
 from __future__ import annotations
@@ -52,7 +54,8 @@ VARIANTS = {"double": ("inverse", "double", "x"), "single": ("inverse", "single"
             "vector-hierarchical-single": ("hierarchical", "single", "xy")}
 
 
-def child(size: int, area: float, variant: str, threads: int, out: str, law: str) -> None:
+def child(size: int, area: float, variant: str, threads: int, out: str, law: str,
+          params: str = "0.1:0.05") -> None:
     sys.path.insert(0, os.path.dirname(__file__))
     from bench_pull import contact
 
@@ -62,8 +65,12 @@ def child(size: int, area: float, variant: str, threads: int, out: str, law: str
     before = _rss()
     t0 = time.perf_counter()
     method, precision, components = VARIANTS[variant]
+    kw = {}
+    if law == "slip-weakening":
+        ld, dc = (float(v) for v in params.split(":"))
+        kw = {"lam_dynamic": ld, "slip_distance": dc}
     res = pull(normal, lam=0.2, method=method, tol=1e-10, threads=threads,
-               precision=precision, components=components, slip_law=law)
+               precision=precision, components=components, slip_law=law, **kw)
     sec = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     kinds = np.array([str(k) for k in res.curve.kind[1:]])
@@ -83,11 +90,13 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--variants", nargs="+", choices=list(VARIANTS),
                     default=["double", "single"])
-    ap.add_argument("--slip-law", default="break", choices=["break", "coulomb"])
+    ap.add_argument("--slip-law", default="break",
+                    choices=["break", "coulomb", "slip-weakening"])
+    ap.add_argument("--law", default="0.1:0.05", help="lam_d:d_c of slip-weakening")
     ap.add_argument("--child", nargs=2, metavar=("VARIANT", "OUT"), help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
-        child(a.size, a.area, a.child[0], a.threads, a.child[1], a.slip_law)
+        child(a.size, a.area, a.child[0], a.threads, a.child[1], a.slip_law, a.law)
         return
     runs: dict[str, list[dict]] = {v: [] for v in a.variants}
     seqs: dict[str, np.ndarray] = {}
@@ -96,7 +105,7 @@ def main() -> None:
         for p in runs:
             subprocess.run([sys.executable, __file__, "--size", str(a.size), "--area",
                             str(a.area), "--threads", str(a.threads), "--slip-law",
-                            a.slip_law, "--child", p, tmp],
+                            a.slip_law, "--law", a.law, "--child", p, tmp],
                            check=True)
             with open(tmp + ".json") as f:
                 runs[p].append(json.load(f))
@@ -105,8 +114,9 @@ def main() -> None:
            for p, rs in runs.items()}
     ref = a.variants[0]
     d = runs[ref][0]
+    law = a.slip_law + (f" {a.law}" if a.slip_law == "slip-weakening" else "")
     print(f"# cores: {os.cpu_count()}, threads {a.threads}; N = {a.size}, area {a.area}, "
-          f"{d['bonds']} bonds, slip law {a.slip_law}, medians of {a.repeat}")
+          f"{d['bonds']} bonds, slip law {law}, medians of {a.repeat}")
     w = max(12, *(len(p) for p in runs))
     print(f"{'variant':>{w}} {'sec':>8} {'peak GiB':>9} {'pull GiB':>9} {'steps':>6} "
           f"{'F_friction':>20}")

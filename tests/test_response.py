@@ -75,7 +75,7 @@ def test_a_pull_on_the_compressed_response_takes_the_same_events(monkeypatch, se
               threads=1)
     dense = pull(normal, **kw)
     monkeypatch.setattr(weakening, "burst_response",
-                        lambda b, tol, threads: CompressedResponse(b, tol, threads))
+                        lambda b, tol, threads, compressed: CompressedResponse(b, tol, threads))
     comp = pull(normal, **kw)
     assert dense.curve.kind.count("jump") >= 10
     assert list(comp.curve.kind) == list(dense.curve.kind)
@@ -88,6 +88,7 @@ def test_a_pull_on_the_compressed_response_takes_the_same_events(monkeypatch, se
 def test_the_dense_response_when_it_fits_else_the_compressed_one(scene, monkeypatch):
     b = Bonds(scene, 0.2)
     assert isinstance(burst_response(b, 1e-10), DenseResponse)
+    assert isinstance(burst_response(b, 1e-10, compressed=True), CompressedResponse)
     monkeypatch.setattr(response, "CACHE_BYTES", 2**16)
     room = CompressedResponse.memory_bytes(b.n)
     assert room < 2 * response.inverse_bytes(b.n)  # what the dense response takes
@@ -128,20 +129,6 @@ def test_the_pull_on_the_compressed_inverse_takes_the_dense_inverse_events(
     assert np.array_equal(comp.curve.site, dense.curve.site)
     assert abs(comp.friction_force - dense.friction_force) <= 1e-10 * dense.friction_force
     assert comp.converged and "hierarchical inverse every solution" in comp.message
+    assert "the bursts read G_xx^-1 compressed" in comp.message or not comp.curve.kind.count(
+        "jump")
     assert joined or early_stop
-
-
-def test_the_whole_pull_on_compressed_matrices(monkeypatch):
-    """The compressed inverse of M and the compressed response of the bursts together: the
-    dense path's events and friction force."""
-    normal = _normal(3, 2.5)
-    kw = dict(lam=0.2, slip_law="slip-weakening", lam_dynamic=0.1, slip_distance=0.01,
-              threads=1)
-    dense = pull(normal, method="inverse", **kw)
-    monkeypatch.setattr(weakening, "burst_response",
-                        lambda b, tol, threads: CompressedResponse(b, tol, threads))
-    comp = pull(normal, method="hierarchical", **kw)
-    assert list(comp.curve.kind) == list(dense.curve.kind)
-    assert np.array_equal(comp.curve.site, dense.curve.site)
-    assert abs(comp.friction_force - dense.friction_force) <= 1e-10 * dense.friction_force
-    assert "compressed" in comp.message and comp.converged

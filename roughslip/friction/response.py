@@ -16,8 +16,9 @@ blocks between the moving bonds and the others, single columns, diagonal entries
   used dropped first: a dropped column is recomputed to the same bits). It takes
   :math:`O(n k \log n)` words instead of :math:`n^2`.
 
-:func:`burst_response` takes the dense form whenever it fits in memory, so a pull that could
-hold it gives the numbers it always gave.
+:func:`burst_response` takes the dense form whenever it fits in memory and the pull's own
+inverse is dense, so such a pull gives the numbers it always gave; a pull on a compressed
+inverse takes the compressed form.
 """
 
 from __future__ import annotations
@@ -208,13 +209,15 @@ class CompressedResponse:
 NO_BURSTS = DenseResponse(np.zeros((0, 0)))
 
 
-def burst_response(b: Bonds, tol: float, threads: int = 1) -> Response:
+def burst_response(b: Bonds, tol: float, threads: int = 1, compressed: bool = False
+                   ) -> Response:
     r""":math:`K` for the bursts of a pull: dense when it and the inverse of a burst's matrix on
-    all bonds fit in memory (twice :func:`~roughslip.linalg.inverse.inverse_bytes`), else
+    all bonds fit in memory (twice :func:`~roughslip.linalg.inverse.inverse_bytes`) and the
+    pull holds no compressed matrix (``compressed``: its stick solver is compressed), else
     compressed (:class:`CompressedResponse`), whose bursts then check the memory of their own
     moving set; :class:`~roughslip.errors.MemoryLimitError` when neither fits."""
     n = b.n
-    if 2 * inverse_bytes(n) <= available_bytes():
+    if not compressed and 2 * inverse_bytes(n) <= available_bytes():
         K = np.asfortranarray(b.dense())
         lapack64.mirror_lower(lapack64.cholesky_inverse(K))  # G_xx is positive definite
         return DenseResponse(K)

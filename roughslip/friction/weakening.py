@@ -482,10 +482,12 @@ class WeakeningState(TangentialState):
     def _relaxation(self) -> Relaxation:
         """The fast-time flow of a burst, on :math:`K = G_{xx}^{-1}` over all bonds (made at
         the first burst): dense when it and the inverse of B on the moving bonds, at most as
-        large (:mod:`~roughslip.friction.least`), fit in memory, else compressed and certified
-        against the FFT operator (:func:`~roughslip.friction.response.burst_response`)."""
+        large (:mod:`~roughslip.friction.least`), fit in memory and the stick solver is
+        exact, else compressed and certified against the FFT operator
+        (:func:`~roughslip.friction.response.burst_response`)."""
         if self._relax is None:
-            response = burst_response(self.b, self.opt.tol, self.opt.threads)
+            response = burst_response(self.b, self.opt.tol, self.opt.threads,
+                                      compressed=not self.exact)
             self._relax = Relaxation(response, self.fz, self.lam_s, self.lam_d, self.dc)
         return self._relax
 
