@@ -53,7 +53,7 @@ def _pull(normal, lam_d: float, dc: float, threads: int, flow: bool) -> tuple:
     def record_landing(self, landing):
         rx = self._relax
         w0 = self._burst_slips
-        force = self._burst_forces - rx.K @ (landing.w - w0)
+        force = self._burst_forces - rx.response.times(landing.w - w0)
         cap = rx.strength(landing.delta) * rx.fz
         P = landing.moving & ~((rx.lam_d == 0) & (landing.delta >= rx.dc))
         exc = float(np.abs(landing.sigma * force - cap)[P].max(initial=0.0)) / rx.fs

@@ -347,3 +347,34 @@ def test_what_the_compressed_inverse_does_not_certify_is_refused(rough):
              slip_distance=0.05, precision="single")
     with pytest.raises(InputError, match="x-only model"):
         pull(normal, slip_law="coulomb", method="hierarchical", components="xy")
+
+
+def test_a_definite_set_grows_and_a_full_buffer_folds_a_shift(scene):
+    """Adding to a positive definite set borders its solution and compresses it afresh
+    (a Schur complement that is not positive is refused); a shift that meets a full buffer
+    is folded into the leaf at once."""
+    pts, entries, A = scene
+    h = _held(pts, entries, leaf=32, tol=1e-10)
+    h.tracked["phi"] = Tracked(np.ones(900), h.apply(np.ones(900)), lambda ids: np.ones(ids.size))
+    assert h.remove(4) and h.remove(600)
+    assert h.add(np.array([600])) is True and h.pivot > 0
+    keep = np.setdiff1d(np.arange(900), [4])
+    live = np.flatnonzero(h.live)
+    at = np.argsort(h.ids[live])
+    Ai = np.linalg.inv(A[np.ix_(keep, keep)])
+    bound = 10 * np.linalg.cond(A) * 1e-10 * np.abs(Ai).max()
+    np.testing.assert_allclose(h.tracked["phi"].x[live][at], Ai.sum(1), rtol=0,
+                               atol=bound * 900)
+
+    dshift = np.zeros(900)
+    g = HierarchicalInverse(_shifted(pts, dshift), 900, room=lambda m: True, points=pts,
+                            definite=False, leaf=32, tol=1e-10, capacity=2, block=2)
+    g.factor(np.arange(900))
+    done = g.factorisations
+    for u in (3, 5, 7):  # the third meets a full buffer
+        assert g.shift(u, -3.0) is not None
+        dshift[u] -= 3.0
+    assert g.factorisations == done + 1 and g.k == 0 and g.negatives == 3
+    Bi = np.linalg.inv(_shifted(pts, dshift)(np.arange(900), np.arange(900)))
+    np.testing.assert_allclose(g.column(5), Bi[:, 5], rtol=0,
+                               atol=10 * np.linalg.cond(Bi) * 1e-10 * np.abs(Bi).max())

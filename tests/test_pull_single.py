@@ -18,9 +18,10 @@ from roughslip.friction.pull import (
     inverse_memory_bytes,
     pull,
 )
+from roughslip.friction.response import CompressedResponse
 from roughslip.linalg import lapack64, memory
 from roughslip.linalg.hierarchical import HierarchicalInverse
-from roughslip.linalg.inverse import LOWER_RESERVE, UpdatableInverse
+from roughslip.linalg.inverse import LOWER_RESERVE, UpdatableInverse, inverse_bytes
 from roughslip.surfaces.synthetic import sample_rng, self_affine, sphere
 
 EPS32 = float(np.finfo(np.float32).eps)
@@ -260,7 +261,14 @@ def test_auto_chooses_double_when_it_fits_and_single_when_only_that_fits():
     assert choose_precision(n, memory=between, method="hierarchical") == "single"
     assert choose_precision(n, memory=compressed, method="hierarchical") == "double"
     assert choose_method(n, memory=between, precision="double") == "cg"
-    assert choose_method(n, memory=between, **sw) != "hierarchical"
+    # slip-weakening: the dense inverse with spare rows and its bursts' two, else compressed
+    sw_dense = 3 * inverse_bytes(n, block=128)
+    sw_compressed = compressed + CompressedResponse.memory_bytes(n)
+    assert sw_compressed < sw_dense
+    assert choose_method(n, memory=sw_dense, **sw) == "inverse"
+    assert choose_method(n, memory=sw_dense - 1, **sw) == "hierarchical"
+    assert choose_method(n, memory=sw_compressed, **sw) == "hierarchical"
+    assert choose_precision(n, memory=sw_compressed, method="hierarchical", **sw) == "double"
     assert choose_method(n, memory=half // 2) == "cg"
     assert choose_method(5, precision="single") == "inverse"  # not the literal algorithm
 

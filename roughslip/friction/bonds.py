@@ -258,6 +258,12 @@ class Bonds:
         out.ravel()[sites] = values
         return out
 
+    def points(self) -> np.ndarray:
+        """The point ``(iy, ix)`` of each unknown (a bond's components share its site), for
+        a compressed solver's cluster tree."""
+        iy, ix = np.divmod(np.repeat(self.sites, self.k), self.shape[1])
+        return np.column_stack([iy, ix]).astype(float)
+
     def mask(self, positions: np.ndarray) -> np.ndarray:
         m = np.zeros(self.shape, dtype=bool)
         m.ravel()[self.sites[positions]] = True
@@ -460,9 +466,8 @@ def bond_inverse(b: Bonds, block: int, threads: int, dtype: type = np.float64,
                 f"{available_bytes() / 2**30:.2f} GiB are available; use {other}{last}")
         return True
 
-    iy, ix = np.divmod(np.repeat(b.sites, b.k), b.shape[1])
     inv = solver(b.entries, n, room=room, threads=threads, block=block, lower=True,
-                 dtype=dtype, points=np.column_stack([iy, ix]).astype(float))
+                 dtype=dtype, points=b.points())
     try:
         inv.factor(np.arange(n))
     except NumericalError as exc:

@@ -63,6 +63,7 @@ from roughslip.friction.pull_estimates import (  # noqa: F401  (public here too)
     normal_share,
     refinement_estimate,
 )
+from roughslip.friction.response import CompressedResponse
 from roughslip.friction.result import PullResult, PullState
 from roughslip.linalg import lapack64
 from roughslip.linalg.hierarchical import HierarchicalInverse
@@ -163,8 +164,9 @@ class PullMethod:
         :func:`choose_method`).
     inexact
         Its stick solver's inverse carries an error beyond rounding (a compressed one): it runs
-        only the laws whose engines certify their decisions against the exact operator
-        (:attr:`~roughslip.friction.laws.SlipLaw.single`).
+        only the laws whose engines certify or refine their decisions against the exact
+        operator (:attr:`~roughslip.friction.laws.SlipLaw.single`,
+        :attr:`~roughslip.friction.laws.SlipLaw.certified`).
     components
         The tangential models it runs (``pull.components``,
         :data:`~roughslip.friction.bonds.TANGENTIAL_MODELS`).
@@ -254,29 +256,41 @@ def choose_precision(n: int, memory: int | None = None, slip_law: str | SlipLaw 
     for another (with ``per_point`` unknowns at each point, the tangential components)."""
     memory = available_bytes() if memory is None else memory
     m = _method(method)
-    if (_matrix_bytes(m, n, "double", block, per_point) <= memory
+    law = _law(slip_law)
+    if (_matrix_bytes(m, n, "double", block, per_point, law) <= memory
             or not single_ok(slip_law, method, components)):
         return "double"
-    return ("single" if _matrix_bytes(m, n, "single", block, per_point) <= memory
+    return ("single" if _matrix_bytes(m, n, "single", block, per_point, law) <= memory
             else "double")
 
 
 def _matrix_bytes(m: PullMethod, n: int, precision: str, block: int = 128,
-                  per_point: int = 1) -> int:
-    """The memory of ``m``'s matrix for ``n`` unknowns in ``precision``:
+                  per_point: int = 1, law: SlipLaw | None = None) -> int:
+    """The memory of ``m``'s matrices for ``n`` unknowns in ``precision``:
     :func:`inverse_memory_bytes` for a dense method, the stick solver's estimate for
-    another (``per_point`` unknowns at each point: the tangential components)."""
+    another (``per_point`` unknowns at each point: the tangential components). A ``law``
+    whose matrix grows or shifts (slip-weakening) takes the dense inverse with spare rows
+    (:func:`~roughslip.linalg.inverse.inverse_bytes`), and one whose bursts read the response
+    :math:`G_{xx}^{-1}` on all bonds adds what they hold: two more such inverses beside a
+    dense one, the compressed response beside a compressed one
+    (:mod:`roughslip.friction.response`)."""
+    full = law is not None and not law.needs <= {"tracked"}
+    bursts = law is not None and law.lands
     if m.dense or m.solver is None:
-        return inverse_memory_bytes(n, block, precision)
+        if not full:
+            return inverse_memory_bytes(n, block, precision)
+        return (3 if bursts else 1) * inverse_bytes(n, block=block)
     k = {"per_point": per_point} if per_point > 1 else {}
-    return m.solver.memory_bytes(n, itemsize=4 if precision == "single" else 8, **k)
+    own = m.solver.memory_bytes(n, itemsize=4 if precision == "single" else 8, **k)
+    return own + (CompressedResponse.memory_bytes(n) if bursts else 0)
 
 
 def _fits(m: PullMethod, n: int, law: SlipLaw, precision: str, memory: int,
           per_point: int = 1, components: str = "x") -> bool:
     """Whether ``m``'s matrix for ``n`` bonds fits in ``memory`` in a precision that
     ``precision`` (``"auto"``: any) and the law allow (single: :func:`single_ok`)."""
-    return any(_matrix_bytes(m, n, p, per_point=per_point) <= memory for p in m.precisions
+    return any(_matrix_bytes(m, n, p, per_point=per_point, law=law) <= memory
+               for p in m.precisions
                if precision in ("auto", p) and (p == "double"
                                                 or single_ok(law, m, components)))
 

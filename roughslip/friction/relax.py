@@ -95,7 +95,7 @@ class _Piece:
         self.free = (rx.lam_d == 0) & (delta[P] >= rx.dc)
         self.kap = np.where(delta[P] < rx.dc, (rx.lam_s - rx.lam_d) / rx.dc, 0.0) * fz[P]
         self.s = s = st.sigma[P]
-        rx.response.room(P.size)
+        rx.response.room(P.size, 8 * Q.size * P.size)  # B's eigenvectors and K_QP
         self.B = s[:, None] * rx.response.block(P, P) * s[None, :] - np.diag(self.kap)
         self.r = rx.eta * s * rx.K1[P]  # the drive, in fast time
         self.e0 = e[P]

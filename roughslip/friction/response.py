@@ -42,7 +42,8 @@ REFINEMENTS = 4
 
 
 class Response(Protocol):
-    """:math:`K = G_{xx}^{-1}` on all bonds, as a burst reads it (module docstring)."""
+    """:math:`K = G_{xx}^{-1}` on all bonds, as a burst reads it (module docstring). What it
+    returns is read, never changed in place (a column may be a view or a kept array)."""
 
     #: :math:`K 1`, the forces of a unit drive with every bond stuck
     row_sums: np.ndarray
@@ -66,9 +67,9 @@ class Response(Protocol):
         """:math:`K v`."""
         ...
 
-    def room(self, m: int) -> bool:
-        """Whether a burst may invert its matrix on ``m`` moving bonds (raises
-        :class:`~roughslip.errors.MemoryLimitError` when not)."""
+    def room(self, m: int, extra: int = 0) -> bool:
+        """Whether a burst may invert its matrix on ``m`` moving bonds and hold ``extra`` bytes
+        besides (raises :class:`~roughslip.errors.MemoryLimitError` when not)."""
         ...
 
     def describe(self) -> str:
@@ -96,7 +97,7 @@ class DenseResponse:
     def times(self, v: np.ndarray) -> np.ndarray:
         return self.K @ v
 
-    def room(self, m: int) -> bool:
+    def room(self, m: int, extra: int = 0) -> bool:
         """Always: :func:`burst_response` counted a burst's inverse on all bonds."""
         return True
 
@@ -122,15 +123,15 @@ class CompressedResponse:
     def __init__(self, b: Bonds, tol: float, threads: int = 1) -> None:
         self.b, self.tol = b, float(tol)
         n = b.n
-        iy, ix = np.divmod(b.sites, b.shape[1])
+        # nothing is ever updated: no buffer of pending terms
         self.inv = HierarchicalInverse(b.entries, n, room=lambda m: True, threads=threads,
-                                       points=np.column_stack([iy, ix]).astype(float))
+                                       points=b.points(), block=1, capacity=1)
         try:
             self.inv.factor(np.arange(n))
         except NumericalError as exc:
             raise NumericalError(f"G_xx on all bonds: {exc}") from None
         self.columns: OrderedDict[int, np.ndarray] = OrderedDict()
-        self.capacity = max(16, CACHE_BYTES // (8 * max(n, 1)))
+        self.capacity = max(16, CACHE_BYTES // (8 * max(n, 1)))  # columns kept
         #: the largest relative residual reached, and the corrections made
         self.worst, self.refinements = 0.0, 0
         self.computed = 0  # columns computed (a dropped one again when read again)
@@ -139,7 +140,7 @@ class CompressedResponse:
     @staticmethod
     def memory_bytes(n: int) -> int:
         """What it holds for ``n`` bonds (bytes): the compressed inverse and the columns."""
-        return hierarchical_bytes(n) + CACHE_BYTES
+        return hierarchical_bytes(n, capacity=1) + CACHE_BYTES
 
     def _solve(self, e: np.ndarray, x: np.ndarray) -> np.ndarray:
         """``x`` refined until :math:`\\|e - G_{xx} x\\| \\le` ``tol`` :math:`\\|e\\|`."""
@@ -154,7 +155,7 @@ class CompressedResponse:
         x, res, done = self.inv.refine(x, residual, self.tol, REFINEMENTS)
         self.worst, self.refinements = max(self.worst, res), self.refinements + done
         if not res <= self.tol:
-            raise NumericalError(f"slip-weakening: a column of G_xx^-1 on {b.n} bonds kept a "
+            raise NumericalError(f"slip-weakening: a solve with G_xx on {b.n} bonds kept a "
                                  f"relative residual of {res:.1e} above the tolerance "
                                  f"{self.tol:.1e} after {done} refinements")
         return x
@@ -189,10 +190,10 @@ class CompressedResponse:
             return np.zeros(self.b.n)
         return self._solve(v, self.inv.apply(v))
 
-    def room(self, m: int) -> bool:
-        """Whether the inverse of a burst's matrix on ``m`` moving bonds fits in memory; raises
-        :class:`~roughslip.errors.MemoryLimitError` when not."""
-        need = inverse_bytes(m)
+    def room(self, m: int, extra: int = 0) -> bool:
+        """Whether the inverse of a burst's matrix on ``m`` moving bonds and ``extra`` bytes fit
+        in memory; raises :class:`~roughslip.errors.MemoryLimitError` when not."""
+        need = inverse_bytes(m) + extra
         if need > available_bytes():
             raise MemoryLimitError(
                 f"slip-weakening: a burst moves {m} bonds, whose matrix's inverse needs "

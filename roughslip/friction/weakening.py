@@ -134,10 +134,6 @@ class WeakeningState(TangentialState):
         self.exact = not (opt.method is not None and opt.method.inexact)
         factory = opt.solver()
         size = inverse_bytes if self.exact else factory.memory_bytes
-        kw = {}
-        if not self.exact:
-            iy, ix = np.divmod(b.sites, b.shape[1])
-            kw["points"] = np.column_stack([iy, ix]).astype(float)
 
         def room(m: int) -> bool:
             if size(m) > available_bytes():
@@ -148,7 +144,7 @@ class WeakeningState(TangentialState):
             return True
 
         self.inv = factory(self._entries, n, room=room, threads=opt.threads, block=opt.block,
-                           definite=False, **kw)
+                           definite=False, points=b.points())
         try:
             self.inv.factor(np.arange(n), positive=True)  # G_xx on the bonds: all stick
         except NumericalError as exc:
@@ -563,7 +559,9 @@ class WeakeningState(TangentialState):
         shift = np.where(weak, -1.0 / np.where(weak, self.k, 1.0), 0.0)
         changed = np.flatnonzero(self.phase != old)
         inv = self.inv
-        if changed.size <= max(8, int(inv.live.sum()) // 8):
+        # a compressed set that a bond joins is compressed afresh: factorise it once
+        joins = not self.exact and bool(np.any(old[changed] == RESIDUAL))
+        if changed.size <= max(8, int(inv.live.sum()) // 8) and not joins:
             for p in changed:
                 a, b = old[p], self.phase[p]
                 col = None if self.exact or a == RESIDUAL else self._column(p)

@@ -73,7 +73,7 @@ from roughslip.linalg.inverse import (
     UpdatableInverse,
     _keep_order,
     _nonsingular,
-    _rank_one,
+    shift_pivot,
     take_out,
 )
 from roughslip.linalg.threads import blas_threads
@@ -192,7 +192,8 @@ def model_rank(s: float, max_rank: int = MAX_RANK, per_point: int = 1) -> int:
 
 
 def hierarchical_bytes(m: int, *, leaf: int = LEAF, max_rank: int = MAX_RANK,
-                       block: int = 512, itemsize: int = 8, per_point: int = 1) -> int:
+                       block: int = 512, itemsize: int = 8, per_point: int = 1,
+                       capacity: int | None = None) -> int:
     """The memory a :class:`HierarchicalInverse` of order ``m`` is estimated to take (bytes):
     the dense leaves and their inverses; on each level of the cluster tree the bases ``U, V``
     and their solves ``Y`` (every unknown has one row of each, of the level's rank,
@@ -201,10 +202,10 @@ def hierarchical_bytes(m: int, *, leaf: int = LEAF, max_rank: int = MAX_RANK,
     is :meth:`HierarchicalInverse.nbytes`. ``itemsize``: 8 in double precision, 4 in
     single. ``per_point``: the unknowns at each point (:func:`model_rank`; 2 for the traction
     vector, whose blocks carry both components: at 3 275 bonds 261 MiB estimated, 208
-    held)."""
+    held). ``capacity``: the pending terms held (:class:`HierarchicalInverse`)."""
     if m == 0:
         return 0
-    words = 2 * m * leaf + m * max(block, FOLD_MAX)
+    words = 2 * m * leaf + m * (max(block, FOLD_MAX) if capacity is None else capacity)
     s, count, top = float(m), 1, 0
     while s > leaf:
         r = model_rank(s, max_rank, per_point)
@@ -268,9 +269,9 @@ class _Cluster:
 
 
 class HierarchicalInverse:
-    """The inverse of a symmetric positive definite matrix on a shrinking set of unknowns, as a
-    HODLR factorisation with pending removals (module docstring); a
-    :class:`~roughslip.linalg.stick.StickSolver` for sets that only shrink.
+    """The inverse of a symmetric matrix on a changing set of unknowns, as a HODLR
+    factorisation with pending rank-one updates (module docstring); a
+    :class:`~roughslip.linalg.stick.StickSolver`.
 
     Parameters
     ----------
@@ -286,7 +287,10 @@ class HierarchicalInverse:
     threads
         BLAS threads of the factorisation.
     block
-        Pending rank-one terms kept before they are folded in.
+        Pending rank-one terms kept before they are folded in (at least, :meth:`_balance`).
+    capacity
+        The most pending terms held (default: the larger of ``block`` and
+        :data:`FOLD_MAX`); an inverse that is never updated takes 1.
     tol, leaf, max_rank
         The compression (module docstring).
     definite
@@ -309,7 +313,8 @@ class HierarchicalInverse:
     def __init__(self, entries: Entries, size: int, *, room: Callable[[int], bool],
                  points: np.ndarray, threads: int = 1, block: int = 512,
                  definite: bool = True, lower: bool = True, dtype: type = np.float64,
-                 tol: float = TOL, leaf: int = LEAF, max_rank: int = MAX_RANK) -> None:
+                 tol: float = TOL, leaf: int = LEAF, max_rank: int = MAX_RANK,
+                 capacity: int | None = None) -> None:
         if np.dtype(dtype) not in (np.float64, np.float32):
             raise ValueError("the hierarchical inverse holds a matrix in double or single "
                              "precision")
@@ -317,7 +322,7 @@ class HierarchicalInverse:
         self.entries, self.room, self.threads = entries, room, threads
         #: pending terms the buffer holds, and the fold point callers read (set after each
         #: factorisation by the cost balance, :meth:`_balance`)
-        self.capacity = max(int(block), FOLD_MAX)
+        self.capacity = max(int(block), FOLD_MAX) if capacity is None else int(capacity)
         self.floor = self.block = int(block)
         self.flops = 0.0  # counted since the last factorisation began
         self.points = np.asarray(points, dtype=float)
@@ -473,6 +478,9 @@ class HierarchicalInverse:
                     continue
                 k = c.U.shape[1]
                 c.YL = c.YR = c.T = None  # a fold's old solves go before the new are made
+                if k == 0 and not self.definite:  # uncoupled halves: nothing to invert
+                    neg[n] = neg[c.left] + neg[c.left + 1]
+                    continue
                 c.YL = self._solve(c.left, c.U.copy())
                 c.YR = self._solve(c.left + 1, c.V.copy())
                 S = np.block([[(c.U.T @ c.YL).astype(np.float64), np.eye(k)],
@@ -694,9 +702,10 @@ class HierarchicalInverse:
         self.pending_shift[:] = 0.0
 
     def compact(self, extra: int = 0) -> bool:
-        """Drop the removed rows (tracked solutions follow); no row can be added."""
+        """Drop the removed rows (tracked solutions follow); no spare rows are kept
+        (:meth:`add` compresses the new set afresh)."""
         if extra:
-            raise ValueError("the hierarchical inverse holds a set that only shrinks")
+            raise ValueError("the hierarchical inverse keeps no spare rows: add() grows it")
         self.flush()
         keep = np.flatnonzero(self.live)
         new = np.full(self.m, -1, dtype=np.int64)
@@ -721,29 +730,22 @@ class HierarchicalInverse:
         :meth:`~roughslip.linalg.inverse.UpdatableInverse.shift`: the new column, or None when
         :math:`1 + \delta c_r` is numerically zero; its sign in :attr:`pivot` gives the change
         of inertia). The assembler must give the shifted entry from now on (for
-        :meth:`add`); a fold adds the shift to the compressed leaf."""
+        :meth:`factor` and :meth:`add`); a fold adds the shift to the compressed leaf."""
         if self.definite:
             raise ValueError("a definite hierarchical inverse holds no shifted diagonal")
         r = int(self.row[unknown])
         c = self.column(r) if column is None else column
-        dc = delta * float(c[r])
-        den = 1.0 + dc
-        if not (math.isfinite(den) and abs(den) > self.m * np.finfo(float).eps * max(1.0,
-                                                                                  abs(dc))):
+        g = shift_pivot(self, r, c, delta)
+        if g is None:
             return None
-        self.pivot = den
-        if den < 0:
+        if self.pivot < 0:
             self.negatives += 1 if delta < 0 else -1
-        self.shifts += 1
-        g = delta / den
-        for t in self.tracked.values():
-            _rank_one(t.x, c, g * t.x[r])
         self.pending_shift[r] += delta
         if self.k == self.capacity:  # the fold takes the shift into the leaf
             self.flush()
         else:
             self._push(c * math.sqrt(abs(g)), -1.0 if g > 0 else 1.0)
-        return c / den
+        return c / self.pivot
 
     def add(self, new: np.ndarray) -> bool | None:
         r"""Add the unknowns ``new`` to the set: the pivots come from the Schur complement

@@ -218,6 +218,25 @@ def take_out(inv: object, r: int, c: np.ndarray, held: dict[str, float] | None) 
     inv.row[inv.ids[r]] = -1
 
 
+def shift_pivot(inv: object, r: int, c: np.ndarray, delta: float) -> float | None:
+    r"""Shift the diagonal entry of row ``r`` of ``inv`` (an inverse with ``tracked``, ``m``,
+    ``pivot`` and ``shifts``) by ``delta``, ``c`` the row's current column: the pivot
+    :math:`1 + \delta c_r` (None, nothing changed, when it is numerically zero: at or below
+    ``m x eps`` times :math:`\max(1, |\delta c_r|)`), kept in ``pivot``, and each tracked
+    solution becomes :math:`x - c\,\delta x_r/(1 + \delta c_r)`. Returns the weight
+    :math:`g = \delta/(1 + \delta c_r)` of the pending term :math:`-g\,c\,c^T`."""
+    dc = delta * float(c[r])
+    den = 1.0 + dc
+    if not (math.isfinite(den) and abs(den) > inv.m * np.finfo(float).eps * max(1.0, abs(dc))):
+        return None
+    inv.pivot = den
+    inv.shifts += 1
+    g = delta / den
+    for t in inv.tracked.values():
+        _rank_one(t.x, c, g * t.x[r])
+    return g
+
+
 def _keep_order(old: np.ndarray, new: np.ndarray) -> np.ndarray:
     """``new`` in the memory order of ``old`` (a tracked block stays Fortran-ordered)."""
     return np.asfortranarray(new) if old.ndim == 2 and old.flags.f_contiguous else new
@@ -537,18 +556,11 @@ class UpdatableInverse:
             raise ValueError("a lower-triangle inverse holds a set that only shrinks")
         r = int(self.row[unknown])
         c = self.column(r) if column is None else column
-        dc = delta * float(c[r])
-        den = 1.0 + dc
-        if not (math.isfinite(den) and abs(den) > self.m * np.finfo(float).eps * max(1.0,
-                                                                                  abs(dc))):
+        g = shift_pivot(self, r, c, delta)
+        if g is None:
             return None
-        self.pivot = den
-        self.shifts += 1
-        g = delta / den
-        for t in self.tracked.values():
-            _rank_one(t.x, c, g * t.x[r])
         self._push((c * math.sqrt(abs(g)))[:, None], -1.0 if g > 0 else 1.0)
-        return c / den
+        return c / self.pivot
 
     def change_rhs(self, name: str, unknown: int, delta: float,
                    column: np.ndarray | None = None) -> None:
