@@ -5,6 +5,7 @@ sitting, with the fitted growth exponents.
                                     [--variants double single hierarchical hierarchical-single]
                                     [--repeat-below 20000 --repeat 3] [--threads 2]
                                     [--out runs/bench_scaling.jsonl] [--resume]
+                                    [--fit-from 10000] [--skip N:variant ...]
 
 The scene and the variants are bench_precision.py's (rough, H = 0.8, open, nu = 0.3, break
 law, lambda = 0.2, tol = 1e-10): ``double`` and ``single`` are the dense inverse in each
@@ -19,7 +20,8 @@ Prints, per size: the bonds, the breaks, and per variant the seconds and the pea
 memory (GiB), and whether its break sequence equals the first variant's. Then each variant's
 growth exponents of time and of the pull's memory (the rise of the peak over the resident set
 before the pull) against the bonds, by least squares in log-log over the sizes with at least
-``--fit-from`` bonds.
+``--fit-from`` bonds. ``--skip N:variant`` leaves a run out of the fit (one that shared the
+machine with other work, say); the table marks it with ``*``.
 """
 
 from __future__ import annotations
@@ -70,6 +72,8 @@ def main() -> None:
     ap.add_argument("--fit-from", type=int, default=10000)
     ap.add_argument("--out", default="runs/bench_scaling.jsonl")
     ap.add_argument("--resume", action="store_true")
+    ap.add_argument("--skip", nargs="*", default=[], metavar="N:VARIANT",
+                    help="runs left out of the fit")
     a = ap.parse_args()
     done: list[dict] = []
     if a.resume and os.path.exists(a.out):
@@ -120,9 +124,11 @@ def _report(done: list[dict], a: argparse.Namespace) -> None:
             sec = statistics.median(r["sec"] for r in rs[v])
             peak = statistics.median(r["peak"] for r in rs[v])
             pull = statistics.median(r["pull"] for r in rs[v])
-            line += f" {sec:>14.2f} {peak / 2**30:>6.2f}"
+            skip = f"{size}:{v}" in a.skip
+            line += f" {sec:>13.2f}{'*' if skip else ' '} {peak / 2**30:>6.2f}"
             same.append(all(r["sequence"] == first["sequence"] for r in rs[v]))
-            fit[v].append((first["bonds"], sec, max(pull, 1.0)))
+            if not skip:
+                fit[v].append((first["bonds"], sec, max(pull, 1.0)))
         print(line + "  " + ("yes" if all(same) else "NO: " + " ".join(
             v for v, s in zip(a.variants, same, strict=True) if not s)))
     for v, pts in fit.items():

@@ -203,7 +203,8 @@ class CompressedResponse:
 
     def describe(self) -> str:
         return (f"; the bursts read G_xx^-1 compressed, {self.computed} columns refined "
-                f"against the FFT operator to a relative residual of {self.worst:.1e} at most")
+                f"against the FFT operator ({self.refinements} corrections) to a relative "
+                f"residual of {self.worst:.1e} at most")
 
 
 #: the response of a pull without bursts, in its result
