@@ -290,7 +290,7 @@ class HierarchicalInverse:
         Pending rank-one terms kept before they are folded in (at least, :meth:`_balance`).
     capacity
         The most pending terms held (default: the larger of ``block`` and
-        :data:`FOLD_MAX`); an inverse that is never updated takes 1.
+        ``FOLD_MAX``); an inverse that is never updated takes 1.
     tol, leaf, max_rank
         The compression (module docstring).
     definite
@@ -728,7 +728,7 @@ class HierarchicalInverse:
               ) -> np.ndarray | None:
         r"""Add ``delta`` to the diagonal entry of ``unknown`` (as
         :meth:`~roughslip.linalg.inverse.UpdatableInverse.shift`: the new column, or None when
-        :math:`1 + \delta c_r` is numerically zero; its sign in :attr:`pivot` gives the change
+        :math:`1 + \delta c_r` is numerically zero; its sign in ``pivot`` gives the change
         of inertia). The assembler must give the shifted entry from now on (for
         :meth:`factor` and :meth:`add`); a fold adds the shift to the compressed leaf."""
         if self.definite:
