@@ -132,8 +132,10 @@ class CompressedResponse:
             raise NumericalError(f"G_xx on all bonds: {exc}") from None
         self.columns: OrderedDict[int, np.ndarray] = OrderedDict()
         self.capacity = max(16, CACHE_BYTES // (8 * max(n, 1)))  # columns kept
-        #: the largest relative residual reached, and the corrections made
-        self.worst, self.refinements = 0.0, 0
+        #: the largest relative residual reached
+        self.worst = 0.0
+        #: the refinements' corrections made
+        self.refinements = 0
         self.computed = 0  # columns computed (a dropped one again when read again)
         self.row_sums = self._solve(np.ones(n), self.inv.apply(np.ones(n)))
 
