@@ -32,8 +32,11 @@ Events: a weakening bond reaches :math:`d_c` (a positive shift of :math:`B`'s di
 stuck bond reaches its strength (it joins :math:`P`: :math:`B` is bordered), and, on a step of
 one bond, a moving bond's excess falls to 0. :math:`B^{-1}` is updated, not recomputed
 (:class:`~roughslip.linalg.inverse.UpdatableInverse`), and the pivot of each update says how
-its inertia changed; steps of one bond leave it stale until a collective step needs it, and it
-is refactorised from the part known to be definite, bordered by the bonds that joined since.
+its inertia changed. A step of one bond changes neither the moving set nor the softening, so it
+leaves the inverse current, and its events update it like any other's. A burst starts from the
+inverse the last burst of the pull left (:class:`Carry`), updated to its moving set when few
+bonds changed; else the inverse is factorised when a collective step first needs it, from the
+part known to be definite, bordered by the bonds that joined since.
 
 The pixel kernel's inverse is not exactly cooperative: bonds two pixels apart along a row or a
 column, with a bond in contact between them, couple with the wrong sign, by up to a few
@@ -59,6 +62,23 @@ from roughslip.linalg.inverse import UpdatableInverse
 LANCZOS_MIN = 200
 #: the self-unstable bonds tried, in order, for a step of one bond alone
 SOLO_TRIES = 8
+#: a burst updates the last burst's inverse of B when the bonds to remove, shift or border
+#: number at most this share of its moving set, and the updates since that inverse's
+#: factorisation, these included, at most its order; else it factorises afresh
+CARRY_SHARE = 0.125
+
+
+class Carry:
+    """The inverse of B as the last burst of a pull left it, with the moving set, the
+    directions and the softening it describes and its count of negative eigenvalues, for the
+    next burst to update (:meth:`_Ascent.adopt`). Empty (``inv`` None) until a burst leaves
+    one."""
+
+    def __init__(self) -> None:
+        self.inv: UpdatableInverse | None = None
+        self.P = self.sg = self.kt = np.empty(0)
+        self.neg = 0
+        self.updates = 0  # updates since its factorisation
 
 
 class _Ascent:
@@ -85,6 +105,7 @@ class _Ascent:
         self.ok = True
         self.neg = 0  # negative eigenvalues of B
         self.driver = -1
+        self.updates = 0  # updates of the inverse since its factorisation
         self.last: np.ndarray | None = None  # the last collective step (per bond)
         #: excess below which a moving bond counts as at its strength
         self.tiny = 1e-12 * rx.lam_s * rx.fs
@@ -130,9 +151,62 @@ class _Ascent:
             except NumericalError:
                 return False
             self.ok = False
-        self.fresh = True
+        self.fresh, self.updates = True, 0
         self._definite()
         return True
+
+    def adopt(self, c: Carry) -> bool:
+        """Take the last burst's inverse of B (``c``) and update it to this moving set: a
+        removal for each bond that left it or turned (the pivot :math:`(B^{-1})_{ii}` is the
+        Schur complement's reciprocal, so its sign is the inertia lost), a shift for each
+        softening that changed, a bordering for each bond that joined (the failing one among
+        them). False, and ``c`` emptied, when that costs more than a factorisation
+        (:data:`CARRY_SHARE`) or an update is singular: the burst factorises afresh."""
+        inv, P = c.inv, self.P
+        if inv is None or c.P.size != P.size:
+            return False
+        turned = c.P & P & (c.sg != self.sg)
+        out = np.flatnonzero(c.P & (~P | turned))
+        soft = np.flatnonzero(c.P & P & ~turned & (c.kt != self.kt))
+        new = np.flatnonzero(P & (~c.P | turned))
+        m, changes = int(np.count_nonzero(P)), out.size + soft.size + new.size
+        c.inv = None  # taken (or dropped)
+        if changes > CARRY_SHARE * m or c.updates + changes > m:
+            return False
+        inv.entries = self._entries
+        neg, driver = c.neg, -1
+        for i in out.tolist():
+            if not inv.remove(i):
+                return False
+            neg -= inv.pivot < 0
+            self._fold(inv)
+        for i in soft.tolist():  # the diagonal of B rises by the softening that ended
+            k = float(c.kt[i] - self.kt[i])
+            if inv.shift(i, k) is None:
+                return False
+            neg += (1 if k < 0 else -1) * (inv.pivot < 0)
+            self._fold(inv)
+        for i in new.tolist():
+            if not inv.add(np.array([i])):
+                return False
+            if inv.pivot < 0:
+                neg, driver = neg + 1, i
+            self._fold(inv)
+        self.inv, self.neg, self.driver = inv, int(neg), driver
+        self.fresh, self.updates = True, c.updates + changes
+        self._definite()
+        return True
+
+    def keep(self, c: Carry) -> None:
+        """Leave the inverse to the next burst (``c``), when it describes B."""
+        c.inv = self.inv if self.fresh else None
+        c.P, c.sg, c.kt = self.P.copy(), self.sg.copy(), self.kt.copy()
+        c.neg, c.updates = self.neg, self.updates
+
+    @staticmethod
+    def _fold(inv: UpdatableInverse) -> None:
+        if inv.k >= inv.block:
+            inv.flush()
 
     def _definite(self) -> None:
         if self.neg == 0:  # positive definite on all of the moving set
@@ -156,8 +230,8 @@ class _Ascent:
             if inv.pivot < 0:
                 self.neg += 1
                 self.driver = i
-        if inv.k >= inv.block:
-            inv.flush()
+        self.updates += 1
+        self._fold(inv)
         self._definite()
         return True
 
@@ -252,7 +326,8 @@ def _negative(D: np.ndarray) -> int:
 
 
 def land(rx: Relaxation, f: np.ndarray, w: np.ndarray, delta: np.ndarray, sigma: np.ndarray,
-         moving: np.ndarray, failing: int, best: float | None = None) -> Landing | None:
+         moving: np.ndarray, failing: int, best: float | None = None,
+         carry: Carry | None = None) -> Landing | None:
     r"""The least equilibrium above the fold (module docstring): ``f`` the forces, ``w`` the
     slips, ``delta`` the accumulated slips, ``sigma`` the directions (nonzero on ``moving``),
     ``moving`` the bonds that slip at the fold, ``failing`` the one among them whose failure
@@ -260,9 +335,14 @@ def land(rx: Relaxation, f: np.ndarray, w: np.ndarray, delta: np.ndarray, sigma:
 
     ``best``: as in :meth:`Relaxation.run`, stop at the start of a step where the sum of the
     strengths is at most ``best``. Returns None when the path cannot be followed on monotone
-    steps (module docstring): the caller follows the flow instead."""
+    steps (module docstring): the caller follows the flow instead.
+
+    ``carry``: the inverse of B the last burst of the same pull left (:class:`Carry`), updated
+    when few bonds changed; this burst leaves its own there."""
     a = _Ascent(rx, f, delta, sigma, moving)
     a.pending = [int(failing)]
+    if carry is not None:
+        a.adopt(carry)
     st = Landing(f.copy(), w.copy(), delta.copy(), np.where(moving, sigma, 0.0), moving.copy())
     K, n = rx.response, f.size
     st.peak = float(f.sum())
@@ -274,8 +354,8 @@ def land(rx: Relaxation, f: np.ndarray, w: np.ndarray, delta: np.ndarray, sigma:
             return st
         F = a.excess()
         q = a.solo(F)
-        if q >= 0:  # one bond alone: the inverse no longer describes B
-            ids, d_rows, stable, a.fresh = np.array([q]), np.ones(1), False, False
+        if q >= 0:  # one bond alone: B is unchanged, its events update the inverse
+            ids, d_rows, stable = np.array([q]), np.ones(1), False
         else:
             if not a.fresh and not a.refresh():
                 return None
@@ -339,6 +419,8 @@ def land(rx: Relaxation, f: np.ndarray, w: np.ndarray, delta: np.ndarray, sigma:
                 return None
     else:
         return None
+    if carry is not None:
+        a.keep(carry)
     st.moving = a.P.copy()
     st.sigma = np.where(a.P, a.sg, 0.0)
     st.w = w + a.sg * a.y

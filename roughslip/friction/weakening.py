@@ -123,6 +123,7 @@ class WeakeningState(TangentialState):
         self.snaps = 0  # bonds that reached their residual strength inside bursts
         self.discontinuous = False  # the last event was a burst
         self._relax: Relaxation | None = None
+        self._carry = least.Carry()  # the inverse of B one burst leaves the next
         self.failed_inside: list[tuple[str, int, float]] = []
         #: the largest force of the stable path so far, and whether the pull stopped early
         self.best, self.stopped, self._transient = -math.inf, False, False
@@ -507,7 +508,7 @@ class WeakeningState(TangentialState):
         sigma = self.sigma[:, X].copy()
         moving[p], sigma[p] = True, s
         best = self.best if self.opt.early_stop else None
-        land = least.land(relax, f, w, delta, sigma, moving, p, best=best)
+        land = least.land(relax, f, w, delta, sigma, moving, p, best=best, carry=self._carry)
         if land is None:  # not on monotone steps: the flow itself, from the slip rates
             phi, _, ids, live = self._rows()  # dw/dD = 1 - G df/dD
             dfdD = np.zeros(b.n)
