@@ -21,7 +21,7 @@ def _cooperative(seed: int, n: int = 24):
     force on every other bond), positive definite, and a fold: one bond at its strength
     whose softening exceeds its own stiffness, the rest stuck below theirs."""
     rng = np.random.default_rng(seed)
-    xy = rng.uniform(0, 6, (n, 2))
+    xy = rng.uniform(0, 6 * np.sqrt(n / 24), (n, 2))  # the same density at any n
     r = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
     C = np.where(r > 0, 0.6 / (1 + r ** 3), 0.0)
     K = np.diag(C.sum(axis=1) + rng.uniform(0.3, 0.6, n)) - C
@@ -179,3 +179,24 @@ def test_a_burst_updates_the_last_bursts_inverse_as_if_factorised(monkeypatch):
         worst = max(worst, np.abs(w1 - w2).max() / np.abs(w2).max())
     assert worst <= 1e-10
     np.testing.assert_allclose(f_carried, f_fresh, rtol=1e-12)
+
+
+@pytest.mark.parametrize("seed", [2, 3])
+def test_the_unstable_eigenvector_from_the_inverse_is_b_s(seed):
+    """With one negative eigenvalue mu, Lanczos on the inverse of B (its only negative
+    eigenvalue is 1/mu) gives the lowest eigenpair of B that Lanczos on B itself and a dense
+    eigendecomposition give: mu to 1e-10 relative, the eigenvector to 1e-8."""
+    n = least.LANCZOS_MIN + 100
+    K, fz, f, sigma, _, p = _cooperative(seed, n)
+    rx = relax.Relaxation(DenseResponse(K), fz, LAM_S, LAM_D, DC)
+    a = least._Ascent(rx, f, np.zeros(n), sigma, np.ones(n, dtype=bool))
+    a.kt[:] = np.where(np.arange(n) == p, a.kap, 0.0)  # only the failing bond softens
+    a.ok, a.pending = False, []
+    assert a.refresh() and a.neg == 1
+    rows = np.flatnonzero(a.inv.live)
+    B = a._entries(a.inv.ids[rows], a.inv.ids[rows], "C")
+    w, V = np.linalg.eigh(B)
+    for on_inverse in (True, False):
+        mu, v = a._lowest(rows, on_inverse)
+        assert mu == pytest.approx(w[0], rel=1e-10)
+        assert np.abs(v * np.sign(v @ V[:, 0]) - V[:, 0]).max() <= 1e-8

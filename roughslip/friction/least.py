@@ -52,7 +52,7 @@ import math
 
 import numpy as np
 from scipy import linalg
-from scipy.sparse.linalg import eigsh
+from scipy.sparse.linalg import LinearOperator, eigsh
 
 from roughslip.errors import NumericalError
 from roughslip.friction.relax import Landing, Relaxation
@@ -280,23 +280,41 @@ class _Ascent:
             if d is not None and np.any(d > 0):
                 return d
         rows = np.flatnonzero(inv.live)
-        mu, v = self._lowest(self._entries(inv.ids[rows], inv.ids[rows], "C"))
-        if not mu < 0:
-            return None
-        d = np.zeros(inv.m)
-        d[rows] = v * np.sign(v.sum())
-        return self._forward(d)
+        ways = (True, False) if self.neg == 1 and rows.size > LANCZOS_MIN else (False,)
+        for on_inverse in ways:
+            mu, v = self._lowest(rows, on_inverse)
+            if mu < 0:
+                d = np.zeros(inv.m)
+                d[rows] = v * np.sign(v.sum())
+                d = self._forward(d)
+                if d is not None or not on_inverse:
+                    return d
+        return None
 
-    def _lowest(self, B: np.ndarray) -> tuple[float, np.ndarray]:
-        """The lowest eigenpair of ``B`` on the live rows (Lanczos on large sets, from the
-        last collective step)."""
-        m = B.shape[0]
+    def _lowest(self, rows: np.ndarray, on_inverse: bool) -> tuple[float, np.ndarray]:
+        r"""The lowest eigenpair of B on the live ``rows``: a dense eigensolver on small
+        sets, else Lanczos from the last collective step, on B, or (``on_inverse``, when B has
+        one negative eigenvalue :math:`\mu`) on its inverse, whose only negative eigenvalue is
+        :math:`1/\mu` and, near a fold, far the largest: no B to assemble, and few
+        iterations."""
+        inv, m = self.inv, rows.size
+        v0 = np.full(m, 1e-3)
+        if self.last is not None:
+            v0 += self.last[inv.ids[rows]]
+        if on_inverse:
+            x = np.zeros(inv.m)
+
+            def times(v: np.ndarray) -> np.ndarray:
+                x[rows] = np.ravel(v)
+                return inv.apply(x)[rows]
+
+            op = LinearOperator((m, m), matvec=times, dtype=float)
+            nu, v = eigsh(op, k=1, which="SA", v0=v0, tol=1e-14)
+            return (1.0 / float(nu[0]) if nu[0] < 0 else 0.0), v[:, 0]
+        B = self._entries(inv.ids[rows], inv.ids[rows], "C")
         if m <= LANCZOS_MIN:
             mu, v = linalg.eigh(B, subset_by_index=[0, 0], check_finite=False)
             return float(mu[0]), v[:, 0]
-        v0 = np.full(m, 1e-3)
-        if self.last is not None:
-            v0 += self.last[self.inv.ids[self.inv.live]]
         mu, v = eigsh(B, k=1, which="SA", v0=v0, tol=1e-14)
         return float(mu[0]), v[:, 0]
 
