@@ -64,6 +64,19 @@ def test_a_dropped_column_comes_back_with_the_same_bits(scene):
     assert np.array_equal(c.column(7), first) and c.computed == 4
 
 
+def test_the_diagonal_outlives_the_columns(scene):
+    """A burst's stability tests read one diagonal entry from each of many columns: each is
+    computed once, kept beyond the column budget, and is its column's entry, bit for bit."""
+    b = Bonds(scene, 0.2)
+    c = CompressedResponse(b, 1e-10)
+    c.capacity = 2
+    q = np.arange(0, b.n, 7)
+    d = c.diagonal(q)
+    assert c.computed == q.size and len(c.columns) == 2
+    assert np.array_equal(c.diagonal(q[::-1]), d[::-1]) and c.computed == q.size
+    assert all(c.column(int(k))[k] == d[r] for r, k in enumerate(q[:5]))
+
+
 @pytest.mark.parametrize(("seed", "depth", "lam_d", "dc"), [(2, 2.0, 0.0, 0.05),
                                                            (3, 2.5, 0.1, 0.01)])
 def test_a_pull_on_the_compressed_response_takes_the_same_events(monkeypatch, seed, depth,

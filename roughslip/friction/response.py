@@ -137,12 +137,14 @@ class CompressedResponse:
         #: the refinements' corrections made
         self.refinements = 0
         self.computed = 0  # columns computed (a dropped one again when read again)
+        self.diag = np.full(n, np.nan)  # K_qq, once read
         self.row_sums = self._solve(np.ones(n), self.inv.apply(np.ones(n)))
 
     @staticmethod
     def memory_bytes(n: int) -> int:
-        """What it holds for ``n`` bonds (bytes): the compressed inverse and the columns."""
-        return hierarchical_bytes(n, capacity=1) + CACHE_BYTES
+        """What it holds for ``n`` bonds (bytes): the compressed inverse, the columns and the
+        diagonal."""
+        return hierarchical_bytes(n, capacity=1) + CACHE_BYTES + 8 * n
 
     def _solve(self, e: np.ndarray, x: np.ndarray) -> np.ndarray:
         """``x`` refined until :math:`\\|e - G_{xx} x\\| \\le` ``tol`` :math:`\\|e\\|`."""
@@ -185,7 +187,13 @@ class CompressedResponse:
         return out
 
     def diagonal(self, i: np.ndarray) -> np.ndarray:
-        return np.array([self.column(int(q))[q] for q in np.asarray(i).ravel()])
+        """Kept apart from the columns, whose budget a burst's stability tests, one entry
+        from each of thousands of columns, would otherwise cycle through over and over (an
+        entry is the same bits whenever its column is computed)."""
+        i = np.asarray(i, dtype=np.int64).ravel()
+        for q in i[np.isnan(self.diag[i])].tolist():
+            self.diag[q] = self.column(q)[q]
+        return self.diag[i]
 
     def times(self, v: np.ndarray) -> np.ndarray:
         if not np.any(v):
