@@ -52,7 +52,7 @@ import math
 
 import numpy as np
 from scipy import linalg
-from scipy.sparse.linalg import LinearOperator, eigsh
+from scipy.sparse.linalg import ArpackNoConvergence, LinearOperator, eigsh
 
 from roughslip.errors import NumericalError
 from roughslip.friction.relax import Landing, Relaxation
@@ -180,7 +180,7 @@ class _Ascent:
                 return False
             neg -= inv.pivot < 0
             self._fold(inv)
-        for i in soft.tolist():  # the diagonal of B rises by the softening that ended
+        for i in soft.tolist():  # the diagonal of B moves by the change of softening
             k = float(c.kt[i] - self.kt[i])
             if inv.shift(i, k) is None:
                 return False
@@ -192,6 +192,8 @@ class _Ascent:
             if inv.pivot < 0:
                 neg, driver = neg + 1, i
             self._fold(inv)
+        if not inv.live.all() and not inv.compact():  # the steps read every row: none removed
+            return False
         self.inv, self.neg, self.driver = inv, int(neg), driver
         self.fresh, self.updates = True, c.updates + changes
         self._definite()
@@ -309,7 +311,10 @@ class _Ascent:
                 return inv.apply(x)[rows]
 
             op = LinearOperator((m, m), matvec=times, dtype=float)
-            nu, v = eigsh(op, k=1, which="SA", v0=v0, tol=1e-14)
+            try:
+                nu, v = eigsh(op, k=1, which="SA", v0=v0, tol=1e-14)
+            except ArpackNoConvergence:
+                return 0.0, v0  # Lanczos on B decides
             return (1.0 / float(nu[0]) if nu[0] < 0 else 0.0), v[:, 0]
         B = self._entries(inv.ids[rows], inv.ids[rows], "C")
         if m <= LANCZOS_MIN:

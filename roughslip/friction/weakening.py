@@ -586,6 +586,7 @@ class WeakeningState(TangentialState):
                 if self.stable():
                     return
         self.dshift[:] = shift
+        self._carry.inv = None  # the memory of a burst's inverse goes to this one's
         if not inv.factor(np.flatnonzero(~res), positive=False):
             raise MemoryLimitError("slip-weakening: out of memory for the inverse after a "
                                    "burst")
