@@ -200,3 +200,43 @@ def test_the_unstable_eigenvector_from_the_inverse_is_b_s(seed):
         mu, v = a._lowest(rows, on_inverse)
         assert mu == pytest.approx(w[0], rel=1e-10)
         assert np.abs(v * np.sign(v @ V[:, 0]) - V[:, 0]).max() <= 1e-8
+
+
+@pytest.mark.parametrize("seed", [4, 7, 11])
+def test_a_carried_inverse_counts_the_inertia_through_every_kind_of_update(monkeypatch,
+                                                                          seed):
+    """On an indefinite B (several negative eigenvalues), a carried inverse brought to a new
+    moving set by removals, sign turns, softenings that start and that end, and borderings:
+    the count of negative eigenvalues from the pivots is B's (dense eigenvalues), and the
+    inverse is B's to 1e-9 of the identity."""
+    monkeypatch.setattr(least, "CARRY_SHARE", 1.0)
+    rng = np.random.default_rng(seed)
+    n = 40
+    K, fz, f, _, _, _ = _cooperative(seed, n)
+    rx = relax.Relaxation(DenseResponse(K), fz, LAM_S, LAM_D, DC)
+    soft = 1.5 * np.diag(K)  # a softening above the bond's own stiffness
+    P1 = rng.random(n) < 0.7
+    sg1 = np.where(rng.random(n) < 0.8, 1.0, -1.0)
+    a1 = least._Ascent(rx, f, np.zeros(n), np.where(P1, sg1, 0.0), P1)
+    a1.kt[:] = np.where(P1 & (rng.random(n) < 0.3), soft, 0.0)
+    a1.ok, a1.pending = False, []  # the inertia from an LDL^T factorisation
+    assert a1.refresh() and a1.neg >= 2
+    carry = least.Carry()
+    a1.keep(carry)
+    P2, sg2, kt2 = P1.copy(), sg1.copy(), a1.kt.copy()
+    on, off = np.flatnonzero(P1), np.flatnonzero(~P1)
+    P2[rng.choice(on, 3, replace=False)] = False  # leave
+    P2[rng.choice(off, 3, replace=False)] = True  # join
+    both = np.flatnonzero(P1 & P2)
+    sg2[rng.choice(both, 2, replace=False)] *= -1  # turn
+    kt2[both[kt2[both] > 0][:3]] = 0.0  # the softening ends (the diagonal rises)
+    kt2[both[kt2[both] == 0][-1:]] = soft[both[kt2[both] == 0][-1:]]  # starts (falls)
+    a2 = least._Ascent(rx, f, np.zeros(n), np.where(P2, sg2, 0.0), P2)
+    a2.kt[:] = np.where(P2, kt2, 0.0)
+    assert a2.adopt(carry)
+    inv = a2.inv
+    ids = inv.ids[inv.live]
+    assert np.array_equal(np.sort(ids), np.flatnonzero(P2)) and inv.live.all()
+    B = a2._entries(ids, ids, "C")
+    assert a2.neg == int(np.sum(np.linalg.eigvalsh(B) < 0))
+    assert np.abs(inv.apply(np.eye(ids.size)) @ B - np.eye(ids.size)).max() <= 1e-9
