@@ -586,7 +586,8 @@ class WeakeningState(TangentialState):
                 if self.stable():
                     return
         self.dshift[:] = shift
-        self._carry.inv = None  # the memory of a burst's inverse goes to this one's
+        if not self.exact:  # the dense guard counted a burst's inverse beside this one
+            self._carry.inv = None
         if not inv.factor(np.flatnonzero(~res), positive=False):
             raise MemoryLimitError("slip-weakening: out of memory for the inverse after a "
                                    "burst")
