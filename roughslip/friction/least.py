@@ -34,7 +34,7 @@ one bond, a moving bond's excess falls to 0. :math:`B^{-1}` is updated, not reco
 (:class:`~roughslip.linalg.inverse.UpdatableInverse`), and the pivot of each update says how
 its inertia changed. A step of one bond changes neither the moving set nor the softening, so it
 leaves the inverse current, and its events update it like any other's. A burst starts from the
-inverse the last burst of the pull left (:class:`Carry`), updated to its moving set when few
+inverse the last burst of the pull left (``Carry``), updated to its moving set when few
 bonds changed; else the inverse is factorised when a collective step first needs it, from the
 part known to be definite, bordered by the bonds that joined since.
 
@@ -71,7 +71,7 @@ CARRY_SHARE = 0.125
 class Carry:
     """The inverse of B as the last burst of a pull left it, with the moving set, the
     directions and the softening it describes and its count of negative eigenvalues, for the
-    next burst to update (:meth:`_Ascent.adopt`). Empty (``inv`` None) until a burst leaves
+    next burst to update (``_Ascent.adopt``). Empty (``inv`` None) until a burst leaves
     one."""
 
     def __init__(self) -> None:
@@ -360,7 +360,7 @@ def land(rx: Relaxation, f: np.ndarray, w: np.ndarray, delta: np.ndarray, sigma:
     strengths is at most ``best``. Returns None when the path cannot be followed on monotone
     steps (module docstring): the caller follows the flow instead.
 
-    ``carry``: the inverse of B the last burst of the same pull left (:class:`Carry`), updated
+    ``carry``: the inverse of B the last burst of the same pull left (``Carry``), updated
     when few bonds changed; this burst leaves its own there."""
     a = _Ascent(rx, f, delta, sigma, moving)
     a.pending = [int(failing)]
