@@ -68,6 +68,18 @@ SOLO_TRIES = 8
 CARRY_SHARE = 0.125
 
 
+class _Owner:
+    """The assembler of an inverse of B, bound to the burst that holds the inverse now (a
+    carried inverse passes from burst to burst, each with its own directions and
+    softening)."""
+
+    def __init__(self, a: _Ascent) -> None:
+        self.a = a
+
+    def entries(self, i: np.ndarray, j: np.ndarray, order: str) -> np.ndarray:
+        return self.a._entries(i, j, order)
+
+
 class Carry:
     """The inverse of B as the last burst of a pull left it, with the moving set, the
     directions and the softening it describes and its count of negative eigenvalues, for the
@@ -76,6 +88,7 @@ class Carry:
 
     def __init__(self) -> None:
         self.inv: UpdatableInverse | None = None
+        self.owner: _Owner | None = None  # its assembler
         self.P = self.sg = self.kt = np.empty(0)
         self.neg = 0
         self.updates = 0  # updates since its factorisation
@@ -97,7 +110,9 @@ class _Ascent:
         self.free = (rx.lam_d == 0) & (delta >= rx.dc)  # zero strength: slips either way
         self.kap = (rx.lam_s - rx.lam_d) / rx.dc * rx.fz
         self.kt = np.where(moving & (delta < rx.dc), self.kap, 0.0)  # softening on P
-        self.inv = UpdatableInverse(self._entries, n, room=rx.response.room, definite=False)
+        self.owner = _Owner(self)
+        self.inv = UpdatableInverse(self.owner.entries, n, room=rx.response.room,
+                                    definite=False)
         self.fresh = False  # whether the inverse and neg describe the current B
         #: bonds joined since B was last known positive definite on the rest of the moving
         #: set (ok), in order: a factorisation bordered by them gives the inertia cheaply
@@ -173,7 +188,7 @@ class _Ascent:
         c.inv = None  # taken (or dropped)
         if changes > CARRY_SHARE * m or c.updates + changes > m:
             return False
-        inv.entries = self._entries
+        c.owner.a = self  # the carried inverse's entries are this burst's B
         neg, driver = c.neg, -1
         for i in out.tolist():
             if not inv.remove(i):
@@ -194,14 +209,14 @@ class _Ascent:
             self._fold(inv)
         if not inv.live.all() and not inv.compact():  # the steps read every row: none removed
             return False
-        self.inv, self.neg, self.driver = inv, int(neg), driver
+        self.inv, self.owner, self.neg, self.driver = inv, c.owner, int(neg), driver
         self.fresh, self.updates = True, c.updates + changes
         self._definite()
         return True
 
     def keep(self, c: Carry) -> None:
         """Leave the inverse to the next burst (``c``), when it describes B."""
-        c.inv = self.inv if self.fresh else None
+        c.inv, c.owner = (self.inv, self.owner) if self.fresh else (None, None)
         c.P, c.sg, c.kt = self.P.copy(), self.sg.copy(), self.kt.copy()
         c.neg, c.updates = self.neg, self.updates
 
